@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Set up the workbench on a fresh Debian 12 / Python 3.11 machine, then run a job.
+#   bash packaging/setup.sh demo   # set up, then run the headless demo (the main job)
+#   bash packaging/setup.sh test   # set up, then run the full test suite
+#   bash packaging/setup.sh        # set up only
+# Idempotent: a second run reuses .venv and skips what is installed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+job="${1:-none}"; shift || true
+PY="${PYTHON:-python3.11}"
+command -v "$PY" >/dev/null || PY=python3
+
+# Debian packages: a recent LLVM for Mitsuba's llvm variants, Xvfb + xcb libs for GUI tests.
+apt_pkgs=(libllvm19 xvfb libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-render-util0 libxkbcommon-x11-0 libxcb-xinerama0 libxcb-randr0 libxcb-shape0 libxcb-cursor0 libgl1 libegl1 libosmesa6)
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+  missing=()
+  for p in "${apt_pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+  if [ ${#missing[@]} -gt 0 ]; then
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+  fi
+fi
+
+if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
+VPY=.venv/bin/python
+stamp=.venv/.installed-$(cat pyproject.toml packaging/setup.sh | sha1sum | cut -c1-12)
+if [ ! -f "$stamp" ]; then
+  "$VPY" -m pip install -q --upgrade pip
+  # torch first and pinned: an unpinned torch drags in several GB of CUDA packages.
+  "$VPY" -m pip install -q "torch==2.13.0"
+  "$VPY" -m pip install -q -e ".[gui,detect,test]"
+  rm -f .venv/.installed-*; touch "$stamp"
+fi
+
+case "$job" in
+  demo) exec .venv/bin/workbench demo --out "${1:-demo-output}" ;;
+  test) exec .venv/bin/python -m pytest "$@" ;;
+  none) ;;
+  *) echo "unknown job '$job' (use: demo | test)" >&2; exit 2 ;;
+esac
