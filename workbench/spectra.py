@@ -69,7 +69,8 @@ def blackbody_spd(temperature_K: float, wavelengths_nm: np.ndarray) -> np.ndarra
         raise ValueError(f"blackbody temperature must be > 0 K, got {temperature_K}")
     import colour
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
-    return colour.colorimetry.planck_law(wl * 1e-9, temperature_K) * 1e-9
+    values = colour.colorimetry.planck_law(np.atleast_1d(wl) * 1e-9, temperature_K) * 1e-9
+    return np.asarray(values, dtype=np.float64).reshape(wl.shape)
 
 
 def daylight_spd(cct_K: float, wavelengths_nm: np.ndarray) -> np.ndarray:
