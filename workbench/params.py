@@ -11,3 +11,9 @@ class Params(BaseModel):
     allowed range so that a bad value is refused with the field, the value and the range."""
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False)
+
+    def updated(self, **changes):
+        """A validated copy with some fields changed (model_copy(update=…) would skip validation)."""
+        data = self.model_dump()
+        data.update({k: v.model_dump() if isinstance(v, BaseModel) else v for k, v in changes.items()})
+        return type(self).model_validate(data)

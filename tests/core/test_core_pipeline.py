@@ -1,0 +1,107 @@
+"""The staged pipeline: caching by dependency, hand-computed electrons, hard cases, no NaN."""
+import numpy as np
+import pytest
+
+from workbench import spectra
+from workbench.pipeline import Pipeline, camera_hfov_deg
+from workbench.project import Project, load_project
+from workbench.scene.params import SceneParams
+from workbench.sensor.cfa import channel_qe
+from workbench.units import band_widths_nm
+
+
+def small(project: Project, rows=48, cols=64, keep_fov=True, **sensor) -> Project:
+    """A smaller sensor; with keep_fov the pixels grow so the field of view stays the same."""
+    pitch = project.sensor.pixel_pitch_um * (project.sensor.cols / cols if keep_fov else 1.0)
+    return edit(project, "sensor", rows=rows, cols=cols, pixel_pitch_um=pitch, **sensor)
+
+
+def edit(project: Project, section: str, **changes) -> Project:
+    return project.updated(**{section: getattr(project, section).updated(**changes)})
+
+
+def test_stages_recompute_only_downstream_of_a_change():
+    project = small(load_project("paper_camera"))
+    pipe = Pipeline(project)
+    pipe.run()
+    assert pipe.recomputed == ["scene", "optics", "signal", "sensor", "isp"]
+    pipe.set_project(edit(project, "isp", demosaic="malvar2004"))
+    pipe.run()
+    assert pipe.recomputed == ["isp"]
+    pipe.set_project(edit(pipe.project, "sensor", read_noise_V=2e-3))
+    pipe.run()
+    assert pipe.recomputed == ["sensor", "isp"]
+    pipe.set_project(edit(pipe.project, "sensor", pixel_pitch_um=2.0))
+    pipe.run()
+    assert pipe.recomputed == ["scene", "optics", "signal", "sensor", "isp"]   # the field of view changed
+    pipe.set_project(edit(pipe.project, "optics", f_number=2.8))
+    pipe.run()
+    assert pipe.recomputed == ["optics", "signal", "sensor", "isp"]
+
+
+def test_mean_electrons_of_a_uniform_scene_match_the_hand_computed_value():
+    # Camera equation + t·A·FF·ΣE·QE·Δλ by hand, noise off, fixed exposure.
+    project = small(load_project("paper_camera"), rows=32, cols=32, noise_flag=-1, exposure_s=0.01,
+                    bit_depth=0)
+    project = edit(project, "scene", kind="uniform", adjust_illuminance_lux=None, mean_luminance_cd_m2=100.0)
+    project = edit(project, "optics", off_axis="none")
+    result = Pipeline(project).run()
+    wl = project.scene.wavelengths.grid()
+    radiance = result.scene.radiance_photons[0, 0].astype(np.float64)
+    f_m, n, d = project.optics.focal_length_mm * 1e-3, project.optics.f_number, project.scene.distance_m
+    m = f_m / (d - f_m)
+    irradiance = np.pi * radiance / (1 + 4 * n**2 * (1 + m) ** 2)
+    s = project.sensor
+    qe = channel_qe(s, wl)
+    expected = 0.01 * s.pixel_area_m2 * s.fill_factor * (irradiance * band_widths_nm(wl)) @ qe   # per channel
+    img = result.sensor_image
+    for k, name in enumerate(img.channel_names):
+        got = img.electrons[img.channel_mask(k)].mean()
+        assert got == pytest.approx(expected[k], rel=0.005), name
+
+
+@pytest.mark.parametrize("sensor_changes", [
+    dict(exposure_s=0.0),                       # zero exposure
+    dict(exposure_s=100.0),                     # saturates every pixel
+    dict(rows=1, cols=1),                       # 1×1 sensor
+    dict(rows=7, cols=13),                      # odd-sized sensor
+])
+def test_hard_cases_stay_finite(sensor_changes):
+    rows, cols = sensor_changes.pop("rows", 24), sensor_changes.pop("cols", 32)
+    project = small(load_project("paper_camera"), rows=rows, cols=cols, keep_fov=False, **sensor_changes)
+    result = Pipeline(project).run()
+    for arr in (result.signal_rate_e_per_s, result.sensor_image.dn, result.isp.raw, result.isp.linear,
+                result.isp.srgb):
+        assert np.all(np.isfinite(arr))
+    dn = result.sensor_image.dn
+    if sensor_changes.get("exposure_s") == 100.0:
+        assert np.all(dn == result.sensor_image.max_dn)
+    if sensor_changes.get("exposure_s") == 0.0:
+        assert dn.mean() < 2          # read noise only, clipped at 0
+
+
+def test_hdr_tunnel_through_every_sensor_preset_has_no_overflow():
+    from workbench.sensor.params import SENSOR_PRESETS
+    for name, preset in SENSOR_PRESETS.items():
+        project = Project(scene=SceneParams(kind="hdr_tunnel", wavelengths=dict(start_nm=400, stop_nm=1000,
+                                                                                  step_nm=50)),
+                          sensor=preset)
+        project = small(project, rows=30, cols=40, keep_fov=False)
+        result = Pipeline(project).run()
+        irr = result.optical_image.irradiance_photons
+        assert irr.max() / max(irr[irr > 0].min(), 1e-30) > 1e5
+        for arr in (result.signal_rate_e_per_s, result.sensor_image.dn, result.isp.srgb):
+            assert np.all(np.isfinite(arr)), name
+        assert result.sensor_image.dn.max() <= result.sensor_image.max_dn
+
+
+def test_camera_field_of_view_is_the_papers():
+    assert camera_hfov_deg(load_project("paper_camera")) == pytest.approx(44.0, abs=0.01)
+
+
+def test_illuminance_adjustment():
+    project = small(load_project("paper_camera"))
+    oi = Pipeline(project).optical_image()
+    lux = spectra.illuminance_from_photons(oi.irradiance_photons.reshape(-1, oi.wavelengths_nm.size).mean(0),
+                                           oi.wavelengths_nm)
+    assert float(lux) == pytest.approx(1000.0, rel=1e-4)
