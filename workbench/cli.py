@@ -9,7 +9,8 @@ import sys
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
 COMMAND_MODULES = ("core", "render", "lens")
 # Modules that register benchmarks when imported.
-BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics")
+BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
+                 "workbench.isp.bench")
 
 
 def _bench(args: argparse.Namespace) -> int:
