@@ -34,9 +34,10 @@ class Mesh:
 class CityObject:
     """One labelled object (a car, a pedestrian, a building …) made of one or more meshes.
 
-    class_name is the label class ('car', 'pedestrian', 'bus', 'building', 'tree', 'lamp',
-    'bench', 'mailbox', 'road', 'sidewalk', 'marking', 'ground'); instance_id is unique in the
-    city (> 0; 0 means background/sky). The meshes are in world coordinates."""
+    class_name is the label class ('car', 'pedestrian', 'bus', 'truck', 'building', 'tree',
+    'lamp', 'bench', 'mailbox', 'road', 'sidewalk', 'marking', 'ground'; see CLASS_IDS);
+    instance_id is unique in the city (> 0; 0 means background/sky). The meshes are in world
+    coordinates."""
 
     class_name: str
     instance_id: int
@@ -47,12 +48,17 @@ class CityObject:
 
 @dataclass
 class CameraPose:
-    """Camera position (m) and orientation: yaw (pan) about +Z from +X, pitch (tilt) up, roll (deg)."""
+    """Camera position (m) and orientation: yaw (pan) about +Z from +X, pitch (tilt) up, roll (deg).
+
+    Roll is a right-handed rotation about the viewing direction (positive leans the camera's up
+    vector to its right); `workbench.scene.city.poses.pose_basis` gives forward/right/up.
+    meta holds how the pose was made (mode, lane_index, lane_heading_deg, pan_offset_deg)."""
 
     position_m: np.ndarray
     pan_deg: float
     tilt_deg: float
     roll_deg: float
+    meta: dict = field(default_factory=dict)
 
     def forward(self) -> np.ndarray:
         p, t = np.radians(self.pan_deg), np.radians(self.tilt_deg)
