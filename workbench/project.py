@@ -43,7 +43,8 @@ class Project(Params):
     schema_version: int = SCHEMA_VERSION
     name: str = "untitled"
     description: str = ""
-    seed: int = Field(0, ge=0, le=2**63 - 1)
+    seed: int = Field(0, ge=0, le=2**63 - 1,
+                      description="master seed of data sets: frame i's city, pose and noise seeds derive from it")
     scene: SceneParams = SceneParams()
     city: CityRecipe | None = None
     pose: PoseParams | None = None
@@ -128,6 +129,9 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)          # mkstemp makes 0600; give the usual file mode
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
             fh.flush()
