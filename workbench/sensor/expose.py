@@ -167,6 +167,8 @@ def expose(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
                                        else np.zeros(0)),
                        exposure_s=exposure, max_dn=params.max_dn,
                        meta={"noise_flag": params.noise_flag, "lsb_V": params.lsb_V,
+                             # the ISP subtracts this black level (code of the analog offset)
+                             "black_level_dn": max(0.0, params.analog_offset_V) / params.lsb_V,
                              "bit_depth": params.bit_depth,
                              "conversion_gain_V_per_e": params.conversion_gain_V_per_e,
                              "voltage_swing_V": params.voltage_swing_V,
