@@ -1,0 +1,59 @@
+"""Variant selection: preference, fallback order and clear refusals (pure choice + this machine)."""
+import os
+
+import pytest
+
+from workbench.render.variants import SPECTRAL_VARIANTS, choose_variant, find_libllvm, select_variant
+
+ALL = list(SPECTRAL_VARIANTS)
+
+
+def test_prefers_gpu_then_cpu_jit_then_scalar():
+    assert choose_variant(ALL, {"cuda": True, "llvm": True})[0] == "cuda_ad_spectral"
+    v, why = choose_variant(ALL, {"cuda": False, "llvm": True})
+    assert v == "llvm_ad_spectral" and "cuda backend is not available" in why[0]
+    v, why = choose_variant(ALL, {"cuda": False, "llvm": False})
+    assert v == "scalar_spectral" and len(why) == 2
+
+
+def test_preference_and_missing_builds():
+    assert choose_variant(ALL, {"cuda": True, "llvm": True}, "scalar_spectral")[0] == "scalar_spectral"
+    v, why = choose_variant(["scalar_spectral"], {"cuda": True, "llvm": True}, "llvm_ad_spectral")
+    assert v == "scalar_spectral" and "not compiled" in why[0]
+
+
+def test_refusals_name_the_value():
+    with pytest.raises(ValueError, match="llvm_ad_rgb"):
+        choose_variant(ALL, {}, "llvm_ad_rgb")
+    with pytest.raises(ValueError, match="no spectral Mitsuba variant"):
+        choose_variant(["scalar_rgb"], {"cuda": True, "llvm": True})
+
+
+def test_this_machine_sets_llvm_path_and_a_spectral_variant():
+    v = select_variant()
+    assert v in SPECTRAL_VARIANTS
+    import mitsuba as mi
+    assert mi.variant() == v
+    if find_libllvm() is not None:
+        assert os.environ.get("DRJIT_LIBLLVM_PATH")
+    assert select_variant("scalar_spectral") == "scalar_spectral"
+    select_variant()
+
+
+def test_a_variant_that_fails_to_load_falls_back(monkeypatch, caplog):
+    import mitsuba as mi
+
+    select_variant("scalar_spectral")
+    real = mi.set_variant
+
+    def failing(name, *args):
+        if name == "llvm_ad_spectral":
+            raise RuntimeError("simulated JIT start-up failure")
+        return real(name, *args)
+
+    monkeypatch.setattr(mi, "set_variant", failing)
+    with caplog.at_level("WARNING"):
+        assert select_variant("llvm_ad_spectral") == "scalar_spectral"
+    assert "simulated JIT start-up failure" in caplog.text
+    monkeypatch.undo()
+    assert select_variant() == "llvm_ad_spectral" or not find_libllvm()
