@@ -40,6 +40,10 @@ class CancelToken:
     def cancelled(self) -> bool:
         return self._event.is_set()
 
+    def is_set(self) -> bool:
+        """threading.Event's spelling, so a token works wherever an Event is accepted."""
+        return self._event.is_set()
+
     def check(self) -> None:
         """Raise JobCancelled if cancellation was asked for."""
         if self._event.is_set():

@@ -105,3 +105,16 @@ def test_illuminance_adjustment():
     lux = spectra.illuminance_from_photons(oi.irradiance_photons.reshape(-1, oi.wavelengths_nm.size).mean(0),
                                            oi.wavelengths_nm)
     assert float(lux) == pytest.approx(1000.0, rel=1e-4)
+
+
+def test_pipeline_job_cancels_between_stages():
+    from workbench.jobs import CancelToken, JobCancelled
+    token = CancelToken()
+    job = Pipeline(small(load_project("paper_camera"))).run_job(token)
+    first = next(job)
+    assert first.message == "scene" and first.fraction == 0.0
+    next(job)
+    token.cancel()
+    assert token.is_set()
+    with pytest.raises(JobCancelled):
+        next(job)
