@@ -10,7 +10,8 @@ import sys
 COMMAND_MODULES = ("core", "render", "lens")
 # Modules that register benchmarks when imported.
 BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
-                 "workbench.isp.bench")
+                 "workbench.isp.bench", "workbench.sensor.bench",
+                 "workbench.optics.lens.bench")
 
 
 def _bench(args: argparse.Namespace) -> int:
