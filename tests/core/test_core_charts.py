@@ -56,3 +56,10 @@ def test_bad_sizes_are_refused():
         charts.uniform_scene(size=(0, 4))
     with pytest.raises(ValueError, match="too large"):
         charts.uniform_scene(size=(100000, 100000))
+
+
+def test_chart_depth_is_measured_along_each_ray():
+    s = charts.uniform_scene(size=(3, 101), fov_deg=90.0, distance_m=2.0)
+    assert s.depth_m[1, 50] == pytest.approx(2.0, rel=1e-3)                    # on axis
+    tan_x = (0.5 - 101 / 2) * 2 * np.tan(np.radians(45)) / 101              # left column centre
+    assert s.depth_m[1, 0] == pytest.approx(2.0 * np.hypot(1.0, tan_x), rel=1e-5)

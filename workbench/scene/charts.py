@@ -29,6 +29,15 @@ def _check_size(size: tuple[int, int]) -> tuple[int, int]:
     return rows, cols
 
 
+def plane_depth_m(size: tuple[int, int], fov_deg: float, distance_m: float) -> np.ndarray:
+    """Distance (m) along each sample's ray to a fronto-parallel plane at distance_m."""
+    rows, cols = size
+    t = 2 * np.tan(np.radians(fov_deg) / 2) / cols            # tangent per sample
+    x = (np.arange(cols) + 0.5 - cols / 2) * t
+    y = (np.arange(rows) + 0.5 - rows / 2) * t
+    return (distance_m * np.sqrt(1 + x[None, :] ** 2 + y[:, None] ** 2)).astype(np.float32)
+
+
 def _scale_to_mean_luminance(reflectance_map: np.ndarray, white_photons: np.ndarray,
                              wavelengths_nm: np.ndarray, mean_luminance_cd_m2: float) -> np.ndarray:
     """radiance = reflectance × illuminant, scaled so the image's mean luminance is as asked."""
@@ -51,7 +60,7 @@ def uniform_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     white = _illuminant_photons(illuminant, wl, 1.0) * mean_luminance_cd_m2
     radiance = np.broadcast_to(white.astype(np.float32), (rows, cols, wl.size)).copy()
-    return Scene(radiance, wl, fov_deg, distance_m, depth_m=np.full((rows, cols), distance_m, np.float32),
+    return Scene(radiance, wl, fov_deg, distance_m, depth_m=plane_depth_m((rows, cols), fov_deg, distance_m),
                  name=f"uniform {illuminant}", meta={"illuminant": illuminant, "reflectance": reflectance})
 
 
@@ -86,7 +95,7 @@ def macbeth_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
     refl_map = table[np.where(layout < 0, 24, layout)]
     white = _illuminant_photons(illuminant, wl, 1.0)
     radiance = _scale_to_mean_luminance(refl_map, white, wl, mean_luminance_cd_m2)
-    return Scene(radiance, wl, fov_deg, distance_m, depth_m=np.full((rows, cols), distance_m, np.float32),
+    return Scene(radiance, wl, fov_deg, distance_m, depth_m=plane_depth_m((rows, cols), fov_deg, distance_m),
                  name=f"Macbeth {illuminant}", meta={"illuminant": illuminant, "layout": layout})
 
 
@@ -115,7 +124,7 @@ def slanted_edge_scene(angle_deg: float = 5.0, contrast: float = 0.8, illuminant
     white = _illuminant_photons(illuminant, wl, 1.0)
     radiance = _scale_to_mean_luminance(np.broadcast_to(refl_map, (rows, cols, 1)), white, wl,
                                         mean_luminance_cd_m2)
-    return Scene(radiance, wl, fov_deg, distance_m, depth_m=np.full((rows, cols), distance_m, np.float32),
+    return Scene(radiance, wl, fov_deg, distance_m, depth_m=plane_depth_m((rows, cols), fov_deg, distance_m),
                  name="slanted edge", meta={"angle_deg": angle_deg, "contrast": contrast})
 
 
@@ -146,7 +155,7 @@ def hdr_tunnel_scene(exit_luminance_cd_m2: float = 20000.0, tunnel_luminance_cd_
     radiance[road] = wall * 0.4
     radiance[lamp] = lamp_rad
     radiance[exit_mask] = day
-    depth = np.where(exit_mask, 1000.0, distance_m).astype(np.float32)
+    depth = np.where(exit_mask, 1000.0, plane_depth_m((rows, cols), fov_deg, distance_m)).astype(np.float32)
     return Scene(radiance, wl, fov_deg, distance_m, depth_m=depth, name="HDR tunnel",
                  meta={"exit_mask": exit_mask,
                        "dynamic_range": exit_luminance_cd_m2 / (0.4 * tunnel_luminance_cd_m2)})
