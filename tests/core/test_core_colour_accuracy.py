@@ -1,7 +1,6 @@
 """ΔE2000 of the Macbeth chart through the whole default pipeline under D65 (paper camera)."""
 import colour
 import numpy as np
-import pytest
 from scipy.ndimage import binary_erosion
 
 from workbench import spectra

@@ -6,25 +6,18 @@ pixel signal + exposure/noise/ADC + demosaic/colour/sRGB must take ≤ 30 ms at 
 from __future__ import annotations
 
 import resource
-import statistics
-import time
 import tracemalloc
 
 import numpy as np
 
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import median_times_ms
 
 LIVE_PREVIEW_BUDGET_MS = 30.0
 
 
 def _median_ms(fn, repeats: int) -> float:
-    fn()  # warm-up (caches, first-touch allocations)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * statistics.median(times)
+    return median_times_ms(fn, repeats)[0]
 
 
 def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 20.0) -> dict:

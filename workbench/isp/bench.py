@@ -2,10 +2,10 @@
 (our bilinear against colour-demosaicing's; ΔE2000 of a Macbeth chart through the pipeline)."""
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
+from workbench.bench.timing import median_times_ms
 from workbench.bench import BenchResult, register_bench
 from workbench.isp.color import fit_sensor_to_xyz, macbeth_responses, srgb_encode
 from workbench.isp.demosaic import DEMOSAIC_METHODS, demosaic_bilinear
@@ -30,19 +30,6 @@ def _sensor_image(linear: np.ndarray, qe: np.ndarray, wl: np.ndarray, max_dn: fl
     zeros = np.zeros_like(dn)
     return SensorImage(electrons=zeros, volts=zeros, dn=dn, cfa_tile=RGGB, channel_names=["R", "G", "B"],
                        pattern="RGGB", qe=qe, wavelengths_nm=wl, exposure_s=0.01, max_dn=max_dn)
-
-
-def _timed(fn, repeats: int) -> tuple[float, float]:
-    """Median wall time and median CPU time of this thread (ms); the latter is robust to other
-    processes competing for the cores."""
-    fn()
-    wall, cpu = [], []
-    for _ in range(repeats):
-        w0, c0 = time.perf_counter(), time.thread_time()
-        fn()
-        cpu.append(time.thread_time() - c0)
-        wall.append(time.perf_counter() - w0)
-    return 1e3 * float(np.median(wall)), 1e3 * float(np.median(cpu))
 
 
 def _macbeth_delta_e(qe: np.ndarray, wl: np.ndarray, patch_px: int = 16) -> tuple[float, float]:
@@ -77,7 +64,7 @@ def bench_isp(args) -> BenchResult:
     rows = []
 
     def row(stage, fn, reps=repeats, **extra):
-        wall, cpu = _timed(fn, reps)
+        wall, cpu = median_times_ms(fn, reps)
         rows.append({"stage": stage, "size": f"{w}x{h}", "median_ms": wall, "cpu_ms": cpu, **extra})
 
     import colour_demosaicing

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Callable, Generator
+from typing import Generator
 
 import numpy as np
 
@@ -22,6 +22,7 @@ from workbench.render.sampling import noise_constant, spp_for_error
 from workbench.render.scene_builder import build_scene
 from workbench.render.variants import select_variant
 from workbench.scene.city.types import CameraPose, City
+from workbench.jobs import run_job
 from workbench.scene.types import Scene
 
 DEFAULT_RANGE_NM = (400.0, 700.0)
@@ -194,12 +195,5 @@ def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width
     return (yield from render_loaded(mi_scene, film, params, fov_deg=fov_deg, cancel=cancel, name=name))
 
 
-def drive(gen: Generator, on_progress: Callable | None = None):
-    """Run a progress generator to the end (calling on_progress(step) on each) and return its result."""
-    while True:
-        try:
-            step = next(gen)
-        except StopIteration as stop:
-            return stop.value
-        if on_progress is not None:
-            on_progress(step)
+# Run a progress generator to the end, calling on_progress(step) on each; returns its result.
+drive = run_job

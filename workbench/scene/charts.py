@@ -10,7 +10,6 @@ import numpy as np
 
 from workbench import spectra
 from workbench.scene.types import Scene
-from workbench.units import energy_to_photons
 
 
 def _illuminant_photons(illuminant: str, wavelengths_nm: np.ndarray, luminance_cd_m2: float) -> np.ndarray:

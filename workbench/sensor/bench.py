@@ -2,10 +2,10 @@
 EMVA 1288 recovery error of the noise model (the sensor's speed-versus-error table)."""
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
+from workbench.bench.timing import median_times_ms
 from workbench.bench import BenchResult, register_bench
 from workbench.optics.types import OpticalImage
 from workbench.sensor.auto_exposure import auto_exposure
@@ -18,14 +18,8 @@ from workbench.sensor.signal import pixel_signal_rate
 
 def _median_ms(fn, repeats: int) -> dict:
     """Median wall-clock and process CPU time (all threads) of fn, in ms."""
-    fn()                                                              # warm caches and threads
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return {"ms": float(np.median(wall) * 1e3), "cpu_ms": float(np.median(cpu) * 1e3)}
+    wall, cpu = median_times_ms(fn, repeats)
+    return {"ms": wall, "cpu_ms": cpu}
 
 
 @register_bench("sensor", help="sensor stage timings (640×480×16) and EMVA 1288 recovery errors")
