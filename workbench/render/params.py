@@ -32,9 +32,11 @@ class RenderParams(Params):
     centres); 'basis' = `basis_count` smooth raised-cosine functions, projected back onto an
     `output_step_nm` grid; 'sensor' = the sensor's own channel QE curves as film responses
     (output = QE-weighted mean radiance per channel).
-    Sampling: exactly one of `spp` (fixed samples per pixel) or `target_rel_error` (relative RMS
+    Sampling: exactly one of `spp` (fixed samples per pixel), `target_rel_error` (relative RMS
     error wanted, spp = (c/e)² with c measured by a pilot render on this scene; `error_metric`
-    chooses broadband (channel sum) or the mean per-channel error). Rendering runs in chunks of
+    chooses broadband (channel sum) or the mean per-channel error) or `shot_noise_ratio` (render
+    noise = this fraction of the photon shot noise 1/√N_e of the sensor's exposure, N_e measured on
+    a pilot render through the project's optics and sensor; 0.3 adds ≈ 4 % to the total noise). Rendering runs in chunks of
     `chunk_spp` after a `preview_spp` preview, checking for cancellation between chunks.
     Wavelength range: `wavelength_min_nm`/`wavelength_max_nm`, or None to follow the sensor's QE
     (400–700 nm when no sensor is given); 'sensor' always uses the QE curves' own range."""
@@ -47,6 +49,7 @@ class RenderParams(Params):
     wavelength_max_nm: float | None = Field(None, ge=350.0, le=1000.0)
     spp: int | None = Field(64, ge=1, le=1 << 20)
     target_rel_error: float | None = Field(None, gt=0.0, lt=1.0)
+    shot_noise_ratio: float | None = Field(None, gt=0.0, le=10.0)
     error_metric: Literal["broadband", "per_channel"] = "broadband"
     pilot_spp: int = Field(4, ge=1, le=256)
     max_spp: int = Field(16384, ge=1, le=1 << 20)
@@ -59,9 +62,10 @@ class RenderParams(Params):
 
     @model_validator(mode="after")
     def _check(self) -> "RenderParams":
-        if (self.spp is None) == (self.target_rel_error is None):
-            raise ValueError(f"give exactly one of spp ({self.spp}) or target_rel_error "
-                             f"({self.target_rel_error}); set the other to None")
+        chosen = [n for n in ("spp", "target_rel_error", "shot_noise_ratio") if getattr(self, n) is not None]
+        if len(chosen) != 1:
+            raise ValueError(f"give exactly one of spp ({self.spp}), target_rel_error ({self.target_rel_error}) "
+                             f"or shot_noise_ratio ({self.shot_noise_ratio}); set the others to None")
         lo, hi = self.wavelength_min_nm, self.wavelength_max_nm
         if (lo is None) != (hi is None):
             raise ValueError("wavelength_min_nm and wavelength_max_nm must both be set or both None")

@@ -120,6 +120,9 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
     meta['cancelled'] = True, or RenderCancelled is raised when no chunk had finished."""
     import mitsuba as mi
 
+    if params.shot_noise_ratio is not None:
+        raise ValueError("render.shot_noise_ratio needs the project's sensor to turn into a target error; "
+                         "render a city project (render_city_frame) or give spp / target_rel_error")
     t0 = time.perf_counter()
     acc, done, index, c_meas, cancelled = None, 0, 0, None, False
 
