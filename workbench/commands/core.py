@@ -114,6 +114,8 @@ def cmd_characterize(args: argparse.Namespace) -> int:
     plot_photon_transfer(result, out / "photon_transfer.png")
     summary = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     print(json.dumps(summary, indent=2, default=float))
+    for note in result.get("notes", []):
+        print(f"note: {note}")
     print(f"wrote {out}/emva.json and {out}/photon_transfer.png")
     return 0
 

@@ -133,6 +133,11 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
         "dsnu_e": float(np.sqrt(max(dsnu_var, 0.0)) / gain_dn_per_e),
         "prnu_pct": float(100 * np.sqrt(max(prnu_var, 0.0)) / max(signal[half], 1e-30)),
         "black_level_V": cam.analog_offset_V,
+        "notes": ([f"the dark noise ({np.sqrt(var_dark):.2f} DN) is at or below the quantisation step of "
+                   f"{cam.bit_depth} bits ({1 / gain_dn_per_e:.0f} e⁻ per DN): the read noise cannot be "
+                   "measured through this ADC and is reported as a lower bound; characterise with "
+                   "bit_depth ≥ 12 or 0 (analog) to measure it"]
+                  if cam.bit_depth and var_dark <= 2 * quant_var else []),
         "configured": {
             "conversion_gain_uV_per_e": params.conversion_gain_uV_per_e,
             "conversion_gain_DN_per_e": (cam.conversion_gain_V_per_e * cam.analog_gain / cam.lsb_V
