@@ -73,6 +73,9 @@ class OpticsParams(Params):
     psf_field_zones: field heights sampled by the PSF grid (centre to corner).
     psf_azimuths: orientations each off-axis PSF is rotated to (interpolated between).
     psf_wavelengths: wavelengths at which the PSF grid traces PSFs (bands between interpolate).
+    psf_depth_nodes: object distances at which the PSF grid traces PSFs when the scene's depth
+        varies, evenly spaced in 1/distance (depths between interpolate); the focus distance is
+        always a node when it lies inside the scene's depth range (then at least 3 nodes).
     rays_per_sample: exit-pupil rays per output sample of the ray-traced model.
     raytrace_diffraction: the ray-traced model also applies the diffraction OTF of its
         working f-number (geometric blur ⊛ Airy); off = geometric optics only, as PBRT.
@@ -94,6 +97,7 @@ class OpticsParams(Params):
     psf_field_zones: int = Field(5, ge=2, le=32)
     psf_azimuths: int = Field(8, ge=1, le=64)
     psf_wavelengths: int = Field(3, ge=1, le=64)
+    psf_depth_nodes: int = Field(3, ge=1, le=16)
     rays_per_sample: int = Field(64, ge=1, le=4096)
     raytrace_diffraction: bool = True
     budget: ErrorBudget = Field(default_factory=ErrorBudget)

@@ -1,4 +1,4 @@
-"""Level 3: field × wavelength PSF grid of a real lens, with its distortion and illumination.
+"""Level 3: field × wavelength × depth PSF grid of a real lens, with its distortion and illumination.
 
 Steps, all from the lens engineer's traced quantities (workbench.optics.lens):
 1. the scene is projected as by the pinhole (same sampling, image upright);
@@ -15,17 +15,28 @@ Steps, all from the lens engineer's traced quantities (workbench.optics.lens):
    pixel-integrated (energy per output cell), which is exact for a scene of uniform patches
    sampled at cell centres; the diffraction level instead filters by the OTF on the sample
    grid (ISETCam), so the two differ slightly when the PSF is smaller than a sample.
-The object distance is the focus distance (a flat scene; depth is ignored at this level).
+5. depth: when the scene's axial depths (thin_lens.axial_depth_m) spread the paraxial blur
+   circle by more than thin_lens.FLAT_BLUR_SAMPLES, the PSF grid is traced at `psf_depth_nodes`
+   object distances evenly spaced in 1/z (defocus grows with |1/z − 1/s|), the focus distance
+   always a node when inside the range (blur is not linear across focus; PSFs are geometric past
+   GEOMETRIC_DEFOCUS_WAVES of defocus, where the pupil phase is too steep), and every sample's light
+   is split linearly in 1/z between the two nodes that bracket it, as thin_lens splits by blur
+   (shares sum to 1, so light is conserved; occlusion at depth edges is not modelled). A flat
+   scene is one node at its depth, the focus distance for a scene in focus. Distortion and
+   radiometry stay those traced at the focus distance: the exit-pupil irradiance integral does
+   not depend on the object distance, the chief ray's landing point only through the small
+   parallax between the first vertex and the entrance pupil.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from functools import lru_cache
 
 import numpy as np
 from scipy import fft, ndimage
 
-from workbench.optics.formation import fourier, geometry, lens_setup, pinhole
+from workbench.optics.formation import fourier, geometry, lens_setup, pinhole, thin_lens
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
@@ -83,13 +94,15 @@ def _oriented(psf: np.ndarray, azimuth_rad: float) -> np.ndarray:
     return k / k.sum()
 
 
+GEOMETRIC_DEFOCUS_WAVES = 32.0   # psf_diffraction's 512-sample pupil resolves the phase up to ~64
+
+
 @lru_cache(maxsize=8)
 def lens_tables(lens, object_distance_m: float, image_distance: float, r_max_m: float,
-                nodes_nm: tuple[float, ...], n_zones: int, spacing_m: float) -> dict:
-    """Traced data of a focused lens, cached (the expensive part of this level):
-    'ru'/'rd' (per node): pinhole height → real chief-ray height (m); 'heights', 'e': irradiance
-    per radiance against height (per node); 'zones' (m), 'psfs' (zones × nodes × size²)."""
-    from workbench.optics.lens import chief_ray_on_sensor, paraxial, psf_diffraction
+                nodes_nm: tuple[float, ...]) -> dict:
+    """Traced geometry of a focused lens, cached: 'ru'/'rd' (per wavelength node): pinhole
+    height → real chief-ray height (m); 'heights', 'e': irradiance per radiance against height."""
+    from workbench.optics.lens import chief_ray_on_sensor
     ru_table = np.linspace(0.0, max(r_max_m * 1.3, 0.02 * image_distance), 25)
     ru, rd, e = [], [], []
     for wl_n in nodes_nm:
@@ -107,22 +120,72 @@ def lens_tables(lens, object_distance_m: float, image_distance: float, r_max_m: 
         rd.append(np.array(hs))
         heights_mm, e_n = lens_setup.irradiance_table(lens, r_max_m * 1e3, wl_n)
         e.append(e_n)
+    return {"ru": ru, "rd": rd, "heights": heights_mm * 1e-3, "e": np.array(e)}
+
+
+@lru_cache(maxsize=32)
+def psf_table(lens, object_distance_m: float, image_distance: float, r_max_m: float,
+              nodes_nm: tuple[float, ...], n_zones: int, spacing_m: float, defocus_coc_m: float = 0.0) -> dict:
+    """PSFs of a focused lens for an object at `object_distance_m` (from the first vertex),
+    cached per lens, focus and object distance (the expensive part of this level):
+    'zones' (m), 'psfs' (zones × wavelength nodes × size²), 'size'. Wave-optical PSFs, except
+    geometric ones (binned rays) where the paraxial defocus blur `defocus_coc_m` holds more than
+    GEOMETRIC_DEFOCUS_WAVES waves of defocus: there the pupil phase is too steep to sample and
+    diffraction changes the PSF by less than a percent."""
+    from workbench.optics.lens import paraxial, psf_diffraction, psf_geometric
     zones = np.linspace(0.0, r_max_m, n_zones)
+    f_number = paraxial(lens).f_number
     max_field = math.degrees(math.atan(r_max_m / image_distance))
-    size = _psf_size(lens, paraxial(lens).f_number, max(nodes_nm), max_field, spacing_m * 1e6, object_distance_m)
+    size = _psf_size(lens, f_number, max(nodes_nm), max_field, spacing_m * 1e6, object_distance_m)
     psfs = np.zeros((zones.size, len(nodes_nm), size, size))
     for z_i, h in enumerate(zones):
         for n_i, wl_n in enumerate(nodes_nm):
+            waves = defocus_coc_m / (8.0 * f_number * wl_n * 1e-9)        # W020 = c/(8N), in waves
+            psf = psf_geometric if waves > GEOMETRIC_DEFOCUS_WAVES else psf_diffraction
             try:
-                psfs[z_i, n_i] = psf_diffraction(lens, float(h) * 1e3, wl_n, object_distance_m, spacing_m * 1e6, size)
+                psfs[z_i, n_i] = psf(lens, float(h) * 1e3, wl_n, object_distance_m, spacing_m * 1e6, size)
             except ValueError:
                 psfs[z_i, n_i] = psfs[z_i - 1, n_i] if z_i else 0.0   # vignetted: reuse the inner zone
-    return {"ru": ru, "rd": rd, "heights": heights_mm * 1e-3, "e": np.array(e), "zones": zones, "psfs": psfs,
-            "size": size}
+    return {"zones": zones, "psfs": psfs, "size": size}
+
+
+def depth_nodes_inv_m(inv_depth_per_m: np.ndarray, inv_focus_per_m: float, count: int,
+                      coc_per_inv_m: float, spacing_m: float) -> np.ndarray:
+    """Ascending object-distance nodes as inverse distances 1/z (1/m) covering the scene's 1/z.
+
+    One node when count is 1 or the paraxial blur circle, coc_per_inv_m·|1/z − 1/s|, spreads
+    less than thin_lens.FLAT_BLUR_SAMPLES over the scene: the focus if inside the range or that
+    close to every depth (a scene in focus), else the middle. Otherwise `count` nodes evenly
+    spaced from the farthest to the nearest depth; when the focus lies inside, both ends and a
+    grid of step range/(count − 2) through the focus (at least 3 nodes, one more than count
+    when the focus is within a quarter step of an end)."""
+    lo, hi = float(inv_depth_per_m.min()), float(inv_depth_per_m.max())
+    if count == 1 or not thin_lens.depth_varies(coc_per_inv_m * (hi - lo), spacing_m):
+        in_focus = not thin_lens.depth_varies(coc_per_inv_m * max(abs(lo - inv_focus_per_m),
+                                                                  abs(hi - inv_focus_per_m)), spacing_m)
+        return np.array([inv_focus_per_m if in_focus or lo <= inv_focus_per_m <= hi else 0.5 * (lo + hi)])
+    if not lo < inv_focus_per_m < hi:
+        return np.linspace(lo, hi, count)
+    step = (hi - lo) / max(count - 2, 1)
+    k = np.arange(math.floor((lo - inv_focus_per_m) / step), math.ceil((hi - inv_focus_per_m) / step) + 1)
+    grid = inv_focus_per_m + k * step
+    inner = np.union1d(grid[(grid > lo + 0.25 * step) & (grid < hi - 0.25 * step)], [inv_focus_per_m])
+    return np.concatenate([[lo], inner, [hi]])
+
+
+def _axial_depth_checked(scene: Scene, spacing_m: float, image_distance: float, focal_length_m: float) -> np.ndarray:
+    """thin_lens.axial_depth_m, with a clear error for depths the lens cannot image."""
+    z = thin_lens.axial_depth_m(scene, spacing_m, image_distance)
+    bad = ~(z > focal_length_m)
+    if bad.any():
+        raise ValueError(f"psf_grid: scene depth_m must exceed the lens's focal length {focal_length_m:.4g} m "
+                         f"(axial; inf allowed, NaN not) at every sample; {int(bad.sum())} samples do not, "
+                         f"e.g. {float(z[bad][0]):.4g} m")
+    return z
 
 
 def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
-    """Irradiance through params.lens_file by a field/wavelength PSF grid (see module doc)."""
+    """Irradiance through params.lens_file by a field/wavelength/depth PSF grid (see module doc)."""
     from workbench.optics.lens import paraxial
     params = lens_setup.effective_params(params)
     s_m = geometry.focus_object_distance_m(scene, params)
@@ -138,7 +201,17 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
     wl = scene.wavelengths_nm
     nodes = _wavelength_nodes(wl, params.psf_wavelengths)
     band_w = hat_weights(wl, nodes)                              # nodes × bands
-    tab = lens_tables(lens, obj_m, d_img, r_max, tuple(float(v) for v in nodes), params.psf_field_zones, dx)
+    nodes_key = tuple(float(v) for v in nodes)
+    tab = lens_tables(lens, obj_m, d_img, r_max, nodes_key)
+    inv_z = 1.0 / _axial_depth_checked(scene, dx, d_img, pdata.efl_mm * 1e-3)
+    inv_s = 0.0 if math.isinf(s_m) else 1.0 / s_m
+    coc_per_inv_m = thin_lens.coc_scale_m(pdata.efl_mm * 1e-3, pdata.f_number, s_m)
+    inv_nodes = depth_nodes_inv_m(inv_z, inv_s, params.psf_depth_nodes, coc_per_inv_m, dx)
+    depth_nodes_m = [s_m if u == inv_s else (math.inf if u == 0 else 1.0 / float(u)) for u in inv_nodes]
+    psf_tabs = [psf_table(lens, obj_m, d_img, r_max, nodes_key, params.psf_field_zones, dx) if z == s_m else
+                psf_table(lens, lens_setup.focused_lens(params, z)[1], d_img, r_max, nodes_key,
+                          params.psf_field_zones, dx, coc_per_inv_m * abs(float(u) - inv_s))
+                for z, u in zip(depth_nodes_m, inv_nodes)]
 
     # distortion / lateral colour and radiometry, per band from the wavelength nodes
     ru_at_out = np.stack([np.where(r_out <= rd[-1], np.interp(r_out, rd, ru), np.inf)
@@ -151,18 +224,27 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
         warped = geometry.radial_resample(radiance[..., b], dx, scale)
         radiance[..., b] = np.where(outside, 0.0, warped) * np.tensordot(band_w[:, b], gain, axes=1)
     irr_sharp = radiance * params.transmittance
+    if inv_nodes.size > 1:       # the depth map follows the light (mid wavelength node's distortion)
+        mid = nodes.size // 2
+        scale = np.divide(np.where(np.isfinite(ru_at_out[mid]), ru_at_out[mid], 0.0), r_out,
+                          out=np.ones_like(r_out), where=r_out > 0)
+        inv_z = np.clip(geometry.radial_resample(inv_z, dx, scale), inv_nodes[0], inv_nodes[-1])
+    depth_w = thin_lens.layer_weights(inv_z, inv_nodes)          # depth nodes × H × W
 
     # PSF grid: shares by zone × azimuth, each convolved with its oriented PSF
-    zones, psfs, size = tab["zones"], tab["psfs"], tab["size"]
+    zones = psf_tabs[0]["zones"]
+    size = max(t["size"] for t in psf_tabs)
     azimuths = np.arange(params.psf_azimuths) * 2 * np.pi / params.psf_azimuths
     zone_w = hat_weights(r_out, zones)
     az_w = hat_weights(np.arctan2(x, y), azimuths, periodic=True)
     pad = fourier.pad_width((rows, cols), size)
     pshape = (fft.next_fast_len(rows + 2 * pad, real=True), fft.next_fast_len(cols + 2 * pad, real=True))
     acc = np.zeros((n_bands, pshape[0], pshape[1] // 2 + 1), np.complex128)
-    for z_i in range(zones.size):
+    for d_i, z_i in itertools.product(range(len(psf_tabs)), range(zones.size)):
+        psfs = psf_tabs[d_i]["psfs"]
         terms = [(0.0, zone_w[z_i])] if z_i == 0 else [(a, zone_w[z_i] * az_w[a_i]) for a_i, a in enumerate(azimuths)]
         for angle, weight in terms:
+            weight = weight * depth_w[d_i]                 # × 1.0 (exact) for a single node
             if not weight.any():
                 continue
             node_otf = [fourier.kernel_otf(_oriented(psfs[z_i, n_i], angle), pshape) for n_i in range(nodes.size)]
@@ -182,6 +264,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
                         meta={"model": "psf_grid", "image_distance_m": d_img, "lens": lens.name,
                               "zones_m": zones.tolist(), "psf_wavelengths_nm": nodes.tolist(),
                               "psf_size": size, "azimuths": params.psf_azimuths,
+                              "focus_distance_m": s_m, "depth_nodes_m": depth_nodes_m,
                               "clipped_fraction": clipped / out.size, "focal_length_m": pdata.efl_mm * 1e-3})
 
 

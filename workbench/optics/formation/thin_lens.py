@@ -24,6 +24,13 @@ from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
 
 SMALL_BLUR_SAMPLES = 2.44   # below this CoC (samples) the pillbox OTF has no zero before Nyquist
+FLAT_BLUR_SAMPLES = 0.05    # a spread of blur diameters below this (samples) is one depth layer
+
+
+def depth_varies(coc_spread_m: float, spacing_m: float) -> bool:
+    """Whether blur circles spread over more than FLAT_BLUR_SAMPLES samples, so that a scene
+    needs more than one depth layer (shared by every level that splits a scene by depth)."""
+    return coc_spread_m > FLAT_BLUR_SAMPLES * spacing_m
 
 
 def circle_of_confusion_m(depth_z_m: np.ndarray, focal_length_m: float, f_number: float,
@@ -66,7 +73,7 @@ def defocus_kernel(diameter_samples: float, shape: str = "pillbox", supersample:
     reduce to (nearly) a delta and the kernel never rings."""
     radius = 0.5 * diameter_samples
     sigma = max(diameter_samples / 4.0, 1e-3)
-    half = int(math.ceil(radius if shape == "pillbox" else 4.0 * sigma)) + 1
+    half = math.ceil(radius if shape == "pillbox" else 4.0 * sigma) + 1
     sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     axis = (np.arange(-half, half + 1)[:, None] + sub[None, :]).ravel()
     yy, xx = np.meshgrid(axis, axis, indexing="ij")
@@ -119,7 +126,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
     k_m = coc_scale_m(f_m, params.f_number, s_m)
     coc_map = k_m * np.abs(inv_s - 1.0 / z)
     lo, hi = float(coc_map.min()), float(coc_map.max())
-    n_layers = params.depth_layers if hi - lo > 0.05 * oi.sample_spacing_m and params.depth_layers > 1 else 1
+    n_layers = params.depth_layers if depth_varies(hi - lo, oi.sample_spacing_m) and params.depth_layers > 1 else 1
     coc = np.linspace(lo, hi, n_layers) if n_layers > 1 else np.array([0.5 * (lo + hi)])
     weights = layer_weights(coc_map, coc)
     n_w = diffraction.working_f_number(oi, f_m)
