@@ -58,8 +58,8 @@ def make_scene(project: Project) -> Scene:
     from workbench.scene.charts import CHARTS
     sp = project.scene
     if sp.kind == "city":
-        raise ValueError("scene.kind 'city' is rendered with `workbench render`; the simulate "
-                         "pipeline takes a rendered frame via Pipeline(project, scene=...)")
+        raise ValueError("scene.kind 'city' is rendered, not drawn: use Pipeline(project), whose scene "
+                         "stage renders frame 0 of the city")
     size = (project.sensor.rows * sp.oversample, project.sensor.cols * sp.oversample)
     common = dict(size=size, fov_deg=sp.fov_deg or camera_hfov_deg(project),
                   distance_m=sp.distance_m, wavelengths_nm=sp.wavelengths.grid())
@@ -75,21 +75,26 @@ def make_scene(project: Project) -> Scene:
                                 tunnel_luminance_cd_m2=sp.hdr_tunnel_luminance_cd_m2, **common)
 
 
+def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None) -> OpticalImage:
+    """Rescale the optical image to a mean illuminance (scene.adjust_illuminance_lux); None keeps it."""
+    from workbench import spectra
+    if target_lux is None:
+        return oi
+    lux = float(spectra.illuminance_from_photons(
+        oi.irradiance_photons.reshape(-1, oi.irradiance_photons.shape[-1]).mean(0), oi.wavelengths_nm))
+    if lux <= 0:
+        raise ValueError("scene.adjust_illuminance_lux: the optical image is black, it cannot be "
+                         "scaled to a mean illuminance")
+    oi.irradiance_photons = oi.irradiance_photons * np.float32(target_lux / lux)
+    return oi
+
+
 def form_optical_image(scene: Scene, project: Project) -> OpticalImage:
     """Run the project's optics model, then rescale to a mean illuminance if the scene asks."""
     import workbench.optics.formation  # noqa: F401  (registers the optics models)
-    from workbench import spectra
     from workbench.optics.types import OPTICS_MODELS
     oi = OPTICS_MODELS[project.optics.model](scene, project.optics)
-    target_lux = project.scene.adjust_illuminance_lux
-    if target_lux is not None:
-        lux = float(spectra.illuminance_from_photons(
-            oi.irradiance_photons.reshape(-1, oi.irradiance_photons.shape[-1]).mean(0), oi.wavelengths_nm))
-        if lux <= 0:
-            raise ValueError("scene.adjust_illuminance_lux: the optical image is black, it cannot be "
-                             "scaled to a mean illuminance")
-        oi.irradiance_photons = oi.irradiance_photons * np.float32(target_lux / lux)
-    return oi
+    return scale_to_mean_illuminance(oi, project.scene.adjust_illuminance_lux)
 
 
 @dataclass
@@ -100,6 +105,7 @@ class PipelineResult:
     sensor_image: SensorImage
     isp: object
     stage_times_s: dict[str, float] = field(default_factory=dict)
+    labels: object | None = None          # per-pixel/object labels of a rendered city frame
 
 
 class Pipeline:
@@ -132,6 +138,12 @@ class Pipeline:
         scene_key = _digest("fixed" if self._fixed_scene is not None else p.scene.model_dump(),
                             id(self._fixed_scene), p.sensor.rows, p.sensor.cols,
                             p.sensor.pixel_pitch_um, p.optics.focal_length_mm)
+        if self._fixed_scene is None and p.scene.kind == "city":
+            # A render depends on the city, pose, render settings, the sensor's QE (film range)
+            # and, for the full lens model, on the optics it traces.
+            from workbench.render.dataset import uses_full_lens_model
+            scene_key = _digest(scene_key, p.seed, p.city, p.pose, p.render, signal_part,
+                                p.optics if uses_full_lens_model(p.optics) else None)
         optics_key = _digest(scene_key, p.optics.model_dump(), p.scene.adjust_illuminance_lux)
         signal_key = _digest(optics_key, signal_part)
         sensor_key = _digest(signal_key, sensor)
@@ -143,9 +155,19 @@ class Pipeline:
         from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
         p = self._project
         if stage == "scene":
-            return self._fixed_scene if self._fixed_scene is not None else make_scene(p)
+            if self._fixed_scene is not None:
+                return self._fixed_scene
+            if p.scene.kind == "city":
+                from workbench.render.dataset import frame_seeds, render_city_scene
+                return render_city_scene(p, frame_seeds(p.seed, 0))
+            return make_scene(p)
         if stage == "optics":
-            oi = form_optical_image(self._get("scene"), p)
+            source = self._get("scene")
+            if isinstance(source, Scene):
+                oi = form_optical_image(source, p)
+            else:
+                from workbench.render.dataset import city_optical_image
+                oi = city_optical_image(source, p)
             check_finite("optics", oi.irradiance_photons)
             return oi
         if stage == "signal":
@@ -179,7 +201,12 @@ class Pipeline:
         return value
 
     def scene(self) -> Scene:
-        return self._get("scene")
+        source = self._get("scene")
+        return source if isinstance(source, Scene) else source.scene
+
+    def labels(self):
+        """Per-pixel and per-object labels of a rendered city frame (None for charts)."""
+        return getattr(self._get("scene"), "labels", None)
 
     def optical_image(self) -> OpticalImage:
         return self._get("optics")
@@ -203,7 +230,7 @@ class Pipeline:
             self._get(stage)
         yield Progress(len(STAGES), len(STAGES), "done")
         return PipelineResult(self.scene(), self.optical_image(), self.signal_rate(),
-                              self.sensor_image(), self.isp_result(), dict(self.stage_times_s))
+                              self.sensor_image(), self.isp_result(), dict(self.stage_times_s), self.labels())
 
     def run(self, cancel: CancelToken | None = None) -> PipelineResult:
         return run_job(self.run_job(cancel))

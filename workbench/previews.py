@@ -19,6 +19,20 @@ def spectral_to_srgb(photons: np.ndarray, wavelengths_nm: np.ndarray, percentile
     return colour.cctf_encoding(rgb, function="sRGB").reshape(*photons.shape[:2], 3)
 
 
+def irradiance_preview(photons: np.ndarray, wavelengths_nm: np.ndarray, meta: dict | None = None) -> np.ndarray:
+    """sRGB preview of an optical image or render: colorimetric for spectra; for a render whose
+    film was the sensor's own channels (meta['representation'] 'sensor') the channels are shown
+    as R, G, B (or R and grey), scaled so the 99th percentile is white."""
+    meta = meta or {}
+    if meta.get("representation") != "sensor":
+        return spectral_to_srgb(photons, wavelengths_nm)
+    import colour
+    rgb = channels_to_rgb(photons.astype(np.float64), list(meta.get("channel_names") or []))
+    ref = np.percentile(rgb, 99.0) if rgb.size else 0.0
+    rgb = np.clip(rgb / ref, 0.0, 1.0) if ref > 0 else np.zeros_like(rgb)
+    return colour.cctf_encoding(rgb, function="sRGB")
+
+
 def channels_to_rgb(channels: np.ndarray, names: list[str]) -> np.ndarray:
     """H×W×K linear channels → displayable H×W×3: R,G,B as named; other channels shown grey."""
     names_u = [n.upper() for n in names]

@@ -58,11 +58,16 @@ def stage_report(result, project) -> dict:
 
 def write_outputs(result, project, out: Path) -> dict:
     """PNG previews, stages.npz (arrays with units and wavelengths) and report.json."""
-    from workbench.previews import channels_to_rgb, save_png, spectral_to_srgb
+    from workbench.previews import channels_to_rgb, irradiance_preview, save_png
     from workbench.project import atomic_write_text
     out.mkdir(parents=True, exist_ok=True)
     oi, img, isp = result.optical_image, result.sensor_image, result.isp
-    save_png(out / "irradiance.png", spectral_to_srgb(oi.irradiance_photons, oi.wavelengths_nm))
+    preview = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta)
+    save_png(out / "irradiance.png", preview)
+    labels = getattr(result, "labels", None)
+    if labels is not None:
+        from workbench.commands.render import label_overlay
+        label_overlay(preview, labels).save(out / "labels.png")
     save_png(out / "raw.png", isp.raw)
     lin = channels_to_rgb(isp.linear, img.channel_names)
     save_png(out / "linear.png", lin)
@@ -83,6 +88,12 @@ def write_outputs(result, project, out: Path) -> dict:
     np.savez_compressed(tmp, **arrays)
     tmp.replace(out / "stages.npz")
     report = stage_report(result, project)
+    if labels is not None:
+        counts: dict[str, int] = {}
+        for o in labels.objects:
+            if o.visible_px:
+                counts[o.class_name] = counts.get(o.class_name, 0) + 1
+        report["visible_objects"] = counts
     atomic_write_text(out / "report.json", json.dumps(report, indent=2) + "\n")
     return report
 
@@ -99,7 +110,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         bar.close()
     report = write_outputs(result, project, Path(args.out))
     print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
-    print(f"wrote {args.out}/: irradiance.png raw.png linear.png srgb.png stages.npz report.json")
+    extra = " labels.png" if result.labels is not None else ""
+    print(f"wrote {args.out}/: irradiance.png{extra} raw.png linear.png srgb.png stages.npz report.json")
     return 0
 
 

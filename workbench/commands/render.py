@@ -50,7 +50,7 @@ def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
 def cmd_render(args) -> int:
     from tqdm import tqdm
 
-    from workbench.previews import save_png, spectral_to_srgb
+    from workbench.previews import irradiance_preview, save_png
     from workbench.project import load_project
     from workbench.render.dataset import (FRAME_FORMAT, FRAME_VERSION, frame_seeds,
                                           render_city_frame, write_frame)
@@ -77,7 +77,7 @@ def cmd_render(args) -> int:
         for bar in bars:
             bar.close()
     stem = f"frame_{args.frame:06d}"
-    rgb = spectral_to_srgb(frame.irradiance_photons, frame.wavelengths_nm)
+    rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
     save_png(out / f"{stem}_irradiance.png", rgb)
     label_overlay(rgb, frame.labels).save(out / f"{stem}_labels.png")
     write_frame(out / f"{stem}.npz", frame,

@@ -103,6 +103,19 @@ def channel_weights(params: SensorParams, wavelengths_nm: np.ndarray) -> np.ndar
     return _weights_cached(key, tuple(np.asarray(wavelengths_nm, dtype=np.float64).ravel().tolist()))
 
 
+def film_channel_weights(oi: OpticalImage, params: SensorParams) -> np.ndarray:
+    """(K, K) weights for an optical image rendered with the sensor's own channels as the film
+    (render representation 'sensor'): band k holds the QE_k-weighted mean irradiance, so pixel
+    channel k collects A·FF·band_k·∫QE_k dλ."""
+    _, names = cfa_layout(params.cfa_pattern)
+    integrals = np.asarray(oi.meta.get("channel_integrals_nm", []), dtype=np.float64)
+    if integrals.size != len(names) or oi.irradiance_photons.shape[2] != len(names):
+        raise ValueError(f"sensor: the optical image was rendered with {integrals.size} sensor channels "
+                         f"{oi.meta.get('channel_names')}, this sensor has {len(names)} ({names}); "
+                         "render it again with this sensor or use the 'bands' representation")
+    return np.diag(params.pixel_area_m2 * params.fill_factor * integrals).astype(np.float32)
+
+
 def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> np.ndarray:
     """Per pixel Σ_λ E·w[:, channel]: one matrix-vector product per CFA tile position."""
     h, w = irr.shape[:2]
@@ -130,7 +143,8 @@ def pixel_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None
         raise ValueError(f"sensor: optical image sample_spacing_m must be > 0, got {oi.sample_spacing_m}")
     if irr.dtype != np.float32:
         irr = irr.astype(np.float32)
-    weights = channel_weights(params, oi.wavelengths_nm)
+    weights = (film_channel_weights(oi, params) if oi.meta.get("representation") == "sensor"
+               else channel_weights(params, oi.wavelengths_nm))
     tile, _ = cfa_layout(params.cfa_pattern)
     rows, cols = params.rows, params.cols
     pitch_m = params.pixel_pitch_um * 1e-6

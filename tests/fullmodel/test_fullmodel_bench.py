@@ -1,0 +1,47 @@
+"""The benchmarks around the full model: `bench lens-camera` (cost per camera ray) and the city
+frame of `bench optics`, whose reference is now the Mitsuba lens camera."""
+import argparse
+import math
+import os
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def mi():
+    os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
+    pytest.importorskip("mitsuba")
+    from workbench.render.variants import import_mitsuba
+    try:
+        return import_mitsuba("llvm_ad_spectral")
+    except (ImportError, AttributeError, ValueError) as exc:
+        pytest.skip(f"llvm_ad_spectral unavailable: {exc}")
+
+
+def test_lens_camera_bench_quick_rows(mi):
+    from workbench.optics.lens.bench import bench_lens_camera
+    result = bench_lens_camera(argparse.Namespace(quick=True, json=False, out=None))
+    assert {(r["lens"], r["scene"]) for r in result.rows} == {
+        (lens, scene) for lens in ("automotive.2.4mm", "dgauss.50mm") for scene in ("environment", "cornell box")}
+    for r in result.rows:
+        assert r["lens_s"] > 0 and r["perspective_s"] > 0 and math.isfinite(r["ratio_lens_vs_perspective"])
+        if r["lens"] == "dgauss.50mm":                # dispersive: also timed at the d line
+            assert math.isfinite(r["ratio_no_dispersion"])
+        if r["scene"] == "environment":              # 16² centre pixels at 8 spp: a few % noise
+            assert r["centre_E_over_L"] == pytest.approx(r["numpy_E_over_L"], rel=0.08)
+
+
+def test_optics_bench_city_reference_is_the_full_model_on_the_levels_grid(mi):
+    from workbench.bench.optics import _camera, _city_scenes
+    from workbench.optics.types import OPTICS_MODELS
+    scene, full, notes = _city_scenes(32, 16)
+    assert scene is not None and full is not None, notes
+    ref, seconds, second = full
+    assert seconds > 0 and ref.shape == second.shape == scene.shape
+    assert np.isfinite(ref.irradiance_photons).all() and ref.irradiance_photons.max() > 0
+    cam = _camera().model_copy(update={"focus_distance_m": scene.distance_m})
+    pin = OPTICS_MODELS["pinhole"](scene, cam.model_copy(update={"model": "pinhole"}))
+    assert pin.sample_spacing_m == pytest.approx(ref.sample_spacing_m, rel=1e-6)
+    # same camera equation scale: the frame means agree to the Monte Carlo and vignetting level
+    assert ref.irradiance_photons.mean() / pin.irradiance_photons.mean() == pytest.approx(1.0, abs=0.25)
