@@ -2,21 +2,9 @@
 frame of `bench optics`, whose reference is now the Mitsuba lens camera."""
 import argparse
 import math
-import os
 
 import numpy as np
 import pytest
-
-
-@pytest.fixture(scope="module")
-def mi():
-    os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
-    pytest.importorskip("mitsuba")
-    from workbench.render.variants import import_mitsuba
-    try:
-        return import_mitsuba("llvm_ad_spectral")
-    except (ImportError, AttributeError, ValueError) as exc:
-        pytest.skip(f"llvm_ad_spectral unavailable: {exc}")
 
 
 def test_lens_camera_bench_quick_rows(mi):

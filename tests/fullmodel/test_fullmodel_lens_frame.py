@@ -4,7 +4,6 @@ runs with labels on the same pixel grid as the pinhole path, and the fast Dr.Jit
 by ray with the float64 numpy trace."""
 import json
 import math
-import os
 
 import numpy as np
 import pytest
@@ -14,17 +13,6 @@ from workbench.optics.params import OpticsParams
 from workbench.units import photon_energy_J
 
 LENS = "automotive.2.4mm"
-
-
-@pytest.fixture(scope="module")
-def mi():
-    os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
-    pytest.importorskip("mitsuba")
-    from workbench.render.variants import import_mitsuba
-    try:
-        return import_mitsuba("llvm_ad_spectral")
-    except (ImportError, AttributeError, ValueError) as exc:
-        pytest.skip(f"llvm_ad_spectral unavailable: {exc}")
 
 
 def _optics(**kw) -> OpticsParams:

@@ -1,7 +1,6 @@
 """The lens camera inside Mitsuba (llvm_ad_spectral): camera equation on axis, agreement with the
 numpy estimator, and image orientation against the built-in perspective camera."""
 import math
-import os
 
 import numpy as np
 import pytest
@@ -9,17 +8,6 @@ import pytest
 from workbench.optics.lens import irradiance_per_radiance, load_lens, paraxial, relative_illumination
 
 ENV = {"type": "constant", "radiance": {"type": "uniform", "value": 1.0}}
-
-
-@pytest.fixture(scope="module")
-def mi():
-    os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
-    mitsuba = pytest.importorskip("mitsuba")
-    try:
-        mitsuba.set_variant("llvm_ad_spectral")
-    except (ImportError, AttributeError) as exc:
-        pytest.skip(f"llvm_ad_spectral unavailable: {exc}")
-    return mitsuba
 
 
 def _film(w, h):

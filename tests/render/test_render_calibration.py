@@ -14,7 +14,6 @@ from workbench.render.film import box_bands
 from workbench.render.params import DaylightParams, RenderParams
 from workbench.render.scene_builder import build_scene
 from workbench.render.spectral import drive, render_loaded
-from workbench.render.variants import import_mitsuba
 from workbench.scene.city.types import CameraPose, City, CityObject, Material
 from workbench.units import photon_energy_J
 
@@ -44,11 +43,6 @@ def flat_city(half_size_m=1.0e4):
     mat = Material("white", wl, np.array([RHO, RHO]))
     return City([CityObject("ground", 1, [plane_mesh(half_size_m, 0.0, "white")])], {"white": mat},
                 seed=0, extent_m=(-1, -1, 1, 1))
-
-
-@pytest.fixture(scope="module")
-def mi():
-    return import_mitsuba("llvm_ad_spectral")
 
 
 def test_constant_environment(mi):

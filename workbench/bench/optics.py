@@ -195,8 +195,8 @@ def bench_optics(args) -> BenchResult:
              "raytrace adds diffraction as traced spot ⊛ Airy: where the spot is about the Airy size "
              "(this lens at 3 µm) that counts aberrations twice, so errors there are pessimistic; "
              "the selector ('auto') then takes the wave-optical psf_grid as its full model",
-             "raytrace maps every ray onto one plane at the scene distance (depth is ignored; the thin "
-             "lens uses it), which is where it departs from the full model on a city frame"]
+             "raytrace maps every ray onto one plane at the scene distance (depth is ignored; thin_lens "
+             "and psf_grid use it), which is where it departs from the full model on a city frame"]
     rows = _bench_scene("edge, axis, 3 µm", _edge_scene(edge_cols, 3.0, None), ref_rays, fast_rays, True)
     rows += _bench_scene(f"edge, 44° field, {field_cols} cols", _edge_scene(field_cols, None, 44.0),
                          ref_rays, fast_rays, True)

@@ -85,6 +85,6 @@ def bench_isp(args) -> BenchResult:
     de_mean, de_max = _macbeth_delta_e(qe, wl)
     notes = [f"Macbeth chart under D65, Gaussian RGB QE, full pipeline: ΔE2000 mean {de_mean:.2f}, "
              f"max {de_max:.2f} (colour fit condition {fit.condition:.3g})",
-             "cpu_ms = this thread's CPU time (robust to other processes on a shared machine)"]
+             "cpu_ms = median process CPU time, all threads (robust to other processes on a shared machine)"]
     return BenchResult(title="ISP: time per stage and error", rows=rows, notes=notes,
                        extra={"delta_e_2000_mean": de_mean, "delta_e_2000_max": de_max})
