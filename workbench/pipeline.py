@@ -126,7 +126,7 @@ class Pipeline:
         self._project = project
 
     def set_scene(self, scene: Scene | None) -> None:
-        """Use a given scene (e.g. a rendered city frame) instead of the project's chart."""
+        """Use a given scene (e.g. radiance loaded from disk) instead of the project's chart or city."""
         self._fixed_scene = scene
         self._cache.pop("scene", None)
 
