@@ -10,7 +10,7 @@ import sys
 COMMAND_MODULES = ("core", "render", "lens")
 # Modules that register benchmarks when imported.
 BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
-                 "workbench.isp.bench", "workbench.sensor.bench",
+                 "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
                  "workbench.optics.lens.bench")
 
 

@@ -62,3 +62,10 @@ def test_bench_pipeline_json(capsys):
     for key in ("scene_ms", "optics_ms", "signal_ms", "sensor_ms", "isp_ms",
                 "sensor+isp_from_cached_irradiance_ms", "peak_traced_MB"):
         assert row[key] > 0
+
+
+def test_bench_city_json(capsys):
+    assert main(["bench", "city", "--quick", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)["rows"]
+    assert [r["blocks"] for r in rows] == ["1x1", "2x2"]
+    assert rows[1]["objects"] > rows[0]["objects"] and all(r["generate_ms"] > 0 for r in rows)
