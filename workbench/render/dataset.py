@@ -224,6 +224,8 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
     and the render noise from `seeds`. Resolution = sensor rows × cols × scene.oversample.
     Pinhole path: a pinhole radiance render (field of view scene.fov_deg, or the sensor behind
     the optics: pipeline.camera_hfov_deg); city_optical_image then applies the optics level.
+    The visible sun disc is composited where camera rays reach the sky (render/sun_disc.py,
+    render.daylight.sun_visible; meta['sun_disc']); not on the full-model path below.
     Full model (optics.model 'raytrace' with a lens_file, uses_full_lens_model): Mitsuba traces
     every camera ray through the lens (mitsuba_camera, weight 'irradiance'), so the film holds
     sensor irradiance. The lens is prepared as formation/ prepares it and focused on
@@ -274,14 +276,28 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
             "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
                      "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
                      "meta": getattr(pose, "meta", {})}}
+    if camera is None:                  # the disc the directional sun cannot show
+        from workbench.render.sun_disc import sun_disc
+        disc = sun_disc(film, pose, fov, width, height, project.render.daylight, mi_scene=mi_scene)
+        meta["sun_disc"] = disc.meta
+    else:
+        disc = None
+        meta["sun_disc"] = {"status": "not composited: the full lens model bends the camera rays"}
+
+    def with_sun(scene):
+        if disc is not None:
+            scene.radiance_photons = disc.add_to(scene.radiance_photons)
+        return scene
+
     if params.shot_noise_ratio is not None:
-        pilot = drive(render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
-                                    fov_deg=fov, name=f"frame {seeds.index} pilot"))
+        pilot = with_sun(drive(render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
+                                             fov_deg=fov, name=f"frame {seeds.index} pilot")))
         pilot.depth_m = labels.depth_m
         target = sensor_matched_error(project, CityRender(pilot, labels, camera, meta), params.shot_noise_ratio)
         meta["shot_noise_target_rel_error"] = target
         params = params.updated(shot_noise_ratio=None, target_rel_error=target)
-    scene = drive(render_loaded(mi_scene, film, params, fov_deg=fov, name=f"frame {seeds.index}"), on_progress)
+    scene = with_sun(drive(render_loaded(mi_scene, film, params, fov_deg=fov, name=f"frame {seeds.index}"),
+                           on_progress))
     scene.depth_m = labels.depth_m
     meta["spp"] = scene.meta.get("spp")
     meta["render"] = scene.meta

@@ -13,7 +13,9 @@ class DaylightParams(Params):
     The sun's position comes from `sun_elevation_deg`/`sun_azimuth_deg` (compass azimuth:
     0 = north = +Y, 90 = east = +X), or, when `time_of_day_h` is set, from local solar time,
     latitude and day of year (the angles are then ignored). `turbidity` is the Linke/Preetham
-    turbidity (2 = very clear, 3 = clear, 6+ = hazy); it sets the Ångström aerosol coefficient."""
+    turbidity (2 = very clear, 3 = clear, 6+ = hazy); it sets the Ångström aerosol coefficient.
+    `sun_visible`: composite the solar disc (0.53° wide) onto pinhole renders where camera rays
+    reach the sky (render/sun_disc.py); the directional sun lights the scene either way."""
 
     sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0)
     sun_azimuth_deg: float = Field(135.0, ge=0.0, lt=360.0)
@@ -23,6 +25,7 @@ class DaylightParams(Params):
     turbidity: float = Field(3.0, ge=1.0, le=10.0)
     sun_scale: float = Field(1.0, ge=0.0, le=1e3)
     sky_scale: float = Field(1.0, ge=0.0, le=1e3)
+    sun_visible: bool = True
 
 
 class RenderParams(Params):
