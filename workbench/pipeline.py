@@ -141,7 +141,7 @@ class Pipeline:
         if self._fixed_scene is None and p.scene.kind == "city":
             # A render depends on the city, pose, render settings, the sensor's QE (film range)
             # and, for the full lens model, on the optics it traces.
-            from workbench.render.dataset import uses_full_lens_model
+            from workbench.render.city_frame import uses_full_lens_model
             scene_key = _digest(scene_key, p.seed, p.city, p.pose, p.render, signal_part,
                                 p.optics if uses_full_lens_model(p.optics) else None)
         optics_key = _digest(scene_key, p.optics.model_dump(), p.scene.adjust_illuminance_lux)
@@ -158,7 +158,7 @@ class Pipeline:
             if self._fixed_scene is not None:
                 return self._fixed_scene
             if p.scene.kind == "city":
-                from workbench.render.dataset import frame_seeds, render_city_scene
+                from workbench.render.city_frame import frame_seeds, render_city_scene
                 return render_city_scene(p, frame_seeds(p.seed, 0))
             return make_scene(p)
         if stage == "optics":
@@ -166,7 +166,7 @@ class Pipeline:
             if isinstance(source, Scene):
                 oi = form_optical_image(source, p)
             else:
-                from workbench.render.dataset import city_optical_image
+                from workbench.render.city_frame import city_optical_image
                 oi = city_optical_image(source, p)
             check_finite("optics", oi.irradiance_photons)
             return oi

@@ -84,7 +84,7 @@ def _tiny_city_project(model: str, lux: float | None = None):
 
 
 def test_city_frame_renders_through_the_lens_with_matching_labels(mi):
-    from workbench.render.dataset import frame_optical_image, frame_seeds, render_city_frame
+    from workbench.render.city_frame import frame_optical_image, frame_seeds, render_city_frame
     full = render_city_frame(_tiny_city_project("raytrace"), frame_seeds(0, 1))
     pin = render_city_frame(_tiny_city_project("pinhole"), frame_seeds(0, 1))
     irr = full.irradiance_photons
@@ -111,7 +111,7 @@ def test_city_frame_renders_through_the_lens_with_matching_labels(mi):
 
 def test_city_frame_full_model_scales_to_the_asked_illuminance(mi):
     from workbench import spectra
-    from workbench.render.dataset import frame_seeds, render_city_frame, uses_full_lens_model
+    from workbench.render.city_frame import frame_seeds, render_city_frame, uses_full_lens_model
     project = _tiny_city_project("raytrace", lux=1000.0)
     assert uses_full_lens_model(project.optics)
     assert not uses_full_lens_model(project.optics.model_copy(update={"lens_file": None}))

@@ -2,7 +2,7 @@
 spawned worker processes can import it)."""
 import numpy as np
 
-from workbench.render.dataset import FrameData
+from workbench.render.city_frame import FrameData
 
 W, H = 32, 24
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from workbench.project import Project, load_project
-from workbench.render.dataset import frame_optical_image, frame_seeds, render_city_frame
+from workbench.render.city_frame import frame_optical_image, frame_seeds, render_city_frame
 from workbench.scene.city.recipe import CLASS_IDS, CityRecipe, PoseParams
 
 

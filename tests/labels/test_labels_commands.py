@@ -8,12 +8,12 @@ from PIL import Image
 
 from workbench.cli import main
 from workbench.project import Project, save_project
-from workbench.render import dataset
+from workbench.render import city_frame, dataset
 from workbench.render.dataset import read_frame
 
 
 def test_render_command_writes_previews_arrays_and_coco(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(dataset, "render_city_frame",
+    monkeypatch.setattr(city_frame, "render_city_frame",
                         lambda project, seeds, on_progress=None: tiny_renderer(project, seeds))
     save_project(Project(seed=3), tmp_path / "p.json")
     assert main(["render", str(tmp_path / "p.json"), "--out", str(tmp_path / "out"), "--frame", "2"]) == 0
@@ -22,7 +22,7 @@ def test_render_command_writes_previews_arrays_and_coco(tmp_path, monkeypatch, c
     overlay = np.asarray(Image.open(out / "frame_000002_labels.png"))
     assert preview.shape == overlay.shape == (H, W, 3) and preview.std() > 0
     frame, head = read_frame(out / "frame_000002.npz")
-    assert head["seeds"] == json.loads(json.dumps(dataset.frame_seeds(3, 2).__dict__))
+    assert head["seeds"] == json.loads(json.dumps(city_frame.frame_seeds(3, 2).__dict__))
     # Boxes are drawn: the overlay differs from the preview on some box edge pixel.
     car = next(o for o in frame.labels.objects if o.class_name == "car" and o.visible_px)
     x, y, w, h = car.bbox_xywh

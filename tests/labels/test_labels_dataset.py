@@ -12,9 +12,9 @@ from labels_helpers import tiny_renderer
 from workbench.compute.local import JobFailed, run_jobs
 from workbench.jobs import CancelToken, JobCancelled, run_job
 from workbench.project import Project
-from workbench.render.dataset import (FLOAT16_REL_ERROR, FRAME_FORMAT, FrameData,
-                                      dataset_fingerprint, decode_irradiance, encode_irradiance,
-                                      frame_optical_image, frame_path, frame_seeds, read_frame,
+from workbench.render.city_frame import FrameData, frame_optical_image, frame_seeds
+from workbench.render.dataset import (FLOAT16_REL_ERROR, FRAME_FORMAT, dataset_fingerprint,
+                                      decode_irradiance, encode_irradiance, frame_path, read_frame,
                                       run_dataset, write_frame)
 from workbench.render.labels import Labels
 

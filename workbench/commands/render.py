@@ -52,8 +52,8 @@ def cmd_render(args) -> int:
 
     from workbench.previews import irradiance_preview, save_png
     from workbench.project import load_project
-    from workbench.render.dataset import (FRAME_FORMAT, FRAME_VERSION, frame_seeds,
-                                          render_city_frame, write_frame)
+    from workbench.render.city_frame import frame_seeds, render_city_frame
+    from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
     project = load_project(args.project)

@@ -16,7 +16,7 @@ normalised normal, flat surfaces refract with n = (0, 0, 1), arithmetic is fused
 constant is a Python float, so a camera ray costs about 2× a perspective one in an empty scene.
 
 `full_model_camera` / `full_model_optical_image` make this camera the full optics model of a
-project (render.dataset.render_city_frame, bench optics): the lens prepared as optics.formation
+project (render.city_frame.render_city_frame, bench optics): the lens prepared as optics.formation
 prepares it, and the film read as sensor irradiance.
 
 Dispersive lenses trace the hero wavelength of Mitsuba's four spectral samples (weight 4 on it,
