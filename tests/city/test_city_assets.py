@@ -24,7 +24,7 @@ def test_car_dimensions(name):
 
 def test_people_and_bus_dimensions():
     heights = [build_asset("pedestrian", n).height_m for n in variant_names("pedestrian")]
-    assert 1.5 <= min(heights) and max(heights) <= 1.95 and max(heights) - min(heights) > 0.35
+    assert min(heights) >= 1.5 and max(heights) <= 1.95 and max(heights) - min(heights) > 0.35
     for n in variant_names("pedestrian"):
         a = build_asset("pedestrian", n)
         assert 0.3 <= a.width_m <= 0.6 and a.length_m <= 0.8

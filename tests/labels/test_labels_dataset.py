@@ -147,7 +147,7 @@ def test_run_jobs_process_pool():
         for job, res in run_jobs(math.factorial, range(100), workers=1, cancel=cancel):
             got.append(job)
             cancel.cancel()
-    assert 1 <= len(got) < 100
+    assert 0 < len(got) < 100
 
 
 @pytest.mark.slow
