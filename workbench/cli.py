@@ -1,4 +1,4 @@
-"""The headless command line: `workbench <command> …` over the same core as the GUI."""
+"""The headless command line: `workbench <command> …` over the core the GUI will share."""
 from __future__ import annotations
 
 import argparse
