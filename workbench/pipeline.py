@@ -39,11 +39,11 @@ def camera_hfov_deg(project: Project) -> float:
     The sensor sits at the image distance of the object in focus (thin-lens law), so a chart
     sampled over this field lands exactly on the pixel grid (the sensor's fast path)."""
     from workbench.optics.formation.geometry import image_distance_m
+    from workbench.optics.params import fov_deg
     optics = project.optics
     focus_m = optics.focus_distance_m if optics.focus_distance_m is not None else project.scene.distance_m
-    d_m = image_distance_m(optics.focal_length_m, focus_m)
-    width_m = project.sensor.cols * project.sensor.pixel_pitch_um * 1e-6
-    return float(np.degrees(2 * np.arctan(width_m / (2 * d_m))))
+    d_mm = 1e3 * image_distance_m(optics.focal_length_m, focus_m)
+    return fov_deg(d_mm, project.sensor.cols * project.sensor.pixel_pitch_um * 1e-3)
 
 
 def check_finite(stage: str, array: np.ndarray) -> None:

@@ -43,10 +43,11 @@ def test_camera_follows_formation_lens_preparation():
 def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     """Constant sky of L = 0.02 W/m²/sr/nm through the calibrated spectral film: on-axis irradiance
     = T · L_photons · E/L of the traced lens (the numpy estimator), in photons/s/m²/nm."""
+    from workbench.jobs import run_job
     from workbench.optics.lens.mitsuba_camera import full_model_camera, full_model_optical_image, lens_sensor_dict
     from workbench.render.film import box_bands
     from workbench.render.params import RenderParams
-    from workbench.render.spectral import drive, render_loaded
+    from workbench.render.spectral import render_loaded
     L_W = 0.02
     film = box_bands(450.0, 650.0, 4)
     params = _optics(f_number=2.8, transmittance=0.9, raytrace_diffraction=False)
@@ -56,7 +57,7 @@ def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     sensor["sampler"] = {"type": "independent", "sample_count": 1}
     scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": 2}, "sensor": sensor,
                           "sky": {"type": "constant", "radiance": {"type": "uniform", "value": L_W}}})
-    rendered = drive(render_loaded(scene, film, RenderParams(spp=1024, chunk_spp=1024), fov_deg=cam.fov_deg))
+    rendered = run_job(render_loaded(scene, film, RenderParams(spp=1024, chunk_spp=1024), fov_deg=cam.fov_deg))
     oi = full_model_optical_image(rendered.radiance_photons, rendered.wavelengths_nm, cam, params)
     wl = np.linspace(449.0, 651.0, 20001)
     s = np.stack([np.interp(wl, film.wavelengths_nm, r) for r in film.responses])

@@ -8,12 +8,13 @@ Carlo error of the mean), plus 0.3 % for float32 accumulation and the 0.1-nm ban
 import numpy as np
 import pytest
 
+from workbench.jobs import run_job
 from workbench.render.daylight import sky_radiance, sun_irradiance
 from workbench.render.demo_scene import plane_mesh
 from workbench.render.film import box_bands
 from workbench.render.params import DaylightParams, RenderParams
 from workbench.render.scene_builder import build_scene
-from workbench.render.spectral import drive, render_loaded
+from workbench.render.spectral import render_loaded
 from workbench.scene.city.types import CameraPose, City, CityObject, Material
 from workbench.units import photon_energy_J
 
@@ -57,7 +58,7 @@ def test_constant_environment(mi):
              "env": {"type": "constant", "radiance": {"type": "spectrum", "value": list(zip(wl, L))}},
              "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(1e4),
                         "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": RHO}}}}
-    out = drive(render_loaded(mi.load_dict(scene), film, RenderParams(spp=192, chunk_spp=96, seed=3), fov_deg=40))
+    out = run_job(render_loaded(mi.load_dict(scene), film, RenderParams(spp=192, chunk_spp=96, seed=3), fov_deg=40))
     expected = band_mean_photons(wl, L, film)
     rad = out.radiance_photons
     check(rad[: H // 2 - 2], expected, "sky")
@@ -72,7 +73,7 @@ def test_sun_only(mi, elevation_deg):
     day = DaylightParams(sun_elevation_deg=elevation_deg, sun_azimuth_deg=200.0, sky_scale=0.0, turbidity=2.5)
     pose = CameraPose(np.array([0.0, 0.0, 2.0]), pan_deg=30.0, tilt_deg=-90.0, roll_deg=0.0)
     mi_scene, ids = build_scene(flat_city(), pose, 30.0, W, H, film, day, max_depth=3)
-    out = drive(render_loaded(mi_scene, film, RenderParams(spp=64, chunk_spp=64, seed=1), fov_deg=30.0))
+    out = run_job(render_loaded(mi_scene, film, RenderParams(spp=64, chunk_spp=64, seed=1), fov_deg=30.0))
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM as wl
     E = sun_irradiance(wl, elevation_deg, 2.5)
     expected = band_mean_photons(wl, RHO * E * np.sin(np.radians(elevation_deg)) / np.pi, film)
@@ -90,7 +91,7 @@ def test_sky_only(mi):
     day = DaylightParams(sun_elevation_deg=40.0, sun_scale=0.0, turbidity=4.0)
     pose = CameraPose(np.array([0.0, 0.0, 1.0]), pan_deg=0.0, tilt_deg=-90.0, roll_deg=0.0)
     mi_scene, _ = build_scene(flat_city(1.0e5), pose, 20.0, W, H, film, day, max_depth=3)
-    out = drive(render_loaded(mi_scene, film, RenderParams(spp=16, chunk_spp=16, seed=2), fov_deg=20.0))
+    out = run_job(render_loaded(mi_scene, film, RenderParams(spp=16, chunk_spp=16, seed=2), fov_deg=20.0))
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM as wl
     expected = band_mean_photons(wl, RHO * sky_radiance(wl, 40.0, 4.0), film)
     check(out.radiance_photons, expected, "sky-lit plane")

@@ -4,16 +4,17 @@ import threading
 import numpy as np
 import pytest
 
+from workbench.jobs import run_job
 from workbench.render.demo_scene import demo_city, demo_pose
 from workbench.render.params import RenderParams
-from workbench.render.spectral import RenderCancelled, drive, render_spectral
+from workbench.render.spectral import RenderCancelled, render_spectral
 
 W, H = 32, 24
 
 
 def run(params, cancel=None, steps=None):
     gen = render_spectral(demo_city(), demo_pose(), params, width=W, height=H, fov_deg=44.0, cancel=cancel)
-    return drive(gen, steps.append if steps is not None else None)
+    return run_job(gen, steps.append if steps is not None else None)
 
 
 def test_same_seed_is_bit_identical_and_seeds_differ():
@@ -34,7 +35,7 @@ def test_progress_then_cancel_between_chunks():
 
     gen = render_spectral(demo_city(), demo_pose(), RenderParams(spp=40, chunk_spp=4, preview_spp=1,
                           band_count=4), width=W, height=H, fov_deg=44.0, cancel=stop)
-    scene = drive(gen, on_step)
+    scene = run_job(gen, on_step)
     assert [s.spp_done for s in steps] == [1, 5]
     assert steps[0].preview.shape == (H, W, 4) and 0 < steps[0].fraction < 1
     assert np.all(np.isfinite(steps[1].preview)) and steps[1].preview.mean() > 0

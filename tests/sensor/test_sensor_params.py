@@ -1,7 +1,6 @@
 """Parameter validation: every bad value is refused with an error naming the field."""
 from __future__ import annotations
 
-import math
 
 import pytest
 from pydantic import ValidationError
@@ -87,13 +86,3 @@ def test_cfa_layouts():
 
 def test_registry_matches_the_allowed_methods():
     assert tuple(AUTO_EXPOSURE_METHODS) == AUTO_EXPOSURE_METHOD_NAMES
-
-
-def test_field_of_view_and_focal_length():
-    from workbench.sensor import focal_length_for_fov, sensor_fov_deg
-    p = SensorParams()                                                # 640 × 3 µm = 1.92 mm wide
-    f = focal_length_for_fov(p, 44.0)                                 # the paper's 44° camera
-    assert f == pytest.approx(0.96e-3 / math.tan(math.radians(22.0)))
-    assert sensor_fov_deg(p, f) == pytest.approx(44.0)
-    with pytest.raises(ValueError, match="fov_deg"):
-        focal_length_for_fov(p, 180.0)

@@ -54,13 +54,14 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
     both renders' noise (the noise-floor row measures it: about 0.25·√(64/spp) on this frame)."""
     notes = []
     try:
+        from workbench.jobs import run_job
         from workbench.render.demo_scene import demo_city, demo_pose
         from workbench.render.params import RenderParams
-        from workbench.render.spectral import drive, render_spectral
+        from workbench.render.spectral import render_spectral
         rows = cols * 3 // 4
         params = RenderParams(spp=spp, band_count=8)
         t0 = time.perf_counter()
-        scene = drive(render_spectral(demo_city(), demo_pose(), params, width=cols, height=rows,
+        scene = run_job(render_spectral(demo_city(), demo_pose(), params, width=cols, height=rows,
                                       fov_deg=44.0, name="demo city"))
         notes.append(f"demo city rendered by Mitsuba through a pinhole ({cols}×{rows}, {spp} spp, 8 bands, "
                      f"{time.perf_counter() - t0:.2f} s): the levels' input")
@@ -76,7 +77,7 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
         for seed in (0, 1):
             sensor = lens_sensor_dict(camera.lens, {"width": cols, "height": rows}, to_world, camera.sensor_width_mm)
             t0 = time.perf_counter()
-            full = drive(render_spectral(demo_city(), demo_pose(), params.model_copy(update={"seed": seed}),
+            full = run_job(render_spectral(demo_city(), demo_pose(), params.model_copy(update={"seed": seed}),
                                          width=cols, height=rows, fov_deg=camera.fov_deg, lens_sensor=sensor,
                                          name="demo city, full model"))
             images.append(full_model_optical_image(full.radiance_photons, full.wavelengths_nm, camera, optics))

@@ -105,10 +105,11 @@ def _peak_rss_mb() -> float:
 
 @register_bench("render", help="spectral render: time and error vs resolution, spp, bands, representation")
 def bench_render(args) -> BenchResult:
+    from workbench.jobs import run_job
     from workbench.render.film import box_bands, raised_cosine_basis, sensor_channels
     from workbench.render.params import RenderParams
     from workbench.render.scene_builder import build_scene
-    from workbench.render.spectral import drive, render_loaded
+    from workbench.render.spectral import render_loaded
     from workbench.render.variants import select_variant
 
     quick = bool(getattr(args, "quick", False))
@@ -138,7 +139,7 @@ def bench_render(args) -> BenchResult:
         best = np.inf
         for _ in range(repeat):
             t0 = time.perf_counter()
-            s = drive(render_loaded(scenes[(w, h, id(film))], film, p, fov_deg=fov))
+            s = run_job(render_loaded(scenes[(w, h, id(film))], film, p, fov_deg=fov))
             best = min(best, time.perf_counter() - t0)
         return s.radiance_photons.astype(np.float64), best, s.wavelengths_nm
 

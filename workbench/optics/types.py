@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Callable
 
 import numpy as np
 
@@ -37,12 +37,6 @@ class OpticalImage:
     @property
     def height_m(self) -> float:
         return self.shape[0] * self.sample_spacing_m
-
-
-class OpticsModel(Protocol):
-    """Turns a scene into an optical image. Registered in OPTICS_MODELS by name."""
-
-    def __call__(self, scene, params) -> OpticalImage: ...
 
 
 OPTICS_MODELS: dict[str, Callable] = {}

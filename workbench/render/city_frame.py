@@ -99,10 +99,11 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
     pixel's ray through the centre of its exit-pupil box), so boxes follow the lens's distortion.
     render.shot_noise_ratio is resolved here: a pilot render through the optics and sensor gives
     the mean electrons N_e of the exposure, and the target error is ratio/√N_e."""
+    from workbench.jobs import run_job
     from workbench.pipeline import camera_hfov_deg
     from workbench.render.labels import render_labels
     from workbench.render.scene_builder import build_scene, pinhole_sensor
-    from workbench.render.spectral import drive, film_for, render_loaded
+    from workbench.render.spectral import film_for, render_loaded
     from workbench.render.variants import select_variant
     from workbench.scene.city import generate_city, sample_camera_poses
     from workbench.scene.city.recipe import CityRecipe, PoseParams
@@ -154,13 +155,13 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
         return scene
 
     if params.shot_noise_ratio is not None:
-        pilot = with_sun(drive(render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
+        pilot = with_sun(run_job(render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
                                              fov_deg=fov, name=f"frame {seeds.index} pilot")))
         pilot.depth_m = labels.depth_m
         target = sensor_matched_error(project, CityRender(pilot, labels, camera, meta), params.shot_noise_ratio)
         meta["shot_noise_target_rel_error"] = target
         params = params.updated(shot_noise_ratio=None, target_rel_error=target)
-    scene = with_sun(drive(render_loaded(mi_scene, film, params, fov_deg=fov, name=f"frame {seeds.index}"),
+    scene = with_sun(run_job(render_loaded(mi_scene, film, params, fov_deg=fov, name=f"frame {seeds.index}"),
                            on_progress))
     scene.depth_m = labels.depth_m
     meta["spp"] = scene.meta.get("spp")

@@ -24,13 +24,6 @@ class ShapeLabel:
     instance_id: int
 
 
-def fov_from_optics(focal_length_mm: float, sensor_width_mm: float) -> float:
-    """Horizontal pinhole FOV (deg) of a sensor `sensor_width_mm` wide behind `focal_length_mm`."""
-    from workbench.optics.params import fov_deg
-
-    return fov_deg(focal_length_mm, sensor_width_mm)
-
-
 def camera_to_world(pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(origin, target, up) for look_at. Positive roll turns the camera's up toward its right."""
     p, r = np.radians(pose.pan_deg), np.radians(pose.roll_deg)

@@ -14,15 +14,13 @@ from typing import Generator
 
 import numpy as np
 
-from workbench.render.film import (FilmSRFs, box_bands, raised_cosine_basis, sensor_channels,
-                                   sensor_wavelength_range)
+from workbench.render.film import FilmSRFs, box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
 from workbench.render.labels import BACKGROUND_DEPTH_M
 from workbench.render.params import RenderParams
 from workbench.render.sampling import noise_constant, spp_for_error
 from workbench.render.scene_builder import build_scene
 from workbench.render.variants import select_variant
 from workbench.scene.city.types import CameraPose, City
-from workbench.jobs import run_job
 from workbench.scene.types import Scene
 
 DEFAULT_RANGE_NM = (400.0, 700.0)
@@ -190,7 +188,7 @@ def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width
     sensor_qe: (wavelengths_nm, K×Nλ QE) of the camera; it sets the wavelength range (unless
     params give one) and is the film for representation 'sensor'. lens_sensor: an optional
     Mitsuba sensor dict replacing the pinhole (fov_deg must then describe it). Drive with
-    `scene = yield from render_spectral(...)` or `drive(render_spectral(...))`."""
+    `scene = yield from render_spectral(...)` or `workbench.jobs.run_job(render_spectral(...))`."""
     select_variant(params.variant)
     film = film_for(params, sensor_qe)
     mi_scene, _ = build_scene(city, pose, fov_deg, width, height, film, params.daylight,
@@ -198,5 +196,3 @@ def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width
     return (yield from render_loaded(mi_scene, film, params, fov_deg=fov_deg, cancel=cancel, name=name))
 
 
-# Run a progress generator to the end, calling on_progress(step) on each; returns its result.
-drive = run_job

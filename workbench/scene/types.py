@@ -43,9 +43,3 @@ class Scene:
     @property
     def shape(self) -> tuple[int, int]:
         return self.radiance_photons.shape[:2]
-
-    @property
-    def vfov_deg(self) -> float:
-        """Vertical field of view for square samples."""
-        h, w = self.shape
-        return float(np.degrees(2 * np.arctan(np.tan(np.radians(self.fov_deg) / 2) * h / w)))

@@ -10,7 +10,6 @@ from workbench.sensor.auto_exposure import AUTO_EXPOSURE_METHODS, auto_exposure,
 from workbench.sensor.cfa import cfa_layout, channel_index_map, channel_qe
 from workbench.sensor.compute import sensor_compute
 from workbench.sensor.expose import expose, fixed_patterns
-from workbench.sensor.geometry import focal_length_for_fov, sensor_fov_deg
 from workbench.sensor.image import SensorImage
 from workbench.sensor.params import CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
 from workbench.sensor.signal import REGRID_METHODS, channel_weights, pixel_signal_rate
@@ -18,6 +17,6 @@ from workbench.sensor.signal import REGRID_METHODS, channel_weights, pixel_signa
 __all__ = [
     "AUTO_EXPOSURE_METHODS", "CFA_PATTERNS", "MAX_PIXELS", "REGRID_METHODS", "SENSOR_PRESETS",
     "SensorImage", "SensorParams", "auto_exposure", "cfa_layout", "channel_index_map", "channel_qe",
-    "channel_weights", "expose", "fixed_patterns", "focal_length_for_fov", "pixel_signal_rate",
-    "register_auto_exposure", "resolve_exposure", "sensor_compute", "sensor_fov_deg",
+    "channel_weights", "expose", "fixed_patterns", "pixel_signal_rate",
+    "register_auto_exposure", "resolve_exposure", "sensor_compute",
 ]
