@@ -28,7 +28,7 @@ if [ ! -f "$stamp" ]; then
   "$VPY" -m pip install -q --upgrade pip
   # torch first and pinned: an unpinned torch drags in several GB of CUDA packages.
   "$VPY" -m pip install -q "torch==2.13.0"
-  "$VPY" -m pip install -q -e ".[gui,detect,test]"
+  "$VPY" -m pip install -q -e ".[gui,detect,cluster,test]"
   rm -f .venv/.installed-*; touch "$stamp"
 fi
 
