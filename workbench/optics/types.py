@@ -43,7 +43,8 @@ OPTICS_MODELS: dict[str, Callable] = {}
 
 
 def register_optics(name: str):
-    """Decorator: register an optics model `fn(scene, params) -> OpticalImage` under `name`."""
+    """Decorator: register an optics model `fn(scene, params, camera=None) -> OpticalImage` under
+    `name`; camera is the CameraGeometry the scene was sampled for (optics.formation.geometry)."""
     def deco(fn):
         OPTICS_MODELS[name] = fn
         return fn
