@@ -23,13 +23,14 @@ from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.params import Params
 from workbench.render.params import RenderParams
+from workbench.resource_dir import RESOURCES
 from workbench.scene.city.recipe import CityRecipe, PoseParams
 from workbench.scene.params import SceneParams
 from workbench.sensor.params import AutoExposureMethod, SensorParams
 
 FORMAT_TAG = "camera-workbench-project"
 SCHEMA_VERSION = 2
-PROJECTS_DIR = Path(__file__).resolve().parent.parent / "resources" / "projects"
+PROJECTS_DIR = RESOURCES / "projects"
 
 EvBias = Annotated[float, Field(ge=-16.0, le=16.0)]
 
