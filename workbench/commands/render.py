@@ -85,11 +85,12 @@ def cmd_render(args) -> int:
     from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
+    from workbench.errors import ParameterError
+    from workbench.files import prepare_output_folder
     project = load_project(args.project)
     if args.frame < 0:
-        raise ValueError(f"--frame must be ≥ 0, got {args.frame}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+        raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
+    out = prepare_output_folder(args.out)
     seeds = frame_seeds(project.seed, args.frame)
     bars = []          # the bar opens with the first chunk (after the project was checked)
 
