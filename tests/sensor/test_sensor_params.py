@@ -5,8 +5,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
-from workbench.sensor import AUTO_EXPOSURE_METHODS, CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
-from workbench.sensor.params import AUTO_EXPOSURE_METHOD_NAMES
+from workbench.sensor import CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
 from workbench.sensor.cfa import cfa_layout
 
 BAD_VALUES = [
@@ -83,7 +82,3 @@ def test_cfa_layouts():
     for name, letters in expected.items():
         tile, names = cfa_layout(name)
         assert [[names[i] for i in row] for row in tile] == letters
-
-
-def test_registry_matches_the_allowed_methods():
-    assert tuple(AUTO_EXPOSURE_METHODS) == AUTO_EXPOSURE_METHOD_NAMES

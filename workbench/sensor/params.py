@@ -17,7 +17,6 @@ MAX_PIXELS = 2 ** 25
 few float32 copies, and the optical image upstream is H×W×Nλ."""
 
 CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO")
-AUTO_EXPOSURE_METHOD_NAMES = ("mean", "brightest", "percentile", "cfa")
 
 CfaPattern = Literal["RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO"]
 AutoExposureMethod = Literal["mean", "brightest", "percentile", "cfa"]
