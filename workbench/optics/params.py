@@ -14,7 +14,6 @@ from pydantic import Field, field_validator
 
 from workbench.params import Params
 
-OPTICS_MODEL_NAMES = ("pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto")
 OpticsModelName = Literal["pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto"]
 
 PAPER_SENSOR_WIDTH_MM = 640 * 3e-3

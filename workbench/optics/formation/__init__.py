@@ -16,7 +16,4 @@ from workbench.optics import selector  # noqa: E402,F401  (registers 'auto'; nee
 
 def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
     """Sensor-plane irradiance of `scene` by the optics model `params.model`."""
-    if params.model not in OPTICS_MODELS:
-        raise ValueError(f"optics model {params.model!r} is not registered; available: "
-                         f"{sorted(OPTICS_MODELS)}")
     return OPTICS_MODELS[params.model](scene, params)
