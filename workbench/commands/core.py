@@ -179,20 +179,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def ev_sweep(project, out: Path) -> list[dict]:
-    """Exposure-bias sweep on the cached optical image: only the sensor and ISP re-run."""
+    """The project's EV biases on its frame (workbench.experiments.ev_sweep); sRGB PNG per EV."""
+    from workbench.experiments.ev_sweep import ev_sweep_job
+    from workbench.jobs import run_job
     from workbench.pipeline import Pipeline
     from workbench.files import prepare_output_folder
     from workbench.previews import save_png
     prepare_output_folder(out)
-    exp = project.experiment
     pipe = Pipeline(project)
+    points = run_job(ev_sweep_job(project, pipe.signal_rate(), pipe.optical_image().wavelengths_nm,
+                                  project.experiment.ev_biases, thumbnail_width_px=project.sensor.cols))
     rows = []
-    for ev in exp.ev_biases:
-        sensor = project.sensor.updated(auto_exposure_method=exp.auto_exposure_method,
-                                        auto_exposure_level=exp.auto_exposure_level, exposure_s=None, ev_bias=ev)
-        pipe.set_project(project.updated(sensor=sensor))
-        img, isp = pipe.sensor_image(), pipe.isp_result()
-        save_png(out / f"srgb_ev{ev:+.0f}.png", isp.srgb)
-        rows.append({"ev": ev, "exposure_s": float(np.mean(img.exposure_s)), "mean_dn": float(img.dn.mean()),
-                     "fraction_clipped": float((img.dn >= img.max_dn).mean())})
+    for p in points:
+        save_png(out / f"srgb_ev{p.ev:+.0f}.png", p.thumbnail / 255.0)
+        rows.append({"ev": p.ev, "exposure_s": p.exposure_s, "mean_dn": p.mean_dn,
+                     "fraction_clipped": p.fraction_clipped, "snr_dB": p.snr_dB})
     return rows

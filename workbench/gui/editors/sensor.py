@@ -180,7 +180,7 @@ class SensorEditor(QWidget):
         self.emva_button.setEnabled(False)
         self.emva_status.setText("measuring the photon-transfer curve…")
         self._worker = create_worker(characterize, params, seed=self._seed, size_px=128,
-                                     _start_thread=False)
+                                     _start_thread=False, _ignore_errors=True)
         self._worker.returned.connect(self._emva_returned)
         self._worker.errored.connect(self._emva_errored)
         self._worker.finished.connect(self._emva_finished)
