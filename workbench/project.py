@@ -91,8 +91,11 @@ def parameter_error(exc: ValidationError, source: str | None = None, prefix: str
     allowed = first["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, ")
     given = first.get("input")
     cause = (first.get("ctx") or {}).get("error")
-    if isinstance(cause, ParameterError):
-        field = f"{field}.{cause.field}" if field != "(document)" else cause.field
+    if isinstance(cause, ParameterError):        # raised by a validator: its field may be absolute
+        if field == "(document)":                  # ('isp.demosaic') or relative to the location
+            field = cause.field
+        elif field.split(".")[-1] != cause.field.split(".")[-1]:
+            field = f"{field}.{cause.field}"
         given, allowed = cause.given, cause.allowed
     others = sorted({_field_path(((prefix,) if prefix else ()) + tuple(e["loc"])) for e in errors[1:]} - {field})
     if others:

@@ -172,18 +172,10 @@ def xyz_from_photons(photons: np.ndarray, wavelengths_nm: np.ndarray) -> np.ndar
     return energy @ (xyz_cmfs(wl) * band_widths_nm(wl)[:, None] * MAX_LUMINOUS_EFFICACY_LM_W)
 
 
-def load_spectrum_csv(path: Path | str, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Read a CSV (first column wavelength nm, header row of names) and resample it.
-
-    Outside the file's range the values are zero: a filter or QE curve that the file does not
+def load_spectrum_csv(name: str, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Read a spectrum CSV named relative to resources/ (validated: see spectrum_csv) and resample
+    it. Outside the file's range the values are zero: a filter or QE curve that the file does not
     describe is taken to pass nothing. Returns (values (Nλ, K), names)."""
-    p = Path(path)
-    if not p.is_absolute():
-        p = RESOURCES / p
-    with open(p, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-    data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
-    wl = np.asarray(wavelengths_nm, dtype=np.float64)
-    out = _interp(data[:, 0], data[:, 1:], wl)
-    out[(wl < data[0, 0]) | (wl > data[-1, 0])] = 0.0
-    return out, header[1:]
+    from workbench.spectrum_csv import read_spectrum, resample
+    table = read_spectrum(name)
+    return resample(table, wavelengths_nm), list(table.names)
