@@ -2,11 +2,10 @@
 EMVA 1288 recovery error of the noise model (the sensor's speed-versus-error table)."""
 from __future__ import annotations
 
-
 import numpy as np
 
-from workbench.bench.timing import median_times_ms
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import median_times_ms
 from workbench.optics.types import OpticalImage
 from workbench.sensor.auto_exposure import auto_exposure
 from workbench.sensor.compute import sensor_compute
@@ -17,7 +16,7 @@ from workbench.sensor.signal import pixel_signal_rate
 
 
 def _median_ms(fn, repeats: int) -> dict:
-    """Median wall-clock and process CPU time (all threads) of fn, in ms."""
+    """The row's timing columns: median wall and process CPU ms."""
     wall, cpu = median_times_ms(fn, repeats)
     return {"ms": wall, "cpu_ms": cpu}
 

@@ -2,11 +2,10 @@
 (our bilinear against colour-demosaicing's; ΔE2000 of a Macbeth chart through the pipeline)."""
 from __future__ import annotations
 
-
 import numpy as np
 
-from workbench.bench.timing import median_times_ms
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import median_times_ms
 from workbench.isp.color import fit_sensor_to_xyz, macbeth_responses, srgb_encode
 from workbench.isp.demosaic import DEMOSAIC_METHODS, demosaic_bilinear
 from workbench.isp.params import ISPParams
