@@ -64,7 +64,7 @@ def test_every_optics_level_lands_on_the_pixel_grid(model, lens_file, oversample
 
 
 def test_the_full_lens_camera_uses_the_same_geometry():
-    from workbench.optics.lens.mitsuba_camera import full_model_camera
+    from workbench.optics.formation.full_model import full_model_camera
     project = tiny(model="raytrace", lens_file=LENS, focus_distance_m=3.0)
     camera = project_geometry(project)
     lens_camera = full_model_camera(project.optics, camera)

@@ -35,7 +35,7 @@ def edit_during_scene(monkeypatch):
             thread.start()
             thread.join()
         return original(**kw)
-    monkeypatch.setitem(charts.CHARTS, "macbeth", slow_chart)
+    monkeypatch.setattr(charts, "CHARTS", {**charts.CHARTS, "macbeth": slow_chart})
     return state
 
 

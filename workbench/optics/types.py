@@ -6,6 +6,8 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.registry import Registry
+
 
 @dataclass
 class OpticalImage:
@@ -39,13 +41,7 @@ class OpticalImage:
         return self.shape[0] * self.sample_spacing_m
 
 
-OPTICS_MODELS: dict[str, Callable] = {}
-
-
-def register_optics(name: str):
-    """Decorator: register an optics model `fn(scene, params, camera=None) -> OpticalImage` under
-    `name`; camera is the CameraGeometry the scene was sampled for (optics.formation.geometry)."""
-    def deco(fn):
-        OPTICS_MODELS[name] = fn
-        return fn
-    return deco
+OPTICS_MODELS: Registry[Callable] = Registry("optics.model", "optics model")
+"""The optics levels of detail: name → fn(scene, params, camera=None) -> OpticalImage
+(filled by optics.formation); camera: the CameraGeometry the scene was sampled for."""
+register_optics = OPTICS_MODELS.register

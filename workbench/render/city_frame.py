@@ -143,7 +143,7 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     reach the sky (render/sun_disc.py, render.daylight.sun_visible; meta['sun_disc']); not on
     the full-model path below.
     Full model (optics.model 'raytrace' with a lens_file, uses_full_lens_model): Mitsuba traces
-    every camera ray through the lens (mitsuba_camera, weight 'irradiance'), so the film holds
+    every camera ray through the lens (render.lens_camera, weight 'irradiance'), so the film holds
     sensor irradiance. The lens is prepared as formation/ prepares it and focused on
     camera.focus_distance_m; the film is camera.sensor_width_m wide, so the sample spacing is
     the geometry's. Labels are cast through the lens camera (each pixel's ray through the centre
@@ -174,7 +174,8 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     fov = camera.hfov_deg
     lens_camera, lens_sensor = None, None
     if inputs.optics is not None and uses_full_lens_model(inputs.optics):
-        from workbench.optics.lens.mitsuba_camera import full_model_camera, lens_sensor_dict
+        from workbench.optics.formation.full_model import full_model_camera
+        from workbench.render.lens_camera import lens_sensor_dict
         lens_camera = full_model_camera(inputs.optics, camera)
         lens_sensor = lens_sensor_dict(lens_camera.lens, {"width": width, "height": height},
                                        pinhole_sensor(pose, fov)["to_world"], lens_camera.sensor_width_mm,
@@ -262,7 +263,7 @@ def city_optical_image(render: CityRender, optics, adjust_illuminance_lux: float
         oi = form_optical_image(render.scene, optics, render.geometry)
         oi.meta.update(film_meta)
         return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
-    from workbench.optics.lens.mitsuba_camera import full_model_optical_image
+    from workbench.optics.formation.full_model import full_model_optical_image
     oi = full_model_optical_image(render.scene.radiance_photons, render.scene.wavelengths_nm, render.camera,
                                   optics, depth_m=render.labels.depth_m, meta=film_meta)
     return scale_to_mean_illuminance(oi, adjust_illuminance_lux)

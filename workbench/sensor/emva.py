@@ -160,17 +160,23 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
 
 def plot_photon_transfer(result: dict, path_png: str | Path) -> Path:
     """Photon-transfer curve, SNR curve and dark signal against exposure, as a PNG (Agg)."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
+    fig = Figure(figsize=(13, 4), layout="constrained")
+    draw_photon_transfer(result, fig)
+    out = Path(path_png)
+    fig.savefig(out, dpi=100)
+    return out
+
+
+def draw_photon_transfer(result: dict, fig) -> None:
+    """Draw the photon-transfer, SNR and dark-signal charts of `result` on a matplotlib Figure."""
     s = result["series"]
     unit = "V" if result["analog"] else "DN"
     mean = np.asarray(s["mean_dn"]) - s["dark_mean_dn"]
     var = np.asarray(s["temporal_var_dn2"]) - s["dark_var_dn2"]
     fit = np.asarray(s["fit_mask"], dtype=bool)
     k = result["conversion_gain_uV_per_e"]
-    fig = Figure(figsize=(13, 4), layout="constrained")
     ax1, ax2, ax3 = fig.subplots(1, 3)
     ax1.plot(mean, var, "o", ms=3, label="measured")
     slope = np.polyfit(mean[fit], var[fit], 1)
@@ -189,6 +195,3 @@ def plot_photon_transfer(result: dict, path_png: str | Path) -> Path:
     ax3.plot(s["dark_exposure_s"], s["dark_series_dn"], "o-", ms=3)
     ax3.set(xlabel="exposure (s)", ylabel=f"dark mean ({unit})",
             title=f"Dark current {result['dark_current_e_per_s']:.3g} e⁻/s")
-    out = Path(path_png)
-    fig.savefig(out, dpi=100)
-    return out

@@ -3,9 +3,8 @@ from __future__ import annotations
 
 import inspect
 
-from workbench.errors import ParameterError
 from workbench.optics.formation.geometry import CameraGeometry
-from workbench.scene.charts import CHARTS
+from workbench.scene import charts
 from workbench.scene.params import SceneParams
 from workbench.scene.types import Scene
 
@@ -17,11 +16,9 @@ CHART_OPTION_FIELDS = {"illuminant": "illuminant", "mean_luminance_cd_m2": "mean
 
 
 def chart_scene(params: SceneParams, camera: CameraGeometry) -> Scene:
-    """The chart params.kind (a CHARTS entry) on camera.shape samples over camera.hfov_deg."""
-    if params.kind not in CHARTS:
-        raise ParameterError("scene.kind", params.kind,
-                             f"a chart ({', '.join(sorted(CHARTS))}); 'city' is rendered by the pipeline")
-    draw = CHARTS[params.kind]
+    """The chart params.kind (a charts.CHARTS entry; 'city' is rendered, not drawn) on
+    camera.shape samples over camera.hfov_deg."""
+    draw = charts.CHARTS[params.kind]
     accepted = inspect.signature(draw).parameters
     options = {name: getattr(params, field) for name, field in CHART_OPTION_FIELDS.items() if name in accepted}
     return draw(size=camera.shape, fov_deg=camera.hfov_deg, distance_m=params.distance_m,

@@ -19,7 +19,4 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
                            camera: CameraGeometry | None = None) -> OpticalImage:
     """Sensor-plane irradiance of `scene` by the optics model `params.model`; `camera`: the
     geometry the scene was sampled for (geometry.scene_geometry when None)."""
-    if params.model not in OPTICS_MODELS:
-        raise ValueError(f"optics model {params.model!r} is not registered; available: "
-                         f"{sorted(OPTICS_MODELS)}")
     return OPTICS_MODELS[params.model](scene, params, camera)
