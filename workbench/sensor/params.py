@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, create_model, field_validator, model_validator
 
 from workbench.params import Params
 
@@ -22,83 +22,9 @@ CfaPattern = Literal["RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MO
 AutoExposureMethod = Literal["mean", "brightest", "percentile", "cfa"]
 
 
-class PixelResponseParams(Params):
-    """The pixel array and its spectral response: all the noise-free signal rate
-    (sensor.pixel_signal_rate) reads, so it is that stage's input and cache key. SensorParams
-    adds exposure, noise and read-out."""
-
-    rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height); sensor geometry and signal stage")
-    cols: int = Field(640, ge=1, le=65536, description="pixel columns (image width); sensor geometry and signal stage")
-    pixel_pitch_um: float = Field(3.0, ge=0.3, le=100.0,
-                                  description="pixel centre spacing (µm); sets the sensor width, so the field of "
-                                              "view and the optical-image sample spacing (pitch / oversample)")
-    fill_factor: float = Field(0.75, gt=0.0, le=1.0,
-                               description="photosensitive fraction of the pixel area (0–1); signal stage")
-    cfa_pattern: CfaPattern = Field("GRBG", description="2×2 colour-filter tile read row by row; signal stage, ISP")
-    filter_file: str | None = Field("sensors/bayer_dye_filters.csv",
-                                    description="colour-filter transmittance CSV under resources/ (columns named "
-                                                "R,G,B,C,W); None = no colour filters (MONO only); signal stage")
-    photodiode_qe_file: str | None = Field("sensors/silicon_photodiode_qe.csv",
-                                           description="photodiode QE CSV under resources/; None = QE 1 "
-                                                       "(ISETCam's default pixel); signal stage")
-    ir_cut_file: str | None = Field("sensors/ir_cut_650.csv",
-                                    description="IR-cut filter transmittance CSV under resources/; None = no IR "
-                                                "cut; signal stage")
-    regrid_method: Literal["area", "isetcam"] = Field(
-        "area", description="optical image → pixel grid when their spacings differ: 'area' averages over "
-                            "each pixel (flux conserving); 'isetcam' = Gaussian pre-blur + bilinear "
-                            "(regridOI2ISA); signal stage")
-
-    @field_validator("filter_file", "photodiode_qe_file", "ir_cut_file")
-    @classmethod
-    def _valid_spectrum_file(cls, v):
-        """Confined to resources/, readable, finite, in [0, 1], wavelengths strictly increasing."""
-        from workbench.spectrum_csv import check_spectrum_file
-        return v if v is None else check_spectrum_file(v)
-
-    @model_validator(mode="after")
-    def _pixels_and_filters(self):
-        n = self.rows * self.cols
-        if n > MAX_PIXELS:
-            raise ValueError(
-                f"sensor of rows×cols = {self.rows}×{self.cols} = {n:,} pixels exceeds the simulation limit "
-                f"of {MAX_PIXELS:,} pixels; reduce rows/cols (simulate a crop or a binned sensor with a "
-                f"larger pixel_pitch_um)")
-        from workbench.sensor.cfa import cfa_layout
-        _, names = cfa_layout(self.cfa_pattern)
-        needed = [c for c in names if c != "M"]
-        if needed:
-            if self.filter_file is None:
-                raise ValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
-            from workbench.spectrum_csv import read_spectrum
-            have = read_spectrum(self.filter_file).names
-            missing = [c for c in needed if c not in have]
-            if missing:
-                raise ValueError(f"filter_file '{self.filter_file}' has no curve {', '.join(missing)}, "
-                                 f"needed by cfa_pattern {self.cfa_pattern}")
-        return self
-
-    @property
-    def pixel_area_m2(self) -> float:
-        return (self.pixel_pitch_um * 1e-6) ** 2
-
-    @property
-    def sensor_size_m(self) -> tuple[float, float]:
-        """(height, width) of the pixel array (m)."""
-        p = self.pixel_pitch_um * 1e-6
-        return self.rows * p, self.cols * p
-
-    @property
-    def pixel_response(self) -> "PixelResponseParams":
-        """Only the pixel-response fields (a SensorParams drops its exposure, noise and read-out)."""
-        if type(self) is PixelResponseParams:
-            return self
-        return PixelResponseParams.model_validate(self.model_dump(include=set(PixelResponseParams.model_fields)))
-
-
-class SensorParams(PixelResponseParams):
-    """Everything that defines a simulated image sensor: the pixel response (PixelResponseParams)
-    plus exposure, noise and read-out (sensor stage).
+class SensorParams(Params):
+    """Everything that defines a simulated image sensor: the pixel response (the fields of
+    PixelResponseParams, what the noise-free signal rate reads) and exposure, noise and read-out.
 
     noise_flag (ISETCam's `noiseFlag`):
       -1  ideal: mean electrons only; no noise, no analog gain/offset, no clipping of volts
@@ -108,6 +34,13 @@ class SensorParams(PixelResponseParams):
        2  as 1 plus dark current, read noise, PRNU, DSNU and column FPN (the default).
     """
 
+    rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height); sensor geometry and signal stage")
+    cols: int = Field(640, ge=1, le=65536, description="pixel columns (image width); sensor geometry and signal stage")
+    pixel_pitch_um: float = Field(3.0, ge=0.3, le=100.0,
+                                  description="pixel centre spacing (µm); sets the sensor width, so the field of "
+                                              "view and the optical-image sample spacing (pitch / oversample)")
+    fill_factor: float = Field(0.75, gt=0.0, le=1.0,
+                               description="photosensitive fraction of the pixel area (0–1); signal stage")
     conversion_gain_uV_per_e: float = Field(100.0, gt=0.0, le=1000.0,
                                             description="conversion gain (µV per electron); sensor stage")
     voltage_swing_V: float = Field(1.0, gt=0.0, le=10.0, description="pixel output range (V); sensor stage")
@@ -128,6 +61,20 @@ class SensorParams(PixelResponseParams):
     analog_offset_V: float = Field(0.0, ge=-10.0, le=10.0,
                                    description="black-level offset added after the gain (V); sensor stage")
     bit_depth: int = Field(8, ge=0, le=24, description="ADC bits; 0 = analog read-out in volts; sensor stage")
+    cfa_pattern: CfaPattern = Field("GRBG", description="2×2 colour-filter tile read row by row; signal stage, ISP")
+    filter_file: str | None = Field("sensors/bayer_dye_filters.csv",
+                                    description="colour-filter transmittance CSV under resources/ (columns named "
+                                                "R,G,B,C,W); None = no colour filters (MONO only); signal stage")
+    photodiode_qe_file: str | None = Field("sensors/silicon_photodiode_qe.csv",
+                                           description="photodiode QE CSV under resources/; None = QE 1 "
+                                                       "(ISETCam's default pixel); signal stage")
+    ir_cut_file: str | None = Field("sensors/ir_cut_650.csv",
+                                    description="IR-cut filter transmittance CSV under resources/; None = no IR "
+                                                "cut; signal stage")
+    regrid_method: Literal["area", "isetcam"] = Field(
+        "area", description="optical image → pixel grid when their spacings differ: 'area' averages over "
+                            "each pixel (flux conserving); 'isetcam' = Gaussian pre-blur + bilinear "
+                            "(regridOI2ISA); signal stage")
     exposure_s: float | list[list[float]] | None = Field(
         None, description="exposure (s): a number, a per-CFA-position tile (rows of the CFA tile), "
                           "or None for auto-exposure; sensor stage")
@@ -160,6 +107,35 @@ class SensorParams(PixelResponseParams):
             raise ValueError("a per-CFA exposure must be a non-empty rectangular list of rows")
         return v
 
+    @field_validator("filter_file", "photodiode_qe_file", "ir_cut_file")
+    @classmethod
+    def _valid_spectrum_file(cls, v):
+        """Confined to resources/, readable, finite, in [0, 1], wavelengths strictly increasing."""
+        from workbench.spectrum_csv import check_spectrum_file
+        return v if v is None else check_spectrum_file(v)
+
+    @model_validator(mode="after")
+    def _pixels_and_filters(self):
+        n = self.rows * self.cols
+        if n > MAX_PIXELS:
+            raise ValueError(
+                f"sensor of rows×cols = {self.rows}×{self.cols} = {n:,} pixels exceeds the simulation limit "
+                f"of {MAX_PIXELS:,} pixels; reduce rows/cols (simulate a crop or a binned sensor with a "
+                f"larger pixel_pitch_um)")
+        from workbench.sensor.cfa import cfa_layout
+        _, names = cfa_layout(self.cfa_pattern)
+        needed = [c for c in names if c != "M"]
+        if needed:
+            if self.filter_file is None:
+                raise ValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
+            from workbench.spectrum_csv import read_spectrum
+            have = read_spectrum(self.filter_file).names
+            missing = [c for c in needed if c not in have]
+            if missing:
+                raise ValueError(f"filter_file '{self.filter_file}' has no curve {', '.join(missing)}, "
+                                 f"needed by cfa_pattern {self.cfa_pattern}")
+        return self
+
     @model_validator(mode="after")
     def _consistent(self):
         if abs(self.analog_offset_V) >= self.voltage_swing_V:
@@ -174,6 +150,21 @@ class SensorParams(PixelResponseParams):
         return self
 
     # Derived quantities -------------------------------------------------------------------
+    @property
+    def pixel_response(self) -> "PixelResponseParams":
+        """Only the pixel-response fields: the signal stage's input (its cache key)."""
+        return PixelResponseParams.model_validate(self.model_dump(include=set(PIXEL_RESPONSE_FIELDS)))
+
+    @property
+    def pixel_area_m2(self) -> float:
+        return (self.pixel_pitch_um * 1e-6) ** 2
+
+    @property
+    def sensor_size_m(self) -> tuple[float, float]:
+        """(height, width) of the pixel array (m)."""
+        p = self.pixel_pitch_um * 1e-6
+        return self.rows * p, self.cols * p
+
     @property
     def conversion_gain_V_per_e(self) -> float:
         return self.conversion_gain_uV_per_e * 1e-6
@@ -200,6 +191,29 @@ class SensorParams(PixelResponseParams):
     def max_dn(self) -> float:
         """Largest output code (2^bits − 1), or the swing (V) for an analog read-out."""
         return float(2 ** self.bit_depth - 1) if self.bit_depth else self.voltage_swing_V
+
+
+PIXEL_RESPONSE_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "cfa_pattern", "filter_file",
+                         "photodiode_qe_file", "ir_cut_file", "regrid_method")
+
+
+class _PixelResponse(Params):
+    """The pixel array and its spectral response: all the noise-free signal rate
+    (sensor.pixel_signal_rate) reads, so it is that stage's input and cache key. Its fields are
+    SensorParams' PIXEL_RESPONSE_FIELDS (same types, ranges and descriptions)."""
+
+    @property
+    def pixel_response(self) -> "PixelResponseParams":
+        return self
+
+    pixel_area_m2 = SensorParams.pixel_area_m2
+    sensor_size_m = SensorParams.sensor_size_m
+
+
+PixelResponseParams = create_model(
+    "PixelResponseParams", __base__=_PixelResponse, __module__=__name__,
+    **{name: (SensorParams.model_fields[name].annotation, SensorParams.model_fields[name])
+       for name in PIXEL_RESPONSE_FIELDS})
 
 
 SENSOR_PRESETS: dict[str, SensorParams] = {
