@@ -11,10 +11,6 @@ from workbench.errors import WorkbenchError
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
 COMMAND_MODULES = ("core", "render", "lens", "selftest")
-# Modules that register benchmarks when imported.
-BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
-                 "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
-                 "workbench.optics.lens.bench")
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -45,15 +41,9 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.register(sub)
-    from workbench.bench import BENCHES
-    for modname in BENCH_MODULES:
-        try:
-            importlib.import_module(modname)
-        except ModuleNotFoundError as exc:
-            if exc.name != modname:
-                raise
+    from workbench.bench import all_benches
     bench = sub.add_parser("bench", help="speed-versus-error benchmarks (prints a table)")
-    bench.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
+    bench.add_argument("name", choices=sorted(all_benches()), help="which benchmark")
     bench.add_argument("--json", action="store_true", help="print the figures as JSON")
     bench.add_argument("--quick", action="store_true", help="small sizes and few repeats (CI)")
     bench.add_argument("--out", default=None, help="folder for plots the benchmark writes")

@@ -137,10 +137,15 @@ def cmd_dataset(args) -> int:
         project = load_project(args.project)
         job = run_dataset(project, args.frames, args.out, compute=compute_spec(args),
                           irradiance_dtype="float32" if args.float32 else "float16")
+        steps = iter(())
+        try:
+            steps = iter([next(job)])       # checks the folder and the spec before a bar is drawn
+        except StopIteration as stop:
+            result = stop.value
         with tqdm(total=args.frames, desc="dataset", unit="frame") as bar:
             while True:
                 try:
-                    p = next(job)
+                    p = next(steps, None) or next(job)
                 except StopIteration as stop:
                     result = stop.value
                     break
