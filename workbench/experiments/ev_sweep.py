@@ -88,8 +88,8 @@ def ev_sweep_job(project, signal_rate_e_per_s: np.ndarray, wavelengths_nm: np.nd
             cancel.check()
         yield Progress(i, len(evs), f"EV {ev:+g}")
         sensor = base.updated(ev_bias=ev)
-        image = signal_rate_to_sensor_image(signal_rate_e_per_s, sensor, resolve_exposure(signal_rate_e_per_s, sensor),
-                       wavelengths_nm=wavelengths_nm)
+        exposure_s = resolve_exposure(signal_rate_e_per_s, sensor)
+        image = signal_rate_to_sensor_image(signal_rate_e_per_s, sensor, exposure_s, wavelengths_nm=wavelengths_nm)
         isp = sensor_image_to_srgb(image, project.isp)
         clipped = image.dn >= image.max_dn
         t = float(np.mean(image.exposure_s))
