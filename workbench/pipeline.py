@@ -107,21 +107,21 @@ def _optics(inputs, source):
 
 
 def _signal(pixels, oi):
-    from workbench.sensor import pixel_signal_rate
-    return check_finite("signal", pixel_signal_rate(oi, pixels))
+    from workbench.sensor import irradiance_to_signal_rate
+    return check_finite("signal", irradiance_to_signal_rate(oi, pixels))
 
 
 def _sensor(sensor, upstream):
-    from workbench.sensor import expose, resolve_exposure
+    from workbench.sensor import resolve_exposure, signal_rate_to_sensor_image
     oi, rate = upstream
-    image = expose(rate, sensor, resolve_exposure(rate, sensor), wavelengths_nm=oi.wavelengths_nm)
+    image = signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), wavelengths_nm=oi.wavelengths_nm)
     check_finite("sensor", image.dn)
     return image
 
 
 def _isp(isp, image):
-    from workbench.isp import isp_compute
-    result = isp_compute(image, isp)
+    from workbench.isp import sensor_image_to_srgb
+    result = sensor_image_to_srgb(image, isp)
     check_finite("isp", result.srgb)
     return result
 

@@ -22,9 +22,9 @@ def _median_ms(fn, repeats: int) -> float:
 
 def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 20.0) -> dict:
     """Stage medians (ms) for the paper's camera on the Macbeth chart at rows×cols."""
-    from workbench.isp import isp_compute
+    from workbench.isp import sensor_image_to_srgb
     from workbench.project import load_project
-    from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
     from workbench.stages.geometry import project_geometry
     from workbench.stages.optics import form_optical_image
     from workbench.stages.scene import chart_scene
@@ -44,19 +44,19 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
                                   project.scene.adjust_illuminance_lux)
     scene = make_scene()
     oi = make_optical_image(scene)
-    rate = pixel_signal_rate(oi, project.sensor)
+    rate = irradiance_to_signal_rate(oi, project.sensor)
     rng = np.random.default_rng(0)
     sensor, wl = project.sensor, oi.wavelengths_nm
 
     def capture(rate):
-        return expose(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
+        return signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
     image = capture(rate)
 
     def live():
-        isp_compute(capture(pixel_signal_rate(oi, sensor)), project.isp)
+        sensor_image_to_srgb(capture(irradiance_to_signal_rate(oi, sensor)), project.isp)
 
     tracemalloc.start()
-    isp_compute(capture(pixel_signal_rate(make_optical_image(make_scene()), sensor)), project.isp)
+    sensor_image_to_srgb(capture(irradiance_to_signal_rate(make_optical_image(make_scene()), sensor)), project.isp)
     peak_bytes = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
 
@@ -66,9 +66,9 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
         "bands": int(oi.wavelengths_nm.size),
         "scene_ms": _median_ms(make_scene, heavy),
         "optics_ms": _median_ms(lambda: make_optical_image(scene), heavy),
-        "signal_ms": _median_ms(lambda: pixel_signal_rate(oi, sensor), repeats),
+        "signal_ms": _median_ms(lambda: irradiance_to_signal_rate(oi, sensor), repeats),
         "sensor_ms": _median_ms(lambda: capture(rate), repeats),
-        "isp_ms": _median_ms(lambda: isp_compute(image, project.isp), repeats),
+        "isp_ms": _median_ms(lambda: sensor_image_to_srgb(image, project.isp), repeats),
         "sensor+isp_from_cached_irradiance_ms": _median_ms(live, repeats),
         "peak_traced_MB": peak_bytes / 2**20,
     }

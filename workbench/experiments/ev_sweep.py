@@ -18,6 +18,7 @@ import numpy as np
 
 from workbench.errors import ParameterError
 from workbench.jobs import CancelToken, Job, Progress
+from workbench.sensor.snr import snr_dB
 
 THUMBNAIL_WIDTH_PX = 160
 
@@ -54,18 +55,6 @@ def ev_values(start: float, stop: float, step: float) -> list[float]:
     return [round(start + i * step, 9) for i in range(n)]
 
 
-def snr_dB(mean_e: float, sensor, exposure_s: float) -> float:
-    """SNR (dB) of a pixel holding mean_e electrons under the sensor's noise model."""
-    if sensor.noise_flag < 1 or not mean_e > 0:
-        return float("nan")
-    var = mean_e
-    if sensor.noise_flag == 2:
-        var += sensor.dark_current_e_per_s * exposure_s + sensor.read_noise_e ** 2 \
-            + (sensor.dsnu_sigma_V / sensor.conversion_gain_V_per_e) ** 2 \
-            + (sensor.prnu_sigma_pct / 100 * mean_e) ** 2
-    return float(10 * np.log10(mean_e ** 2 / var))
-
-
 def thumbnail(srgb: np.ndarray, width_px: int = THUMBNAIL_WIDTH_PX) -> np.ndarray:
     """Subsampled uint8 copy of an sRGB image in [0, 1]."""
     step = max(1, int(math.ceil(srgb.shape[1] / width_px)))
@@ -77,8 +66,8 @@ def ev_sweep_job(project, signal_rate_e_per_s: np.ndarray, wavelengths_nm: np.nd
                  thumbnail_width_px: int = THUMBNAIL_WIDTH_PX) -> Job[list[EVPoint]]:
     """Sweep `evs` on one frame's pixel signal (see the module docstring); thumbnails are at most
     `thumbnail_width_px` wide (the sensor width keeps the full image)."""
-    from workbench.isp import isp_compute
-    from workbench.sensor import expose, resolve_exposure
+    from workbench.isp import sensor_image_to_srgb
+    from workbench.sensor import resolve_exposure, signal_rate_to_sensor_image
     exp = project.experiment
     base = project.sensor.updated(auto_exposure_method=exp.auto_exposure_method,
                                   auto_exposure_level=exp.auto_exposure_level, exposure_s=None)
@@ -88,9 +77,9 @@ def ev_sweep_job(project, signal_rate_e_per_s: np.ndarray, wavelengths_nm: np.nd
             cancel.check()
         yield Progress(i, len(evs), f"EV {ev:+g}")
         sensor = base.updated(ev_bias=ev)
-        image = expose(signal_rate_e_per_s, sensor, resolve_exposure(signal_rate_e_per_s, sensor),
-                       wavelengths_nm=wavelengths_nm)
-        isp = isp_compute(image, project.isp)
+        exposure_s = resolve_exposure(signal_rate_e_per_s, sensor)
+        image = signal_rate_to_sensor_image(signal_rate_e_per_s, sensor, exposure_s, wavelengths_nm=wavelengths_nm)
+        isp = sensor_image_to_srgb(image, project.isp)
         clipped = image.dn >= image.max_dn
         t = float(np.mean(image.exposure_s))
         unclipped = image.electrons[~clipped]

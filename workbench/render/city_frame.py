@@ -242,9 +242,9 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
 def sensor_matched_error(inputs: CitySceneInputs, render: CityRender, shot_noise_ratio: float) -> float:
     """Relative render error that is `shot_noise_ratio` × the photon shot noise 1/√N_e, with N_e
     the mean electrons per pixel of the inputs' sensor at its exposure on this render."""
-    from workbench.sensor import pixel_signal_rate, resolve_exposure
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure
     oi = city_optical_image(render, inputs.optics, inputs.scene.adjust_illuminance_lux)
-    rate = pixel_signal_rate(oi, inputs.sensor)
+    rate = irradiance_to_signal_rate(oi, inputs.sensor)
     exposure_s = float(np.mean(resolve_exposure(rate, inputs.sensor)))
     mean_e = float(np.mean(rate, dtype=np.float64)) * exposure_s
     if not mean_e > 0:

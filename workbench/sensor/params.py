@@ -184,7 +184,7 @@ class SensorParams(Params):
 
     @property
     def lsb_V(self) -> float:
-        """Volts per code (swing / 2^bits); the swing itself for an analog read-out."""
+        """Volts per code (swing / 2^bits); 1.0 for an analog read-out, whose DN are its volts (unquantised)."""
         return self.voltage_swing_V / 2 ** self.bit_depth if self.bit_depth else 1.0
 
     @property
@@ -199,7 +199,7 @@ PIXEL_RESPONSE_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "cfa_p
 
 class _PixelResponse(Params):
     """The pixel array and its spectral response: all the noise-free signal rate
-    (sensor.pixel_signal_rate) reads, so it is that stage's input and cache key. Its fields are
+    (sensor.irradiance_to_signal_rate) reads, so it is that stage's input and cache key. Its fields are
     SensorParams' PIXEL_RESPONSE_FIELDS (same types, ranges and descriptions)."""
 
     @property
