@@ -141,7 +141,8 @@ class Pipeline:
     """Cached stages over a project. Call set_project() after edits (from any thread); run() or
     run_job() recomputes what changed, on a snapshot of the project taken when it starts.
 
-    recomputed / stage_times_s describe the last finished call (a run or a stage getter)."""
+    recomputed lists the stages the latest call (a run or a stage getter) computed so far;
+    stage_times_s holds each stage's latest compute time (s)."""
 
     def __init__(self, project: Project, scene: Scene | None = None):
         self._lock = threading.RLock()
@@ -182,7 +183,7 @@ class Pipeline:
         return hit[1] if hit is not None and hit[0] == key else None
 
     # -- running ------------------------------------------------------------------------------
-    def _stage_job(self, snap: Snapshot, stage: str, upstream, cancel, record: dict) -> Job:
+    def _stage_job(self, snap: Snapshot, stage: str, upstream, cancel, record: list[str]) -> Job:
         key = snap.keys[stage]
         if stage == "scene" and snap.fixed is not None:
             return snap.fixed.scene
@@ -195,10 +196,10 @@ class Pipeline:
             value = yield from _scene_job(inputs, cancel)
         else:
             value = {"optics": _optics, "signal": _signal, "sensor": _sensor, "isp": _isp}[stage](inputs, upstream)
-        record["times"][stage] = time.perf_counter() - t0
-        record["recomputed"].append(stage)
         with self._lock:
             self._cache[stage] = (key, value)
+            self.stage_times_s = {**self.stage_times_s, stage: time.perf_counter() - t0}
+            record.append(stage)
         return value
 
     def _job(self, upto: str, cancel: CancelToken | None) -> Job[dict]:
@@ -208,7 +209,9 @@ class Pipeline:
             raise ValueError(f"upto must be one of {STAGES}, got {upto!r}")
         snap = self.snapshot()
         stages = STAGES[:STAGES.index(upto) + 1]
-        record = {"times": {}, "recomputed": []}
+        record: list[str] = []                 # this call's recomputed stages, as they finish
+        with self._lock:
+            self.recomputed = record
         results: dict[str, object] = {}
         for i, stage in enumerate(stages):
             if cancel is not None:
@@ -226,9 +229,6 @@ class Pipeline:
                     break
                 yield Progress(i + step.fraction, len(stages), f"{stage}: {step.message}", step.preview)
         yield Progress(len(stages), len(stages), "done")
-        with self._lock:
-            self.recomputed = record["recomputed"]
-            self.stage_times_s = {**self.stage_times_s, **record["times"]}
         return results
 
     def _run_to(self, stage: str):
