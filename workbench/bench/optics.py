@@ -4,7 +4,7 @@ The camera is the paper's (f = 2.376 mm, 44° over 640 columns) with the shipped
 wide-angle prescription scaled to that focal length, at f/4. For each scene every level runs
 twice (cold: including one-off set-up such as tracing the PSF grid; warm: cached), and its
 output is compared with the full model (charts: 'raytrace' with many rays per sample; the city
-frame: the lens traced inside Mitsuba for every camera ray, mitsuba_camera):
+frame: the lens traced inside Mitsuba for every camera ray, render.lens_camera):
   rel_rms_error = RMS(level − reference) / RMS(reference) over the whole frame (all bands);
   mtf50 (cycles/mm on the sensor) from the ISO 12233 slanted edge, and its relative error.
 Scenes: a slanted edge near the axis at the paper's 3 µm sampling; the same edge across the
@@ -68,7 +68,8 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
     except Exception as exc:  # noqa: BLE001  (any render failure: report it and go on)
         return None, None, [f"city frame skipped: rendering failed here ({type(exc).__name__}: {exc})"]
     try:
-        from workbench.optics.lens.mitsuba_camera import full_model_camera, full_model_optical_image, lens_sensor_dict
+        from workbench.optics.formation.full_model import full_model_camera, full_model_optical_image
+        from workbench.render.lens_camera import lens_sensor_dict
         from workbench.render.scene_builder import pinhole_sensor
         optics = _camera().model_copy(update={"model": "raytrace", "focus_distance_m": scene.distance_m})
         camera = full_model_camera(optics, scene.distance_m, fov_deg=44.0)

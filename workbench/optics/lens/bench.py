@@ -29,7 +29,8 @@ def bench_lens_camera(args) -> BenchResult:
     from workbench.render.variants import import_mitsuba
     mi = import_mitsuba()
     from workbench.optics.lens import irradiance_per_radiance, load_lens, paraxial
-    from workbench.optics.lens.mitsuba_camera import _is_dispersive, lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
+    from workbench.render.lens_camera.kernels import is_dispersive
 
     w, h, spp, repeats = (128, 96, 8, 2) if args.quick else (512, 384, 16, 3)
     film = {"type": "hdrfilm", "width": w, "height": h, "rfilter": {"type": "box"}, "pixel_format": "luminance"}
@@ -52,7 +53,7 @@ def bench_lens_camera(args) -> BenchResult:
             t0 = time.perf_counter()
             sensors[name] = lens_sensor_dict(lens, film, cam, width_mm, sampler=sampler)
             setup_s[name] = time.perf_counter() - t0
-            if _is_dispersive(lens):    # also once at the d line for all four wavelengths
+            if is_dispersive(lens):    # also once at the d line for all four wavelengths
                 sensors[f"{name} (d line)"] = lens_sensor_dict(lens, film, cam, width_mm, sampler=sampler,
                                                                dispersion=False)
         images, renders = {}, {}
