@@ -4,10 +4,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import logging
 import sys
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens")
+COMMAND_MODULES = ("core", "render", "lens", "selftest")
 # Modules that register benchmarks when imported.
 BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
                  "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
@@ -27,7 +28,9 @@ def _bench(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from workbench import __version__
     parser = argparse.ArgumentParser(prog="workbench", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"workbench {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name in COMMAND_MODULES:
         try:
@@ -54,7 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from workbench.logs import setup_logging
     args = build_parser().parse_args(argv)
+    setup_logging()
+    logging.getLogger("workbench.cli").info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))
     try:
         return int(args.func(args) or 0)
     except (ValueError, FileNotFoundError) as exc:

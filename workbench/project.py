@@ -18,13 +18,14 @@ from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.params import Params
 from workbench.render.params import RenderParams
+from workbench.resource_dir import RESOURCES
 from workbench.scene.city.recipe import CityRecipe, PoseParams
 from workbench.scene.params import SceneParams
 from workbench.sensor.params import SensorParams
 
 FORMAT_TAG = "camera-workbench-project"
 SCHEMA_VERSION = 1
-PROJECTS_DIR = Path(__file__).resolve().parent.parent / "resources" / "projects"
+PROJECTS_DIR = RESOURCES / "projects"
 
 
 class ExperimentParams(Params):

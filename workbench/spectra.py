@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.resource_dir import RESOURCES
 from workbench.units import (
     MAX_LUMINOUS_EFFICACY_LM_W,
     band_widths_nm,
@@ -18,7 +19,6 @@ from workbench.units import (
     photons_to_energy,
 )
 
-RESOURCES = Path(__file__).resolve().parent.parent / "resources"
 DEFAULT_WAVELENGTHS_NM = np.arange(400.0, 701.0, 10.0)
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
+from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
 from workbench.spectra import RESOURCES
 
 LENS_DIR = RESOURCES / "lenses"
@@ -111,14 +112,14 @@ def lens_from_json(data: dict, default_name: str = "") -> Lens:
         surfaces.append(surf)
         prev = med
     d = data.get("image_distance_mm")
-    return Lens(tuple(surfaces), name=str(data.get("name", default_name)),
-                image_distance_mm=None if d is None else float(d),
-                description=str(data.get("description", "")), meta=dict(data.get("metadata", {})))
+    return with_aperture_stop(Lens(tuple(surfaces), name=str(data.get("name", default_name)),
+                                   image_distance_mm=None if d is None else float(d),
+                                   description=str(data.get("description", "")),
+                                   meta=dict(data.get("metadata", {}))))
 
 
 def lens_to_json(lens: Lens) -> dict:
     """ISETCam-compatible JSON (ior = n_d, stop radius 0 / ior 0) with our exact-material extensions."""
-    from workbench.optics.lens.paraxial import paraxial
     surfs = []
     for s in lens.surfaces:
         e = {"radius": 0.0 if s.curvature_per_mm == 0 else s.radius_mm, "thickness": s.thickness_mm,
@@ -168,7 +169,7 @@ def lens_from_dat(text: str, name: str = "") -> Lens:
     if not surfaces:
         raise ValueError("PBRT lens file has no surfaces")
     last_t = surfaces[-1].thickness_mm
-    return Lens(tuple(surfaces), name=name, image_distance_mm=last_t if last_t > 0 else None)
+    return with_aperture_stop(Lens(tuple(surfaces), name=name, image_distance_mm=last_t if last_t > 0 else None))
 
 
 _DAT_FLAT_RADIUS_MM = 1e6
@@ -254,7 +255,7 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
         surfaces.append(Surface(b["curv"], b["disz"], med, b["diam"], is_stop=b["stop"], conic=b["coni"],
                                 asphere_coeffs=coeffs))
     last_t = surfaces[-1].thickness_mm
-    return Lens(tuple(surfaces), name=name, image_distance_mm=last_t if last_t > 0 else None)
+    return with_aperture_stop(Lens(tuple(surfaces), name=name, image_distance_mm=last_t if last_t > 0 else None))
 
 
 def _zmx_glass(fields: list[str], lineno: int):
