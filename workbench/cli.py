@@ -8,7 +8,7 @@ import logging
 import sys
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens", "selftest")
+COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment")
 # Modules that register benchmarks when imported.
 BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
                  "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
