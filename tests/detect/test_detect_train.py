@@ -90,3 +90,19 @@ def test_a_run_is_a_picklable_job_returning_plain_data(synthetic_dir, tmp_path):
     assert [t["ev"] for t in result["tests"]] == [0.0, 2.0]
     assert 0.0 <= result["tests"][0]["map"] <= 1.0
     assert result["train"]["sensor_isp_ms_per_image"] > 0 and result["train"]["train_ms_per_image"] > 0
+
+
+def test_loader_workers_give_the_same_training(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    config = TrainConfig(**{**TINY, "epochs": 1})
+    here, _ = train_detector(ds, config, tmp_path / "here.pt")
+    pooled, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1, "loader_workers": 2}), tmp_path / "pool.pt")
+    for a, b in zip(here.state_dict().values(), pooled.state_dict().values()):
+        assert torch.equal(a, b)
+    assert result.sensor_isp_ms_per_image > 0
+
+
+def test_a_wall_clock_budget_stops_training(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    _, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": None, "minutes": 0.02}), tmp_path / "t.pt")
+    assert result.seconds >= 1.2 and result.seconds < 10

@@ -276,9 +276,11 @@ class DetectionView:
     'linear' or 'srgb'; evs: one EV bias, or several for an EV mix (every epoch each EV is given
     to an equal share of the frames, by a seeded permutation); seed: noise and augmentation seed;
     augment: mirror the scene with probability ½ and cut crop_hw windows (training);
-    cache_mb: memory for cached signal rates. Call set_epoch(e) before each epoch.
+    cache_mb: memory for cached signal rates. A key is an item number (in the epoch set by
+    set_epoch) or an (item, epoch) pair, so loader worker processes need no epoch state.
     Item: (input C×h×w float32 tensor, target dict with boxes_xyxy, classes, ignored_xyxy,
-    ignored_classes, frame index, ev). `timing` sums seconds spent loading and in sensor + ISP."""
+    ignored_classes, frame index, ev, exposure_s, sensor_isp_s). `timing` sums seconds spent
+    loading and in sensor + ISP in this process."""
 
     def __init__(self, dataset: DetectionDataset, positions, representation: str, evs=(0.0,), *,
                  seed: int = TEST_NOISE_SEED, augment: bool = False, crop_hw: tuple[int, int] | None = None,
@@ -301,7 +303,7 @@ class DetectionView:
         self._cache = RateCache(cache_mb)
         self._exposure: dict[int, float] = {}
         self.epoch = 0
-        self._ev_of = self._assign_evs()
+        self._ev_by_epoch: dict[int, np.ndarray] = {}
         self.timing = {"load_s": 0.0, "sensor_isp_s": 0.0, "items": 0}
         wl = dataset.project.scene.wavelengths
         self._qe_wl = np.arange(wl.start_nm, wl.stop_nm + 0.5 * wl.step_nm, wl.step_nm)
@@ -310,14 +312,16 @@ class DetectionView:
         return len(self.positions)
 
     def set_epoch(self, epoch: int) -> None:
+        """The epoch that integer keys use (a key may also be an (item, epoch) pair)."""
         self.epoch = int(epoch)
-        self._ev_of = self._assign_evs()
 
-    def _assign_evs(self) -> np.ndarray:
-        order = np.random.default_rng([self.seed, self.epoch, 0x6576]).permutation(len(self.positions))
-        ev_of = np.empty(len(self.positions))
-        ev_of[order] = np.resize(np.asarray(self.evs), len(self.positions))
-        return ev_of
+    def _ev_of(self, item: int, epoch: int) -> float:
+        if epoch not in self._ev_by_epoch:
+            order = np.random.default_rng([self.seed, epoch, 0x6576]).permutation(len(self.positions))
+            evs = np.empty(len(self.positions))
+            evs[order] = np.resize(np.asarray(self.evs), len(self.positions))
+            self._ev_by_epoch = {epoch: evs}
+        return float(self._ev_by_epoch[epoch][item])
 
     def _sensor_for(self, h: int, w: int):
         if (h, w) not in self._sensors:
@@ -327,22 +331,23 @@ class DetectionView:
     def frame_record(self, item: int) -> FrameRecord:
         return self.dataset.frames[self.positions[item]]
 
-    def __getitem__(self, item: int):
+    def __getitem__(self, key):
         import torch
 
         from workbench.detect.representations import network_input
         from workbench.isp import isp_compute
         from workbench.sensor import auto_exposure, expose
 
+        item, epoch = key if isinstance(key, tuple) else (key, self.epoch)
         rec = self.frame_record(item)
-        ev = float(self._ev_of[item])
+        ev = self._ev_of(item, epoch)
         t0 = time.perf_counter()
         rates = self._cache.get(rec.index, lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
         t1 = time.perf_counter()
         if rec.index not in self._exposure:
             self._exposure[rec.index] = float(auto_exposure(rates[0], self.sensor))
         exposure_s = min(self._exposure[rec.index] * 2.0 ** ev, self.sensor.max_exposure_s)
-        rng = np.random.default_rng([self.seed, rec.index, self.epoch, int(round(1000 * ev)) & 0xFFFFFFFF])
+        rng = np.random.default_rng([self.seed, rec.index, epoch, int(round(1000 * ev)) & 0xFFFFFFFF])
         h, w = self.dataset.image_hw
         boxes, classes = rec.boxes_xyxy, rec.classes
         ignored, ignored_cls = rec.ignored_xyxy, rec.ignored_classes
@@ -369,7 +374,7 @@ class DetectionView:
                   "classes": torch.from_numpy(np.ascontiguousarray(classes)),
                   "ignored_xyxy": torch.from_numpy(np.ascontiguousarray(ignored)),
                   "ignored_classes": torch.from_numpy(np.ascontiguousarray(ignored_cls)),
-                  "frame": rec.index, "ev": ev, "exposure_s": exposure_s}
+                  "frame": rec.index, "ev": ev, "exposure_s": exposure_s, "sensor_isp_s": t2 - t1}
         return torch.as_tensor(np.ascontiguousarray(x)), target
 
 

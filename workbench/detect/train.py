@@ -12,6 +12,7 @@ or on a cluster through workbench.compute's run_jobs.
 """
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import math
@@ -141,9 +142,24 @@ def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: 
     return {k: torch.stack([e[k] for e in encoded]).to(device) for k in encoded[0]}
 
 
-def _batches(n: int, batch_size: int, rng: np.random.Generator | None):
+def _batches(n: int, batch_size: int, rng: np.random.Generator | None, epoch: int = 0):
+    """Batches of (item, epoch) keys: a seeded permutation (rng) or the items in order."""
     order = rng.permutation(n) if rng is not None else np.arange(n)
-    return [order[i:i + batch_size].tolist() for i in range(0, n, batch_size)]
+    return [[(int(i), epoch) for i in order[k:k + batch_size]] for k in range(0, n, batch_size)]
+
+
+def iterate_batches(view, batches, workers: int):
+    """(inputs, targets) of each batch: in this process (workers 0) or from a torch DataLoader
+    with that many worker processes (each keeps its own cache of signal rates)."""
+    from workbench.detect.data import collate
+    if workers == 0:
+        for batch in batches:
+            yield collate([view[key] for key in batch])
+        return
+    import torch
+    from torch.utils.data import DataLoader
+    yield from DataLoader(view, batch_sampler=batches, num_workers=workers, collate_fn=collate,
+                          pin_memory=torch.cuda.is_available(), prefetch_factor=4)
 
 
 @dataclass
@@ -170,7 +186,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
     import torch
 
     from workbench.detect.centernet import centernet_loss
-    from workbench.detect.data import DetectionView, collate
+    from workbench.detect.data import DetectionView
     from workbench.detect.models import build_detector
     from workbench.detect.representations import input_stride
 
@@ -203,19 +219,26 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
     done = bool(state and state.get("done"))
     use_amp = config.amp and device == "cuda"
     model.train()
-    timing0 = dict(view.timing)
-    while not done:
-        view.set_epoch(epoch)
+    def epoch_numbers():
+        return itertools.count(epoch) if budget_s is not None else range(epoch, config.epochs)
+
+    keys = (b for e in epoch_numbers()
+            for b in _batches(len(view), config.batch_size, np.random.default_rng([config.seed, e, 0x6F7264]), e))
+    stream = iterate_batches(view, keys, config.loader_workers)
+    sensor_isp_s, sensor_items = 0.0, 0
+    for e in ([] if done else epoch_numbers()):
         t_epoch, losses = time.perf_counter(), []
-        for batch in _batches(len(view), config.batch_size, np.random.default_rng([config.seed, epoch, 0x6F7264])):
+        t0 = time.perf_counter()
+        for _ in range(steps_per_epoch):
             progress = step / (config.epochs * steps_per_epoch) if budget_s is None else elapsed_s / budget_s
             for group in opt.param_groups:
                 group["lr"] = learning_rate(config.lr, progress, config.warmup_fraction)
-            t0 = time.perf_counter()
-            x, targets = collate([view[i] for i in batch])
+            x, targets = next(stream)
             t1 = time.perf_counter()
-            enc = _encode_batch(targets, num_classes, tuple(x.shape[-2:]) if config.representation != "raw"
-                                else (x.shape[-2] * 2, x.shape[-1] * 2), device)
+            sensor_isp_s += sum(t["sensor_isp_s"] for t in targets)
+            sensor_items += len(targets)
+            hw = tuple(x.shape[-2:]) if config.representation != "raw" else (x.shape[-2] * 2, x.shape[-1] * 2)
+            enc = _encode_batch(targets, num_classes, hw, device)
             x = x.to(device, non_blocking=True)
             with torch.autocast(device_type="cuda", dtype=torch.bfloat16, enabled=use_amp):
                 out = model(x)
@@ -229,12 +252,13 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
             t2 = time.perf_counter()
             step_s += t2 - t1
             elapsed_s += t2 - t0
+            t0 = t2
             step += 1
-            images += len(batch)
+            images += len(targets)
             losses.append(float(loss.detach()))
             if budget_s is not None and elapsed_s >= budget_s:
                 break
-        epoch += 1
+        epoch = e + 1
         history.append({"epoch": epoch, "loss": float(np.mean(losses)), "seconds": time.perf_counter() - t_epoch})
         done = (epoch >= config.epochs) if budget_s is None else elapsed_s >= budget_s
         log.info("%s %s EV%s seed %d: epoch %d loss %.3f (%.0f img/s)", config.net, config.representation,
@@ -244,11 +268,12 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                                           "optimizer": opt.state_dict(), "epoch": epoch, "step": step,
                                           "elapsed_s": elapsed_s, "history": history, "images": images,
                                           "step_s": step_s, "done": done})
-        if cancel is not None and not done:
+        if done:
+            break
+        if cancel is not None:
             cancel.check()
     model.eval()
-    n_view = view.timing["items"] - timing0["items"]
-    sensor_ms = (1e3 * (view.timing["sensor_isp_s"] - timing0["sensor_isp_s"]) / n_view) if n_view else None
+    sensor_ms = 1e3 * sensor_isp_s / sensor_items if sensor_items else None
     return model, TrainResult(epochs=epoch, steps=step, images=images, seconds=elapsed_s,
                               train_ms_per_image=1e3 * elapsed_s / max(images, 1),
                               step_ms_per_image=1e3 * step_s / max(images, 1),
@@ -257,20 +282,20 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
 
 
 def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_size: int = 8,
-                      with_curves: bool = False) -> dict:
+                      with_curves: bool = False, workers: int = 0) -> dict:
     """VOC all-point AP@0.5 per class and mAP on a view (ignored boxes handled as in
     workbench.detect.data), the COCO-style AP@0.5 cross-check, and inference ms per image."""
     import torch
 
     from workbench.detect.centernet import decode
-    from workbench.detect.data import collate, drop_ignored_detections
+    from workbench.detect.data import drop_ignored_detections
     from workbench.detect.evaluate import evaluate_map
 
     detections, truths = [], []
-    infer_s = 0.0
+    infer_s, sensor_isp_s = 0.0, 0.0
     with torch.no_grad():
-        for batch in _batches(len(view), batch_size, None):
-            x, targets = collate([view[i] for i in batch])
+        for x, targets in iterate_batches(view, _batches(len(view), batch_size, None), workers):
+            sensor_isp_s += sum(t["sensor_isp_s"] for t in targets)
             t0 = time.perf_counter()
             out = model(x.to(device))
             dets = decode({k: v.float() for k, v in out.items()}, stride=4, k=100, score_threshold=0.01)
@@ -287,7 +312,8 @@ def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_si
     result = evaluate_map(detections, truths, list(class_names), iou=0.5)
     out = {"map": float(result["map"]), "ap": {k: float(v) for k, v in result["ap"].items()},
            "coco_ap50": None if result.get("coco_ap50") is None else float(result["coco_ap50"]),
-           "images": len(view), "infer_ms_per_image": 1e3 * infer_s / max(len(view), 1)}
+           "images": len(view), "infer_ms_per_image": 1e3 * infer_s / max(len(view), 1),
+           "sensor_isp_ms_per_image": 1e3 * sensor_isp_s / max(len(view), 1)}
     if with_curves and "pr" in result:
         out["pr"] = result["pr"]
     return out
@@ -323,9 +349,9 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
                              cache_mb=job.config.cache_mb)
         t0 = time.perf_counter()
         res = evaluate_detector(model, view, dataset.class_names, device=device,
-                                batch_size=job.config.eval_batch_size, with_curves=job.with_curves)
-        res.update({"ev": float(ev), "seconds": time.perf_counter() - t0,
-                    "sensor_isp_ms_per_image": 1e3 * view.timing["sensor_isp_s"] / max(view.timing["items"], 1)})
+                                batch_size=job.config.eval_batch_size, with_curves=job.with_curves,
+                                workers=job.config.loader_workers)
+        res.update({"ev": float(ev), "seconds": time.perf_counter() - t0})
         tests.append(res)
     train = asdict(tr)
     return {"key": job.key, "config": json.loads(job.config.to_json()), "train": train, "tests": tests,
