@@ -35,7 +35,10 @@ def cmd_self_test(args: argparse.Namespace) -> int:
     from workbench.project import load_project
     from workbench.render.variants import select_variant
 
+    from workbench.diagnostics import check_environment
     print(f"workbench {__version__} self-test")
+    for comp in check_environment():
+        print(f"  {'ok ' if comp.ok else 'no '} {comp.name}: {comp.detail}")
     t0 = time.perf_counter()
     chart = _small(load_project("paper_camera"), 48, 64)
     print(f"  chart pipeline: {_check_result(Pipeline(chart).run())} ({time.perf_counter() - t0:.1f} s)")

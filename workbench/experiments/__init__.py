@@ -1,1 +1,2 @@
-"""The paper's experiments on simulated cameras: ISP stage and exposure bias (detection mAP)."""
+"""Experiments over the simulation: the exposure-bias (EV) sweep, the ISP-stage and exposure
+detection experiments, and the reading and charting of their result folders."""

@@ -14,7 +14,6 @@ from pydantic import Field, field_validator
 
 from workbench.params import Params
 
-OPTICS_MODEL_NAMES = ("pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto")
 OpticsModelName = Literal["pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto"]
 
 PAPER_SENSOR_WIDTH_MM = 640 * 3e-3
@@ -111,6 +110,8 @@ class OpticsParams(Params):
         if not v or p.is_absolute() or ".." in p.parts:
             raise ValueError(f"lens_file must be a relative path inside resources/lenses/ "
                              f"(no '..', not absolute), got {v!r}")
+        from workbench.optics.lens.io import check_shipped_lens
+        check_shipped_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
         return str(p)
 
     @field_validator("distortion_k")
