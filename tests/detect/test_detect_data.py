@@ -9,7 +9,7 @@ import pytest
 from workbench.detect.data import (TEST_FRACTION, DetectionDataset, DetectionView, drop_ignored_detections,
                                    keep_box, split_of)
 from workbench.errors import InputFileError, ParameterError
-from workbench.sensor import pixel_signal_rate
+from workbench.sensor import irradiance_to_signal_rate
 
 
 def test_same_seed_and_epoch_give_the_same_capture(synthetic_dir):
@@ -50,7 +50,7 @@ def test_the_mirror_is_taken_before_the_cfa(synthetic_dir):
     rate, mirrored = load_signal_rates(rec, view.sensor, ds.fingerprint)
     oi = frame_optical_image(read_frame(rec.path)[0])
     oi.irradiance_photons = oi.irradiance_photons[:, ::-1].copy()
-    assert np.array_equal(mirrored, pixel_signal_rate(oi, view.sensor))
+    assert np.array_equal(mirrored, irradiance_to_signal_rate(oi, view.sensor))
     assert not np.array_equal(mirrored, rate[:, ::-1])          # flipping the mosaic would swap CFA colours
 
 

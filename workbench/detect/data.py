@@ -123,7 +123,7 @@ class DetectionDataset:
 
     def __init__(self, folder: str | Path, classes: tuple[str, ...] = DETECT_CLASSES,
                  test_fraction: float = TEST_FRACTION, project=None):
-        from workbench.project import ProjectError, project_from_dict
+        from workbench.project import project_from_dict
         from workbench.render.dataset import DATASET_FORMAT
 
         self.folder = Path(folder)
@@ -142,7 +142,7 @@ class DetectionDataset:
                                                 "differ): a file of another schema or another data set")
         try:
             self.project = project_from_dict(manifest.get("project"), str(manifest_path))
-        except ProjectError as exc:
+        except (InputFileError, ParameterError) as exc:
             raise InputFileError(manifest_path, f"its project cannot be used: {exc}") from None
         if project is not None:
             _check_same_frames(project, self.project, manifest_path)
@@ -209,7 +209,7 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
     (irradiance flipped left-right before the CFA samples it). Errors name the frame file."""
     from workbench.render.city_frame import frame_optical_image
     from workbench.render.dataset import FRAME_VERSION, read_frame
-    from workbench.sensor import pixel_signal_rate
+    from workbench.sensor import irradiance_to_signal_rate
 
     try:
         data, head = read_frame(record.path)
@@ -221,7 +221,7 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
                                           "the data set's: a file of another schema or data set")
     oi = frame_optical_image(data)
     mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
-    return pixel_signal_rate(oi, sensor), pixel_signal_rate(mirrored, sensor)
+    return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
 
 
 class RateCache:
@@ -335,8 +335,8 @@ class DetectionView:
         import torch
 
         from workbench.detect.representations import network_input
-        from workbench.isp import isp_compute
-        from workbench.sensor import auto_exposure, expose
+        from workbench.isp import sensor_image_to_srgb
+        from workbench.sensor import auto_exposure, signal_rate_to_sensor_image
 
         item, epoch = key if isinstance(key, tuple) else (key, self.epoch)
         rec = self.frame_record(item)
@@ -362,9 +362,9 @@ class DetectionView:
             rate = rate[r0:r0 + ch, c0:c0 + cw]
             boxes, classes = _crop_boxes(boxes, classes, r0, c0, ch, cw)
             ignored, ignored_cls = _crop_boxes(ignored, ignored_cls, r0, c0, ch, cw)
-        image = expose(np.ascontiguousarray(rate), self._sensor_for(*rate.shape), exposure_s, rng,
+        image = signal_rate_to_sensor_image(np.ascontiguousarray(rate), self._sensor_for(*rate.shape), exposure_s, rng,
                        wavelengths_nm=self._qe_wl)
-        isp = isp_compute(image, self.dataset.project.isp)
+        isp = None if self.representation == "raw" else sensor_image_to_srgb(image, self.dataset.project.isp)
         x = network_input(image, isp, self.representation)
         t2 = time.perf_counter()
         self.timing["load_s"] += t1 - t0

@@ -135,11 +135,10 @@ def load_checkpoint(path: str | Path) -> dict | None:
 
 
 def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: str) -> dict:
-    import torch
-
-    from workbench.detect.centernet import encode_targets
-    encoded = [encode_targets(t["boxes_xyxy"], t["classes"], num_classes, image_hw, stride=4) for t in targets]
-    return {k: torch.stack([e[k] for e in encoded]).to(device) for k in encoded[0]}
+    from workbench.detect.centernet import collate_targets, encode_targets
+    encoded = [encode_targets(t["boxes_xyxy"].numpy(), t["classes"].numpy(), num_classes, image_hw, stride=4)
+               for t in targets]
+    return {k: v.to(device) for k, v in collate_targets(encoded).items()}
 
 
 def _batches(n: int, batch_size: int, rng: np.random.Generator | None, epoch: int = 0):
@@ -188,7 +187,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
     from workbench.detect.centernet import centernet_loss
     from workbench.detect.data import DetectionView
     from workbench.detect.models import build_detector
-    from workbench.detect.representations import input_stride
+    from workbench.detect.representations import input_channels, input_stride
 
     torch.set_num_threads(choose_threads(config.threads))
     device = pick_device(config.device)
@@ -196,7 +195,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                          seed=config.seed, augment=config.augment, crop_hw=config.crop_hw, cache_mb=config.cache_mb)
     if len(view) == 0:
         raise ParameterError("data set", str(dataset.folder), "at least one training frame (the split put all in test)")
-    in_channels = int(view[0][0].shape[0])
+    in_channels = input_channels(config.representation, view.sensor.cfa_pattern)
     num_classes = len(dataset.class_names)
     torch.manual_seed(config.seed)
     model = build_detector(config.net, in_channels, num_classes,
@@ -284,12 +283,14 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
 def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_size: int = 8,
                       with_curves: bool = False, workers: int = 0) -> dict:
     """VOC all-point AP@0.5 per class and mAP on a view (ignored boxes handled as in
-    workbench.detect.data), the COCO-style AP@0.5 cross-check, and inference ms per image."""
+    workbench.detect.data; None where no class has ground truth), pycocotools' AP@0.5 as a
+    cross-check (None without pycocotools), inference and sensor + ISP ms per image, and with
+    with_curves each class's precision–recall curve (at most 50 points)."""
     import torch
 
     from workbench.detect.centernet import decode
     from workbench.detect.data import drop_ignored_detections
-    from workbench.detect.evaluate import evaluate_map
+    from workbench.detect.evaluate import evaluate_map, pycocotools_ap50
 
     detections, truths = [], []
     infer_s, sensor_isp_s = 0.0, 0.0
@@ -304,19 +305,29 @@ def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_si
             infer_s += time.perf_counter() - t0
             for det, tgt in zip(dets, targets):
                 boxes, scores, classes = drop_ignored_detections(
-                    det["boxes"].cpu().numpy(), det["scores"].cpu().numpy(), det["classes"].cpu().numpy(),
-                    tgt["boxes_xyxy"].numpy(), tgt["classes"].numpy(),
+                    det["boxes"], det["scores"], det["classes"], tgt["boxes_xyxy"].numpy(), tgt["classes"].numpy(),
                     tgt["ignored_xyxy"].numpy(), tgt["ignored_classes"].numpy())
                 detections.append({"boxes": boxes, "scores": scores, "classes": classes})
                 truths.append({"boxes": tgt["boxes_xyxy"].numpy(), "classes": tgt["classes"].numpy()})
-    result = evaluate_map(detections, truths, list(class_names), iou=0.5)
-    out = {"map": float(result["map"]), "ap": {k: float(v) for k, v in result["ap"].items()},
-           "coco_ap50": None if result.get("coco_ap50") is None else float(result["coco_ap50"]),
+    voc = evaluate_map(detections, truths, list(class_names), iou=0.5).to_dict()
+    out = {"map": voc["mean_ap"], "ap": voc["ap"], "n_ground_truth": voc["n_ground_truth"],
            "images": len(view), "infer_ms_per_image": 1e3 * infer_s / max(len(view), 1),
            "sensor_isp_ms_per_image": 1e3 * sensor_isp_s / max(len(view), 1)}
-    if with_curves and "pr" in result:
-        out["pr"] = result["pr"]
+    try:
+        coco = pycocotools_ap50(detections, truths, list(class_names))["mean_ap"]
+        out["coco_ap50"] = None if math.isnan(coco) else coco
+    except ImportError:                      # pycocotools absent (a bare GPU machine): no cross-check
+        out["coco_ap50"] = None
+    if with_curves:
+        out["curves"] = {name: {k: _thin(v) for k, v in curve.items()} for name, curve in voc["curves"].items()}
     return out
+
+
+def _thin(values: list, points: int = 50) -> list:
+    """At most `points` evenly spaced entries of a precision or recall list (keeps the last)."""
+    if len(values) <= points:
+        return values
+    return [values[int(i)] for i in np.linspace(0, len(values) - 1, points).round()]
 
 
 @dataclass(frozen=True)

@@ -32,13 +32,12 @@ from typing import Generator
 import numpy as np
 
 from workbench.errors import OutputPathError, ParameterError
+from workbench.experiments.results import RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, read_results
 from workbench.jobs import CancelToken, Progress
 
 EXPERIMENTS = ("isp", "exposure")
 REPRESENTATION_ORDER = ("raw", "linear", "srgb")
 CONDITIONS = ("ev0_trained", "ev_mix", "per_ev")
-RESULTS_FORMAT = "camera-workbench-experiment"
-RESULTS_SCHEMA_VERSION = 1
 
 
 @dataclass(frozen=True)
@@ -156,6 +155,8 @@ def summarise(kind: str, runs: list[dict]) -> list[dict]:
         conds = [row["condition"]]
         if kind == "exposure" and row["condition"] == "ev0_trained" and row["test_ev"] == 0.0:
             conds.append("per_ev")
+        if row["map"] is None:            # no ground truth in the test frames: nothing to average
+            continue
         for cond in conds:
             groups.setdefault((row["net"], row["representation"], cond, row["test_ev"]), []).append(row["map"])
     out = []
@@ -179,31 +180,28 @@ def _csv_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+def plot_results(doc: dict, path_png: Path) -> None:
+    """The chart of a results document (results.draw_results, as the GUI draws it) to a PNG,
+    written atomically."""
+    from matplotlib.figure import Figure
+
+    from workbench.experiments.results import draw_results
+    nets = len({s["net"] for s in doc["summary"]}) or 1
+    fig = Figure(figsize=(6, 4) if doc["kind"] == "isp" else (5.5 * nets, 4))
+    draw_results(fig, doc)
+    fig.tight_layout()
+    tmp = path_png.with_name(f".{path_png.stem}.tmp.png")
+    fig.savefig(tmp, dpi=120)
+    tmp.replace(path_png)
+
+
 def write_outputs(doc: dict, out_dir: Path) -> None:
     """results.json, runs.csv, summary.csv and the chart, each written atomically."""
-    from workbench.experiments.charts import plot_experiment
     from workbench.project import atomic_write_text
     atomic_write_text(out_dir / "results.json", json.dumps(doc, indent=1, default=float) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
-    if doc["summary"]:
-        plot_experiment(doc, out_dir / f"{doc['kind']}.png")
-
-
-def read_results(path: str | Path) -> dict:
-    """A results.json written by run_experiment (format and version checked; errors name the file)."""
-    from workbench.errors import InputFileError
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputFileError(path, f"cannot be read as JSON ({exc.__class__.__name__})") from None
-    if not isinstance(doc, dict) or doc.get("format") != RESULTS_FORMAT:
-        raise InputFileError(path, f"not an experiment results file (format must be '{RESULTS_FORMAT}')")
-    if doc.get("schema_version") != RESULTS_SCHEMA_VERSION:
-        raise InputFileError(path, f"schema_version {doc.get('schema_version')!r}; this workbench reads "
-                                   f"{RESULTS_SCHEMA_VERSION}")
-    return doc
+    plot_results(doc, out_dir / f"{doc['kind']}.png")
 
 
 def _load_previous(path: Path, kind: str, fingerprint: str, profile: str) -> list[dict]:
