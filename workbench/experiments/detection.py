@@ -197,7 +197,7 @@ def plot_results(doc: dict, path_png: Path) -> None:
 
 def write_outputs(doc: dict, out_dir: Path) -> None:
     """results.json, runs.csv, summary.csv and the chart, each written atomically."""
-    from workbench.project import atomic_write_text
+    from workbench.files import atomic_write_text
     atomic_write_text(out_dir / "results.json", json.dumps(doc, indent=1, default=float) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
