@@ -12,7 +12,7 @@ from typing import Callable
 
 from workbench.registry import Registry
 
-MODULES = ("pipeline", "render", "optics", "isp", "sensor", "city", "lens_camera")
+MODULES = ("pipeline", "render", "optics", "isp", "sensor", "city", "lens_camera", "scale")
 BENCHES: Registry[Callable] = Registry("bench", "benchmark")
 
 
