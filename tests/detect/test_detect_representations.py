@@ -6,7 +6,7 @@ from workbench.detect.representations import (
     crop, hflip, input_channels, input_stride, network_input, pack_raw, packed_channel_names, packed_sites,
     raw_scaled, unpack_raw)
 from workbench.errors import ParameterError
-from workbench.isp import BLACK_LEVEL_KEY, ISPParams, isp_compute
+from workbench.isp import BLACK_LEVEL_KEY, ISPParams, sensor_image_to_srgb
 from workbench.sensor import CFA_PATTERNS, cfa_layout
 from workbench.sensor.image import SensorImage
 
@@ -73,11 +73,11 @@ def test_fixed_scaling_keeps_exposure_differences():
     np.testing.assert_allclose(x_dim, pack_raw((dn - 16) / (255 - 16), "RGGB"), rtol=1e-6)
     np.testing.assert_allclose(x_bright, 2 * x_dim, rtol=1e-5)       # no per-image normalisation
     params = ISPParams(illuminant_correction="none")
-    lin_dim = network_input(dim, isp_compute(dim, params), "linear")
-    lin_bright = network_input(bright, isp_compute(bright, params), "linear")
+    lin_dim = network_input(dim, sensor_image_to_srgb(dim, params), "linear")
+    lin_bright = network_input(bright, sensor_image_to_srgb(bright, params), "linear")
     assert lin_dim.shape == (3, 8, 12)
     np.testing.assert_allclose(lin_bright, 2 * lin_dim, rtol=1e-5, atol=1e-6)
-    srgb = network_input(dim, isp_compute(dim, params), "srgb")
+    srgb = network_input(dim, sensor_image_to_srgb(dim, params), "srgb")
     assert srgb.shape == (3, 8, 12) and 0 <= srgb.min() and srgb.max() <= 1
 
 

@@ -12,7 +12,7 @@ def register(sub) -> None:
     p = sub.add_parser("lens", help="lens prescriptions: paraxial data, aberrations, plots")
     lsub = p.add_subparsers(dest="lens_command", required=True)
     for name, helptext in (("info", "paraxial data and an aberration summary"),
-                           ("plot", "PNG figures: layout, spots, ray fans, MTF, distortion, illumination")):
+                           ("plot", "PNG figures: layout, spots, ray fans, PSF, MTF, distortion, illumination")):
         q = lsub.add_parser(name, help=helptext)
         q.add_argument("lens", help="a lens file (.json/.dat/.zmx) or a name in resources/lenses/")
         q.add_argument("--max-field-deg", type=float, default=None,

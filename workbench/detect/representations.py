@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.errors import ParameterError
-from workbench.isp.pipeline import BLACK_LEVEL_KEY, REPRESENTATIONS
+from workbench.isp.process import BLACK_LEVEL_KEY, REPRESENTATIONS
 from workbench.sensor.cfa import cfa_layout
 from workbench.sensor.params import CFA_PATTERNS
 

@@ -77,8 +77,8 @@ def ev_sweep_job(project, signal_rate_e_per_s: np.ndarray, wavelengths_nm: np.nd
                  thumbnail_width_px: int = THUMBNAIL_WIDTH_PX) -> Job[list[EVPoint]]:
     """Sweep `evs` on one frame's pixel signal (see the module docstring); thumbnails are at most
     `thumbnail_width_px` wide (the sensor width keeps the full image)."""
-    from workbench.isp import isp_compute
-    from workbench.sensor import expose, resolve_exposure
+    from workbench.isp import sensor_image_to_srgb
+    from workbench.sensor import resolve_exposure, signal_rate_to_sensor_image
     exp = project.experiment
     base = project.sensor.updated(auto_exposure_method=exp.auto_exposure_method,
                                   auto_exposure_level=exp.auto_exposure_level, exposure_s=None)
@@ -88,9 +88,9 @@ def ev_sweep_job(project, signal_rate_e_per_s: np.ndarray, wavelengths_nm: np.nd
             cancel.check()
         yield Progress(i, len(evs), f"EV {ev:+g}")
         sensor = base.updated(ev_bias=ev)
-        image = expose(signal_rate_e_per_s, sensor, resolve_exposure(signal_rate_e_per_s, sensor),
-                       wavelengths_nm=wavelengths_nm)
-        isp = isp_compute(image, project.isp)
+        exposure_s = resolve_exposure(signal_rate_e_per_s, sensor)
+        image = signal_rate_to_sensor_image(signal_rate_e_per_s, sensor, exposure_s, wavelengths_nm=wavelengths_nm)
+        isp = sensor_image_to_srgb(image, project.isp)
         clipped = image.dn >= image.max_dn
         t = float(np.mean(image.exposure_s))
         unclipped = image.electrons[~clipped]

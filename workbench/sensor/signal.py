@@ -129,7 +129,7 @@ def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> 
     return out
 
 
-def pixel_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
+def irradiance_to_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
     """Mean photo-electron rate (e⁻/s) of every pixel, rows×cols float32, before any noise.
 
     Fast path when the optical image is already on the pixel grid (same spacing; same size, or

@@ -4,8 +4,9 @@ from __future__ import annotations
 from typing import Callable
 
 from workbench.errors import ParameterError
+from workbench.registry import Registry
 
-DETECTORS: dict[str, Callable] = {}
+DETECTORS: Registry[Callable] = Registry("detector", "detector")
 
 INPUT_STRIDES = (1, 2)
 
@@ -24,20 +25,16 @@ def register_detector(name: str):
         def tiny(in_channels, num_classes, input_stride):
             return MyNet(in_channels, num_classes, input_stride)
     """
-    def deco(factory: Callable) -> Callable:
-        DETECTORS[name] = factory
-        return factory
-    return deco
+    return DETECTORS.register(name)
 
 
 def build_detector(name: str, in_channels: int, num_classes: int, input_stride: int = 1):
     """A fresh (randomly initialised) detector from the registry."""
-    if name not in DETECTORS:
-        raise ParameterError("detector", name, f"one of {', '.join(sorted(DETECTORS))}")
+    factory = DETECTORS[name]          # ParameterError listing the registered names
     if not (isinstance(in_channels, int) and in_channels >= 1):
         raise ParameterError("in_channels", in_channels, "a positive integer")
     if not (isinstance(num_classes, int) and num_classes >= 1):
         raise ParameterError("num_classes", num_classes, "a positive integer")
     if input_stride not in INPUT_STRIDES:
         raise ParameterError("input_stride", input_stride, f"one of {INPUT_STRIDES}")
-    return DETECTORS[name](in_channels, num_classes, input_stride)
+    return factory(in_channels, num_classes, input_stride)
