@@ -61,7 +61,7 @@ def project_texts(draw, samples=tuple(SAMPLES)) -> tuple[str, str, list[str]]:
         paths = _paths(doc)
         path = draw(st.sampled_from(paths))
         parent, key = _parent(doc, path), path[-1]
-        op = draw(st.sampled_from(["nasty", "nasty", "scale", "delete", "add"]))
+        op = draw(st.sampled_from(["nasty", "nasty", "scale", "scale", "scale", "delete", "add"]))
         if op == "scale" and isinstance(parent[key], (int, float)) and not isinstance(parent[key], bool):
             factor = draw(st.sampled_from([-1, 0, 0.5, 2, 10, 1e3, 1e-3]))
             value = parent[key] * factor
