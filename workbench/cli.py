@@ -7,7 +7,7 @@ import json
 import sys
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens")
+COMMAND_MODULES = ("core", "render", "lens", "gui")
 # Modules that register benchmarks when imported.
 BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
                  "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
@@ -54,6 +54,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv:                  # bare `workbench`: the window where there is a display
+        from workbench.commands.gui import has_display_for_gui
+        if has_display_for_gui():
+            argv = ["gui"]
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
