@@ -21,7 +21,7 @@ def _optics(**kw) -> OpticsParams:
 
 def test_camera_follows_formation_lens_preparation():
     from workbench.optics.formation import lens_setup
-    from workbench.optics.lens.mitsuba_camera import full_model_camera
+    from workbench.optics.formation.full_model import full_model_camera
     scaled = full_model_camera(_optics(scale_lens_to_focal_length=True, focal_length_mm=3.0, f_number=5.6),
                                10.0, sensor_width_mm=1.92)
     assert scaled.focal_length_m == pytest.approx(3.0e-3, rel=1e-9)
@@ -44,7 +44,8 @@ def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     """Constant sky of L = 0.02 W/m²/sr/nm through the calibrated spectral film: on-axis irradiance
     = T · L_photons · E/L of the traced lens (the numpy estimator), in photons/s/m²/nm."""
     from workbench.jobs import run_job
-    from workbench.optics.lens.mitsuba_camera import full_model_camera, full_model_optical_image, lens_sensor_dict
+    from workbench.optics.formation.full_model import full_model_camera, full_model_optical_image
+    from workbench.render.lens_camera import lens_sensor_dict
     from workbench.render.film import box_bands
     from workbench.render.params import RenderParams
     from workbench.render.spectral import render_loaded
@@ -67,8 +68,10 @@ def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     assert np.isfinite(oi.irradiance_photons).all()
     assert got == pytest.approx(expected, rel=0.01)   # Monte Carlo σ ≈ 0.15 % at 1024 spp
     assert oi.sample_spacing_m == pytest.approx(0.04e-3 / 16)
-    # units sanity: the paraxial camera equation π T L / (4 N²), within this wide angle's 6.5 %
-    assert got.mean() / (0.9 * L_photons.mean()) == pytest.approx(math.pi / (4 * 2.8 ** 2), rel=0.1)
+    # units sanity against the paraxial camera equation π T L / (4 N²), independent of the
+    # estimator: this wide-angle lens at f/2.8 delivers 0.935 of it on axis (pupil aberration)
+    paraxial_ratio = got.mean() / (0.9 * L_photons.mean()) / (math.pi / (4 * 2.8 ** 2))
+    assert paraxial_ratio == pytest.approx(0.935, abs=0.015)
 
 
 def _tiny_city_project(model: str, lux: float | None = None):
@@ -129,7 +132,7 @@ def test_fast_trace_agrees_with_numpy_ray_by_ray(mi, name, heights_mm):
     import drjit as dr
 
     from workbench.optics.lens.analysis import rear_pupil_box
-    from workbench.optics.lens.mitsuba_camera import _trace_reverse
+    from workbench.render.lens_camera.kernels import trace_reverse
     lens = load_lens(name)
     zs, zr = sensor_z_mm(lens), lens.total_track_mm
     for h in heights_mm:
@@ -143,7 +146,7 @@ def test_fast_trace_agrees_with_numpy_ray_by_ray(mi, name, heights_mm):
         n = len(d)
         f = [mi.Float(np.ascontiguousarray(a, dtype=np.float32))
              for a in (np.zeros(n), np.full(n, h), np.full(n, zs), d[:, 0], d[:, 1], d[:, 2])]
-        out = _trace_reverse(lens, *f, None, dr, mi)
+        out = trace_reverse(lens, *f, None, dr, mi)
         ok = np.array(out[6], dtype=bool)
         assert ref.valid.sum() > 400
         assert (ok != ref.valid).sum() <= 3

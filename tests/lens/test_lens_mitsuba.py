@@ -26,7 +26,7 @@ def _camera(mi):
 
 
 def test_on_axis_irradiance_is_the_camera_equation(mi):
-    from workbench.optics.lens.mitsuba_camera import lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
     lens = load_lens("dgauss.50mm")
     film = _film(32, 24)
     # A 1 mm film: every pixel is within 0.7 mm of the axis (RI > 0.999).
@@ -40,7 +40,7 @@ def test_on_axis_irradiance_is_the_camera_equation(mi):
 
 
 def test_radiance_weighting_and_relative_illumination(mi):
-    from workbench.optics.lens.mitsuba_camera import lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
     lens = load_lens("automotive.2.4mm")
     w, h, pitch_mm = 40, 30, 0.048      # the paper's 1.92 × 1.44 mm sensor at 1/8 resolution
     img = _render(mi, lens_sensor_dict(lens, _film(w, h), _camera(mi), sensor_width_mm=w * pitch_mm,
@@ -55,7 +55,7 @@ def test_radiance_weighting_and_relative_illumination(mi):
 
 
 def test_image_orientation_matches_perspective_camera(mi):
-    from workbench.optics.lens.mitsuba_camera import lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
     lens = load_lens("automotive.2.4mm")
     film = _film(32, 24)
     f_mm = paraxial(lens).efl_mm
@@ -76,7 +76,7 @@ def test_image_orientation_matches_perspective_camera(mi):
 
 
 def test_bad_arguments(mi):
-    from workbench.optics.lens.mitsuba_camera import lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
     lens = load_lens("automotive.2.4mm")
     with pytest.raises(ValueError, match="weight"):
         lens_sensor_dict(lens, _film(8, 6), _camera(mi), 1.0, weight="lux")
@@ -88,7 +88,7 @@ def test_bad_arguments(mi):
 
 def test_aspheric_dispersive_lens_matches_numpy_estimator(mi):
     from workbench.optics.lens import Lens, Surface, focus
-    from workbench.optics.lens.mitsuba_camera import lens_sensor_dict
+    from workbench.render.lens_camera import lens_sensor_dict
     lens = focus(Lens((Surface(1 / 20.0, 4.0, "N-BK7", 6.0, conic=-1.0, asphere_coeffs=(0.0, 2e-5)),
                        Surface(-1 / 60.0, 2.0, "air", 6.0),
                        Surface(0.0, 0.0, "air", 3.0, is_stop=True)), name="asph"), math.inf)
@@ -104,7 +104,7 @@ def test_drjit_trace_agrees_with_numpy_ray_by_ray(mi):
     """The same rays through the dispersive double Gauss: same survivors, exits within float32 error."""
     import drjit as dr
     from workbench.optics.lens import sensor_z_mm, trace_rays
-    from workbench.optics.lens.mitsuba_camera import _trace_reverse
+    from workbench.render.lens_camera.kernels import trace_reverse
     lens = load_lens("dgauss.50mm")
     zs, zr = sensor_z_mm(lens), lens.total_track_mm
     g = np.linspace(-14.0, 14.0, 90)
@@ -115,7 +115,7 @@ def test_drjit_trace_agrees_with_numpy_ray_by_ray(mi):
     ref = trace_rays(lens, np.tile(src, (len(d), 1)), d, 486.1, reverse=True)
     f = lambda a: mi.Float(np.ascontiguousarray(a, dtype=np.float32))  # noqa: E731
     n = len(d)
-    out = _trace_reverse(lens, f(np.full(n, 3.0)), f(np.full(n, 5.0)), f(np.full(n, zs)),
+    out = trace_reverse(lens, f(np.full(n, 3.0)), f(np.full(n, 5.0)), f(np.full(n, zs)),
                          f(d[:, 0]), f(d[:, 1]), f(d[:, 2]), mi.Float(486.1), dr, mi)
     ok = np.array(out[6], dtype=bool)
     assert ref.valid.sum() > 1000

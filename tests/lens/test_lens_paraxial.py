@@ -104,3 +104,23 @@ def test_patent_glasses_shift_the_double_gauss_as_published():
     p = paraxial(dataclasses.replace(lens, surfaces=surfs))
     assert p.efl_mm == pytest.approx(50.0075, abs=6e-5)
     assert p.f_number == pytest.approx(2.013, abs=6e-4)
+
+
+def test_reading_a_lens_resolves_its_unflagged_stop():
+    """A prescription with no stop row gets the surface that limits the axial beam as its stop
+    when read; a Lens built in code keeps None until paraxial.with_aperture_stop resolves it."""
+    from workbench.optics.lens import Lens, Surface
+    from workbench.optics.lens.io import lens_from_dat
+    from workbench.optics.lens.paraxial import with_aperture_stop
+    # Two surfaces; the second (semi-aperture 2 mm) clips the axial beam before the first (10 mm).
+    text = "100 5 1.5 20\n-100 95 1.0 4\n"
+    lens = lens_from_dat(text, "two")
+    assert lens.stop_index == 1
+    assert paraxial(lens).epd_mm < 20.0 * 0.5      # the pupil is the image of the 2 mm rear surface
+    built = Lens((Surface.from_radius(100, 5, "1.5", 10), Surface.from_radius(-100, 0, "air", 2)))
+    assert built.stop_index is None
+    assert with_aperture_stop(built).stop_index == 1
+    with pytest.raises(ValueError, match="no resolved aperture stop"):
+        built.with_stop_semi_aperture(1.0)
+    flagged = Lens((Surface.from_radius(0, 1, "air", 3, is_stop=True), Surface.from_radius(-50, 0, "air", 1)))
+    assert flagged.stop_index == 0 and with_aperture_stop(flagged).stop_index == 0

@@ -1,36 +1,75 @@
 """Run a list of independent jobs on this machine: in-process, or in a pool of spawned processes.
 
 The job API is what any backend scales out: a picklable module-level function `fn(job)` and a
-list of picklable jobs (plain data). A cluster backend (Ray) offers the same `run_jobs` generator.
+list (or lazy iterable) of picklable jobs (plain data). compute.ray_cluster offers the same generator.
+Pool workers die with the process that started them (Linux: PR_SET_PDEATHSIG), so a `kill -9` of
+the driver leaves no worker rendering on.
 """
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
 import multiprocessing
+import os
+import signal
+import sys
 from typing import Callable, Generator, Iterable, TypeVar
 
+from workbench.errors import WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
 J = TypeVar("J")
 R = TypeVar("R")
 
 POLL_S = 0.2          # how often a waiting pool checks the cancel token
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+THREAD_ENV_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+THREAD_BUDGET_ENV = "WORKBENCH_THREADS"      # read by render.variants (Dr.Jit) in this process
 
 
-class JobFailed(RuntimeError):
-    """A job raised; the message names the job, the original error is the __cause__."""
+class JobFailed(WorkbenchError, RuntimeError):
+    """A job raised (or its worker died more often than allowed); the message names the job and the
+    last error, the original error is the __cause__."""
+
+
+def apply_thread_budget(threads: int | None) -> None:
+    """Limit this process to `threads` threads in OpenMP/BLAS, torch and Dr.Jit (set before they start)."""
+    if not threads:
+        return
+    for name in (*THREAD_ENV_VARS, THREAD_BUDGET_ENV):
+        os.environ[name] = str(threads)
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(threads)
+    if "drjit" in sys.modules:
+        sys.modules["drjit"].set_thread_count(threads)
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies; exit now if it already has."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent_pid:          # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _worker_init(parent_pid: int, threads: int | None) -> None:
+    die_with_parent(parent_pid)
+    apply_thread_budget(threads)
 
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
-             cancel: CancelToken | None = None, *,
-             max_tasks_per_child: int | None = None) -> Generator[tuple[J, R], None, None]:
+             cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
+             threads_per_worker: int | None = None) -> Generator[tuple[J, R], None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
     workers ≥ 1 runs them in that many processes started with 'spawn' (each imports what fn needs
     itself, e.g. mitsuba; no state is inherited by forking); fn must be a module-level function
-    and jobs picklable. max_tasks_per_child recycles a worker process after that many jobs (to
-    bound slow leaks in native libraries).
+    and jobs picklable. Jobs are drawn from `jobs` lazily (at most 2 × workers ahead).
+    max_tasks_per_child recycles a worker process after that many jobs (to bound slow leaks in
+    native libraries); threads_per_worker is each worker's thread budget (OpenMP, torch, Dr.Jit).
     cancel is checked between jobs: once set, no further job starts, jobs already running are
     waited for (their results are not yielded) and JobCancelled is raised.
     A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
@@ -49,12 +88,13 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
                 raise JobFailed(f"job {job!r} failed: {exc}") from exc
             yield job, result
         return
-    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child)
+    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker)
 
 
-def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child):
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads):
     pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                  max_tasks_per_child=max_tasks_per_child)
+                                  max_tasks_per_child=max_tasks_per_child,
+                                  initializer=_worker_init, initargs=(os.getpid(), threads))
     pending: dict[cf.Future, object] = {}
     try:
         exhausted = False

@@ -10,13 +10,16 @@ import math
 from pathlib import PurePosixPath
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
+
+from workbench.errors import ParameterError
 
 from workbench.params import Params
 
-OPTICS_MODEL_NAMES = ("pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto")
 OpticsModelName = Literal["pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto"]
 
+LENS_MODELS = ("psf_grid", "raytrace")
+"""Optics levels that trace a real lens and so need lens_file."""
 PAPER_SENSOR_WIDTH_MM = 640 * 3e-3
 PAPER_HFOV_DEG = 44.0
 
@@ -111,6 +114,8 @@ class OpticsParams(Params):
         if not v or p.is_absolute() or ".." in p.parts:
             raise ValueError(f"lens_file must be a relative path inside resources/lenses/ "
                              f"(no '..', not absolute), got {v!r}")
+        from workbench.optics.lens.io import check_shipped_lens
+        check_shipped_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
         return str(p)
 
     @field_validator("distortion_k")
@@ -119,6 +124,13 @@ class OpticsParams(Params):
         if not all(math.isfinite(k) for k in v):
             raise ValueError(f"distortion_k must be finite numbers, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _lens_for_lens_models(self):
+        if self.model in LENS_MODELS and self.lens_file is None:
+            raise ParameterError("lens_file", None, f"optics model '{self.model}' needs a lens file (a prescription "
+                                                    "under resources/lenses/, e.g. 'dgauss.50mm')")
+        return self
 
     @property
     def focal_length_m(self) -> float:

@@ -91,7 +91,7 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
     The visible sun disc is composited where camera rays reach the sky (render/sun_disc.py,
     render.daylight.sun_visible; meta['sun_disc']); not on the full-model path below.
     Full model (optics.model 'raytrace' with a lens_file, uses_full_lens_model): Mitsuba traces
-    every camera ray through the lens (mitsuba_camera, weight 'irradiance'), so the film holds
+    every camera ray through the lens (render.lens_camera, weight 'irradiance'), so the film holds
     sensor irradiance. The lens is prepared as formation/ prepares it and focused on
     optics.focus_distance_m or else scene.distance_m (the distance camera_hfov_deg focuses on);
     the sensor is cols × pixel pitch wide (or spans scene.fov_deg at the image distance), so the
@@ -121,7 +121,8 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
     film = film_for(project.render, (qe_wl, np.asarray(channel_qe(project.sensor, qe_wl)).T))
     optics, camera, lens_sensor = project.optics, None, None
     if uses_full_lens_model(optics):
-        from workbench.optics.lens.mitsuba_camera import full_model_camera, lens_sensor_dict
+        from workbench.optics.formation.full_model import full_model_camera
+        from workbench.render.lens_camera import lens_sensor_dict
         if project.scene.fov_deg is not None:
             camera = full_model_camera(optics, project.scene.distance_m, fov_deg=project.scene.fov_deg)
         else:
@@ -172,8 +173,8 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
 def sensor_matched_error(project, render: CityRender, shot_noise_ratio: float) -> float:
     """Relative render error that is `shot_noise_ratio` × the photon shot noise 1/√N_e, with N_e
     the mean electrons per pixel of the project's sensor at its exposure on this render."""
-    from workbench.sensor import pixel_signal_rate, resolve_exposure
-    rate = pixel_signal_rate(city_optical_image(render, project), project.sensor)
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure
+    rate = irradiance_to_signal_rate(city_optical_image(render, project), project.sensor)
     exposure_s = float(np.mean(resolve_exposure(rate, project.sensor)))
     mean_e = float(np.mean(rate, dtype=np.float64)) * exposure_s
     if not mean_e > 0:
@@ -191,7 +192,7 @@ def city_optical_image(render: CityRender, project):
         oi = form_optical_image(render.scene, project)
         oi.meta.update(film_meta)
         return oi
-    from workbench.optics.lens.mitsuba_camera import full_model_optical_image
+    from workbench.optics.formation.full_model import full_model_optical_image
     oi = full_model_optical_image(render.scene.radiance_photons, render.scene.wavelengths_nm, render.camera,
                                   project.optics, depth_m=render.labels.depth_m, meta=film_meta)
     return scale_to_mean_illuminance(oi, project.scene.adjust_illuminance_lux)

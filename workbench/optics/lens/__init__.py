@@ -7,8 +7,8 @@ at `sensor_z_mm(lens)` (last vertex + `lens.image_distance_mm`, or + BFL when th
 Fields: an angle θ rises towards +y and its chief ray lands at +y on the sensor; PSF arrays are
 indexed [i, j] with i along +y and j along +x, centred on the chief ray at [size//2, size//2].
 Invalid rays (misses, TIR, vignetting) are flagged by masks and carry finite placeholders.
-The Mitsuba lens camera is `workbench.optics.lens.mitsuba_camera.lens_sensor_dict` (imported on
-demand: it needs a Mitsuba JIT variant set first).
+The Mitsuba lens camera that traces these lenses is `workbench.render.lens_camera` (this package
+does not need Mitsuba).
 """
 from workbench.optics.lens.analysis import (Distortion, RayFan, SpotDiagram, axial_color, distortion,
                                             irradiance_per_radiance, lateral_color, ray_fan, real_fov_deg,

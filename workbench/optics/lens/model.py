@@ -85,20 +85,35 @@ class Surface:
 
 @dataclass(frozen=True)
 class Lens:
-    """A sequential lens. `image_distance_mm` (last vertex → sensor) None means focused at infinity."""
+    """A sequential lens. `image_distance_mm` (last vertex → sensor) None means focused at infinity.
+
+    stop_index: index of the aperture stop: the surface flagged is_stop, else resolved when the lens
+        is read (load_lens: the surface limiting the axial beam, paraxial.with_aperture_stop);
+        None only for a lens built without one, which paraxial.with_aperture_stop resolves.
+    """
 
     surfaces: tuple[Surface, ...]
     name: str = ""
     image_distance_mm: float | None = None
     description: str = ""
     meta: dict = field(default_factory=dict, compare=False)
+    stop_index: int | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "surfaces", tuple(self.surfaces))
         if not self.surfaces:
             raise ValueError(f"Lens {self.name!r}: needs at least one surface")
-        if sum(s.is_stop for s in self.surfaces) > 1:
+        flagged = [i for i, s in enumerate(self.surfaces) if s.is_stop]
+        if len(flagged) > 1:
             raise ValueError(f"Lens {self.name!r}: more than one surface is marked as the stop")
+        if flagged and self.stop_index not in (None, flagged[0]):
+            raise ValueError(f"Lens.stop_index={self.stop_index}: surface {flagged[0]} is marked as the stop")
+        if flagged:
+            object.__setattr__(self, "stop_index", flagged[0])
+        elif self.stop_index is not None and not (isinstance(self.stop_index, int)
+                                                  and 0 <= self.stop_index < len(self.surfaces)):
+            raise ValueError(f"Lens.stop_index={self.stop_index!r}: must be a surface index "
+                             f"0 … {len(self.surfaces) - 1}")
         if not self.surfaces[-1].material.is_air:
             raise ValueError(f"Lens {self.name!r}: the last surface must be followed by air, "
                              f"got {self.surfaces[-1].material.spec!r}")
@@ -118,16 +133,6 @@ class Lens:
         """First vertex → last vertex."""
         return float(self.vertex_z_mm[-1])
 
-    @property
-    def stop_index(self) -> int:
-        """Index of the aperture stop: the flagged surface, else the one limiting the axial beam."""
-        for i, s in enumerate(self.surfaces):
-            if s.is_stop:
-                return i
-        from workbench.optics.lens.paraxial import marginal_ray_heights
-        y = marginal_ray_heights(self)
-        return int(np.argmax(np.abs(y) / np.array([s.semi_aperture_mm for s in self.surfaces])))
-
     def media(self) -> list[Material]:
         """Medium before each surface, plus the image medium: len = n_surfaces + 1."""
         return [AIR] + [s.material for s in self.surfaces]
@@ -138,6 +143,9 @@ class Lens:
     def with_stop_semi_aperture(self, semi_aperture_mm: float) -> "Lens":
         """The same lens with the stop opened or closed to `semi_aperture_mm`."""
         i = self.stop_index
+        if i is None:
+            raise ValueError(f"lens {self.name!r} has no resolved aperture stop; read it with load_lens "
+                             "or pass it through paraxial.with_aperture_stop")
         surfs = list(self.surfaces)
         surfs[i] = replace(surfs[i], semi_aperture_mm=semi_aperture_mm)
         return replace(self, surfaces=tuple(surfs))

@@ -7,7 +7,7 @@ surface of curvature c from index n to n' is [[1, 0], [−(n'−n)c, 1]]; a gap 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -44,6 +44,16 @@ def marginal_ray_heights(lens: Lens, wavelength_nm: float = LINE_D_NM) -> np.nda
     return np.array(ys)
 
 
+def with_aperture_stop(lens: Lens, wavelength_nm: float = LINE_D_NM) -> Lens:
+    """`lens` with its aperture stop resolved: the one it has (flagged or read), else the surface
+    whose semi-aperture limits the axial beam (largest marginal-ray height / semi-aperture)."""
+    if lens.stop_index is not None:
+        return lens
+    y = marginal_ray_heights(lens, wavelength_nm)
+    k = int(np.argmax(np.abs(y) / np.array([s.semi_aperture_mm for s in lens.surfaces])))
+    return replace(lens, stop_index=k)
+
+
 @dataclass(frozen=True)
 class ParaxialData:
     """First-order properties at one wavelength. Distances in mm; pupil positions are measured
@@ -75,7 +85,7 @@ def paraxial(lens: Lens, wavelength_nm: float = LINE_D_NM) -> ParaxialData:
     if abs(C) < 1e-15:
         raise ValueError(f"lens {lens.name!r} is afocal (zero power): no focal length")
     efl = -1.0 / C
-    k = lens.stop_index
+    k = with_aperture_stop(lens).stop_index
     stop = lens.surfaces[k]
     # Entrance pupil: image of the stop through the surfaces in front of it.
     (a, b), _ = (_matrix(lens, 0, k, wavelength_nm, gap_after_last=True) if k else np.eye(2)).tolist()

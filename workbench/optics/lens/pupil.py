@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.optics.lens.model import Lens
-from workbench.optics.lens.paraxial import sensor_z_mm
+from workbench.optics.lens.paraxial import sensor_z_mm, with_aperture_stop
 from workbench.optics.lens.trace import RayTrace, to_plane, trace_rays
 
 _COARSE = 64
@@ -101,8 +101,7 @@ def make_bundle(lens: Lens, field_angle_deg: float, object_distance_m: float, wa
 def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> float:
     """v of the chief ray (u = 0): the ray through the centre of the stop.
     ValueError when no ray of the field reaches the stop centre."""
-    lens = bundle.lens
-    k = lens.stop_index
+    k = with_aperture_stop(bundle.lens).stop_index
     _, _, v0, v1 = bundle.box
     v = np.linspace(v0, v1, n_scan)
 
@@ -116,7 +115,7 @@ def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> floa
     if exact.size:
         return float(v[exact[0]])
     if not cross.size:
-        raise ValueError(f"lens {lens.name!r}: no ray from field {bundle.field_angle_deg:g}° "
+        raise ValueError(f"lens {bundle.lens.name!r}: no ray from field {bundle.field_angle_deg:g}° "
                          "passes through the centre of the stop (chief ray cannot be aimed)")
     i = cross[0]
     a, b, ya, yb = v[i], v[i + 1], y[i], y[i + 1]
@@ -127,7 +126,7 @@ def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> floa
             m = 0.5 * (a + b)
             (ym,), (okm,) = y_at_stop(np.array([m]))
         if not okm:
-            raise ValueError(f"lens {lens.name!r}: the chief ray of field {bundle.field_angle_deg:g}° "
+            raise ValueError(f"lens {bundle.lens.name!r}: the chief ray of field {bundle.field_angle_deg:g}° "
                              "is blocked before the stop")
         if abs(ym) < 1e-12 or abs(b - a) < 1e-13:
             return float(m)

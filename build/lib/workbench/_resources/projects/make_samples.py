@@ -1,0 +1,65 @@
+"""Write the sample projects in this folder from the validated models (run after a schema change):
+
+    .venv/bin/python resources/projects/make_samples.py
+"""
+from workbench.isp.params import ISPParams
+from workbench.optics.params import OpticsParams
+from workbench.project import PROJECTS_DIR, Project, save_project
+from workbench.render.params import RenderParams
+from workbench.scene.city import CityRecipe, PoseParams
+from workbench.scene.params import SceneParams, WavelengthParams
+from workbench.sensor.params import SENSOR_PRESETS
+
+
+def main() -> None:
+    paper = Project(
+        name="paper_camera",
+        description="The paper's camera (Table 1): 640x480, 3 um pixel, 1 mV/s dark, 1 mV read noise, 1 V swing, "
+                    "44 deg FOV pinhole, 8 bits; Macbeth chart under D65 at a mean sensor illuminance of 1000 lux; "
+                    "bilinear demosaic, Macbeth/D65 colour matrix, gray world, sRGB.",
+        scene=SceneParams(kind="macbeth", illuminant="D65", distance_m=10.0, adjust_illuminance_lux=1000.0),
+        sensor=SENSOR_PRESETS["paper_table1"],
+        isp=ISPParams(illuminant_correction="gray_world"))
+    samples = [
+        paper,
+        paper.updated(
+            name="uniform_d65_isetcam_pixel",
+            description="ISETCam's default sensor (2.8 um, GRBG, analog) on a uniform D65 field of 100 cd/m2 at f/4.",
+            scene=SceneParams(kind="uniform", illuminant="D65", mean_luminance_cd_m2=100.0, distance_m=1.2),
+            sensor=SENSOR_PRESETS["isetcam_default"]),
+        paper.updated(
+            name="hdr_tunnel_auto_rccc",
+            description="An automotive RCCC sensor (MT9V024-like, no IR cut) facing a dark tunnel with a bright exit "
+                        "(1e6:1); wavelengths 400-1000 nm because the clear channel sees the near infrared.",
+            scene=SceneParams(kind="hdr_tunnel", distance_m=30.0,
+                              wavelengths=WavelengthParams(start_nm=400, stop_nm=1000, step_nm=20)),
+            optics=OpticsParams(focal_length_mm=4.0, f_number=2.0),
+            sensor=SENSOR_PRESETS["auto_rccc"].updated(auto_exposure_method="brightest", auto_exposure_level=0.9),
+            isp=ISPParams(illuminant_correction="none")),
+        paper.updated(
+            name="slanted_edge_diffraction_f8",
+            description="The paper's sensor behind diffraction-limited f/8 optics on an ISO 12233 slanted edge.",
+            scene=SceneParams(kind="slanted_edge", distance_m=10.0, adjust_illuminance_lux=1000.0),
+            optics=OpticsParams(model="diffraction_limited", f_number=8.0)),
+    ]
+    city = paper.updated(
+        name="city_paper_camera",
+        description="The paper's four-block city (2x2 blocks of 100 m; cars, pedestrians, buses, trees, lamps, "
+                    "benches, mailboxes placed by rule) seen by the paper's camera 1.5 m above the road, about "
+                    "10 m from a target object, rendered spectrally with Mitsuba 3 under daylight.",
+        scene=SceneParams(kind="city", distance_m=10.0, adjust_illuminance_lux=None),
+        city=CityRecipe(seed=1), pose=PoseParams(mode="target", seed=1), render=RenderParams())
+    samples += [
+        city,
+        city.updated(
+            name="city_automotive_lens_full_model",
+            description="The city frame through the automotive 2.4 mm lens (44 deg on the paper's sensor) at f/2.8, "
+                        "traced inside Mitsuba for every camera ray (the full model).",
+            optics=OpticsParams(model="raytrace", lens_file="automotive.2.4mm.json", f_number=2.8)),
+    ]
+    for project in samples:
+        save_project(project, PROJECTS_DIR / f"{project.name}.json")
+
+
+if __name__ == "__main__":
+    main()

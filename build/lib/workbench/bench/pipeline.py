@@ -1,0 +1,81 @@
+"""`workbench bench pipeline`: median time of every stage and peak memory at 640×480 and 1280×960.
+
+The live-preview budget is the sensor + ISP on a cached optical image (16 wavelength bands):
+pixel signal + exposure/noise/ADC + demosaic/colour/sRGB must take ≤ 30 ms at 640×480.
+"""
+from __future__ import annotations
+
+import resource
+import tracemalloc
+
+import numpy as np
+
+from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import median_times_ms
+
+LIVE_PREVIEW_BUDGET_MS = 30.0
+
+
+def _median_ms(fn, repeats: int) -> float:
+    return median_times_ms(fn, repeats)[0]
+
+
+def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 20.0) -> dict:
+    """Stage medians (ms) for the paper's camera on the Macbeth chart at rows×cols."""
+    from workbench.isp import isp_compute
+    from workbench.pipeline import form_optical_image, make_scene
+    from workbench.project import load_project
+    from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
+
+    base = load_project("paper_camera")
+    # Same field of view at every resolution: the pixel shrinks as the count grows.
+    pitch = base.sensor.pixel_pitch_um * base.sensor.cols / cols
+    project = base.updated(
+        sensor=base.sensor.updated(rows=rows, cols=cols, pixel_pitch_um=pitch),
+        scene=base.scene.updated(kind="macbeth", wavelengths=base.scene.wavelengths.updated(step_nm=bands_step_nm)))
+    scene = make_scene(project)
+    oi = form_optical_image(scene, project)
+    rate = pixel_signal_rate(oi, project.sensor)
+    rng = np.random.default_rng(0)
+    sensor, wl = project.sensor, oi.wavelengths_nm
+
+    def capture(rate):
+        return expose(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
+    image = capture(rate)
+
+    def live():
+        isp_compute(capture(pixel_signal_rate(oi, sensor)), project.isp)
+
+    tracemalloc.start()
+    isp_compute(capture(pixel_signal_rate(form_optical_image(make_scene(project), project), sensor)), project.isp)
+    peak_bytes = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+
+    heavy = max(1, repeats // 4)
+    return {
+        "resolution": f"{cols}x{rows}",
+        "bands": int(oi.wavelengths_nm.size),
+        "scene_ms": _median_ms(lambda: make_scene(project), heavy),
+        "optics_ms": _median_ms(lambda: form_optical_image(scene, project), heavy),
+        "signal_ms": _median_ms(lambda: pixel_signal_rate(oi, sensor), repeats),
+        "sensor_ms": _median_ms(lambda: capture(rate), repeats),
+        "isp_ms": _median_ms(lambda: isp_compute(image, project.isp), repeats),
+        "sensor+isp_from_cached_irradiance_ms": _median_ms(live, repeats),
+        "peak_traced_MB": peak_bytes / 2**20,
+    }
+
+
+@register_bench("pipeline", help="stage times and peak memory of the core pipeline")
+def bench_pipeline(args) -> BenchResult:
+    repeats = 5 if getattr(args, "quick", False) else 21
+    sizes = [(480, 640)] if getattr(args, "quick", False) else [(480, 640), (960, 1280)]
+    rows = [bench_resolution(r, c, repeats) for r, c in sizes]
+    live = rows[0]["sensor+isp_from_cached_irradiance_ms"]
+    rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    verdict = "within" if live <= LIVE_PREVIEW_BUDGET_MS else "OVER"
+    notes = [f"live preview (sensor + ISP from cached 16-band irradiance, 640x480): {live:.1f} ms median "
+             f"— {verdict} the {LIVE_PREVIEW_BUDGET_MS:.0f} ms budget",
+             f"process peak RSS: {rss_mb:.0f} MB; medians of {repeats} runs (heavy stages {max(1, repeats // 4)})"]
+    return BenchResult("bench pipeline: median stage times (ms), paper camera, Macbeth chart", rows, notes,
+                       extra={"peak_rss_MB": rss_mb, "live_preview_ms": live,
+                              "live_preview_budget_ms": LIVE_PREVIEW_BUDGET_MS})

@@ -1,0 +1,126 @@
+"""`workbench render` (one labelled city frame) and `workbench dataset` (a resumable set of them)."""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+# Box colours per class id (RGB), cycling for ids beyond the list.
+CLASS_COLOURS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
+                 (145, 30, 180), (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212),
+                 (0, 128, 128), (220, 190, 255), (170, 110, 40))
+OVERLAY_CLASSES = ("car", "pedestrian", "bus", "truck", "tree", "lamp", "bench", "mailbox")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("render", help="render one labelled frame of a city project")
+    p.add_argument("project", help="project file (or the name of a sample project)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--frame", type=int, default=0, help="frame index: picks the seeds (default 0)")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("dataset", help="render a resumable labelled data set (COCO JSON + manifest)")
+    p.add_argument("project", help="project file (or the name of a sample project)")
+    p.add_argument("--frames", type=int, required=True, help="number of frames")
+    p.add_argument("--out", required=True, help="output folder (a rerun resumes it)")
+    p.add_argument("--workers", type=int, default=1, help="worker processes (0 = in this process)")
+    p.add_argument("--float32", action="store_true",
+                   help="store irradiance as float32 (default float16 with scale, ≤ 0.05 %% error)")
+    p.set_defaults(func=cmd_dataset)
+
+
+def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
+    """PIL image of an sRGB preview with the visible boxes and class names of `classes` drawn."""
+    from PIL import Image, ImageDraw
+    img = Image.fromarray(np.round(np.clip(rgb01, 0, 1) * 255).astype(np.uint8))
+    draw = ImageDraw.Draw(img)
+    for obj in labels.objects:
+        if obj.visible_px == 0 or obj.class_name not in classes:
+            continue
+        x, y, w, h = obj.bbox_xywh
+        colour = CLASS_COLOURS[(obj.class_id - 1) % len(CLASS_COLOURS)]
+        draw.rectangle([x, y, x + w - 1, y + h - 1], outline=colour)
+        draw.text((x + 1, max(0, y - 11)), obj.class_name, fill=colour)
+    return img
+
+
+def cmd_render(args) -> int:
+    from tqdm import tqdm
+
+    from workbench.previews import irradiance_preview, save_png
+    from workbench.project import load_project
+    from workbench.render.city_frame import frame_seeds, render_city_frame
+    from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
+    from workbench.render.labels import labels_to_coco
+
+    project = load_project(args.project)
+    if args.frame < 0:
+        raise ValueError(f"--frame must be ≥ 0, got {args.frame}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = frame_seeds(project.seed, args.frame)
+    bars = []          # the bar opens with the first chunk (after the project was checked)
+
+    def progress(step) -> None:
+        if not bars:
+            bars.append(tqdm(total=step.spp_total, desc=f"render frame {args.frame}", unit="spp",
+                             leave=False))
+        bars[0].total = step.spp_total
+        bars[0].n = step.spp_done
+        bars[0].refresh()
+    try:
+        frame = render_city_frame(project, seeds, on_progress=progress)
+    finally:
+        for bar in bars:
+            bar.close()
+    stem = f"frame_{args.frame:06d}"
+    rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
+    save_png(out / f"{stem}_irradiance.png", rgb)
+    label_overlay(rgb, frame.labels).save(out / f"{stem}_labels.png")
+    write_frame(out / f"{stem}.npz", frame,
+                {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
+                 "seeds": asdict(seeds), "project": project.name}, "float32")
+    coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
+    (out / f"{stem}_coco.json").write_text(json.dumps(coco, indent=1))
+    counts: dict[str, int] = {}
+    for o in frame.labels.objects:
+        if o.visible_px:
+            counts[o.class_name] = counts.get(o.class_name, 0) + 1
+    print(json.dumps({"frame": args.frame, "out": str(out), "shape": list(frame.labels.shape),
+                      "visible_objects": counts, **{k: frame.meta[k] for k in ("variant", "spp")
+                                                    if k in frame.meta}}, indent=1))
+    return 0
+
+
+def cmd_dataset(args) -> int:
+    from tqdm import tqdm
+
+    from workbench.compute.local import JobFailed
+    from workbench.project import load_project
+    from workbench.render.dataset import run_dataset
+
+    project = load_project(args.project)
+    job = run_dataset(project, args.frames, args.out, workers=args.workers,
+                      irradiance_dtype="float32" if args.float32 else "float16")
+    with tqdm(total=args.frames, desc="dataset", unit="frame") as bar:
+        while True:
+            try:
+                p = next(job)
+            except StopIteration as stop:
+                result = stop.value
+                break
+            except JobFailed as exc:
+                bar.close()
+                print(f"workbench dataset: error: {exc} (finished frames are kept; rerun to resume)",
+                      file=sys.stderr)
+                return 1
+            bar.n = int(p.done)
+            bar.set_postfix_str(p.message, refresh=False)
+            bar.refresh()
+    print(json.dumps({"out": str(result.out_dir), "frames": result.frames,
+                      "rendered": len(result.rendered), "reused": len(result.reused),
+                      "coco": str(result.coco_path), "manifest": str(result.manifest_path)}, indent=1))
+    return 0

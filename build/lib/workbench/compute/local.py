@@ -1,0 +1,84 @@
+"""Run a list of independent jobs on this machine: in-process, or in a pool of spawned processes.
+
+The job API is what any backend scales out: a picklable module-level function `fn(job)` and a
+list of picklable jobs (plain data). A cluster backend (Ray) offers the same `run_jobs` generator.
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+from typing import Callable, Generator, Iterable, TypeVar
+
+from workbench.jobs import CancelToken, JobCancelled
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+POLL_S = 0.2          # how often a waiting pool checks the cancel token
+
+
+class JobFailed(RuntimeError):
+    """A job raised; the message names the job, the original error is the __cause__."""
+
+
+def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
+             cancel: CancelToken | None = None, *,
+             max_tasks_per_child: int | None = None) -> Generator[tuple[J, R], None, None]:
+    """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
+
+    workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
+    workers ≥ 1 runs them in that many processes started with 'spawn' (each imports what fn needs
+    itself, e.g. mitsuba; no state is inherited by forking); fn must be a module-level function
+    and jobs picklable. max_tasks_per_child recycles a worker process after that many jobs (to
+    bound slow leaks in native libraries).
+    cancel is checked between jobs: once set, no further job starts, jobs already running are
+    waited for (their results are not yielded) and JobCancelled is raised.
+    A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
+    """
+    if not isinstance(workers, int) or workers < 0:
+        raise ValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
+    if max_tasks_per_child is not None and max_tasks_per_child < 1:
+        raise ValueError(f"max_tasks_per_child must be ≥ 1 or None, got {max_tasks_per_child}")
+    if workers == 0:
+        for job in jobs:
+            if cancel is not None:
+                cancel.check()
+            try:
+                result = fn(job)
+            except Exception as exc:
+                raise JobFailed(f"job {job!r} failed: {exc}") from exc
+            yield job, result
+        return
+    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child)
+
+
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child):
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                  max_tasks_per_child=max_tasks_per_child)
+    pending: dict[cf.Future, object] = {}
+    try:
+        exhausted = False
+        while True:
+            while not exhausted and len(pending) < 2 * workers and not (cancel and cancel.cancelled):
+                job = next(jobs, _END)
+                if job is _END:
+                    exhausted = True
+                else:
+                    pending[pool.submit(fn, job)] = job
+            if cancel is not None and cancel.cancelled:
+                raise JobCancelled("cancelled")
+            if not pending:
+                return
+            done, _ = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
+            for fut in done:
+                job = pending.pop(fut)
+                try:
+                    result = fut.result()
+                except Exception as exc:
+                    raise JobFailed(f"job {job!r} failed: {exc}") from exc
+                yield job, result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+_END = object()

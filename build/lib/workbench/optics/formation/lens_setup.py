@@ -1,0 +1,69 @@
+"""The real lens behind the psf_grid and raytrace levels, and the first-order values it implies."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from workbench.optics.params import OpticsParams
+
+
+@lru_cache(maxsize=16)
+def _prepared_lens(lens_file: str, focal_length_mm: float | None, f_number: float):
+    from workbench.optics.lens.io import load_lens
+    from workbench.optics.lens.paraxial import paraxial
+    lens = load_lens(lens_file)
+    if focal_length_mm is not None:
+        lens = lens.scaled(focal_length_mm / paraxial(lens).efl_mm)
+    native = paraxial(lens).f_number
+    stop = lens.surfaces[lens.stop_index]
+    return lens.with_stop_semi_aperture(stop.semi_aperture_mm * native / f_number)
+
+
+def prepared_lens(params: OpticsParams):
+    """The prescription of params.lens_file, scaled (if asked) and stopped to params.f_number,
+    focused at infinity. ValueError when params has no lens file."""
+    if params.lens_file is None:
+        raise ValueError(f"optics model {params.model!r} needs a lens: set lens_file (a prescription "
+                         "under resources/lenses/, e.g. 'dgauss.50mm')")
+    return _prepared_lens(params.lens_file,
+                          params.focal_length_mm if params.scale_lens_to_focal_length else None,
+                          params.f_number)
+
+
+def effective_params(params: OpticsParams) -> OpticsParams:
+    """params with focal_length_mm replaced by the lens's paraxial focal length (when a lens is
+    set), so that every level images with the same first-order optics."""
+    if params.lens_file is None or params.scale_lens_to_focal_length:
+        return params
+    from workbench.optics.lens.paraxial import paraxial
+    return params.model_copy(update={"focal_length_mm": paraxial(prepared_lens(params)).efl_mm})
+
+
+FAR_FOCAL_LENGTHS = 1e4
+
+
+def focused_lens(params: OpticsParams, focus_distance_m: float):
+    """(prepared lens focused on an object `focus_distance_m` from the entrance pupil, that
+    object's distance from the first vertex in m). Objects beyond 10⁴ focal lengths are treated
+    as at infinity (indistinguishable, and ray aiming is better conditioned)."""
+    from workbench.optics.lens.paraxial import focus, paraxial
+    lens = prepared_lens(params)
+    pdata = paraxial(lens)
+    obj_m = focus_distance_m - pdata.entrance_pupil_mm * 1e-3
+    if obj_m > FAR_FOCAL_LENGTHS * pdata.efl_mm * 1e-3:
+        obj_m = float("inf")
+    return focus(lens, obj_m), obj_m
+
+
+RADIOMETRY_HEIGHTS = 24
+RADIOMETRY_SIDE = 96
+
+
+def irradiance_table(lens, max_height_mm: float, wavelength_nm: float) -> tuple[np.ndarray, np.ndarray]:
+    """(image heights mm, E/L in sr): PBRT's camera-equation integral ∫cos⁴θ/z² dA over the
+    traced exit pupil, 96² rays per height, at 24 heights from the axis to max_height_mm."""
+    from workbench.optics.lens.analysis import irradiance_per_radiance
+    heights = np.linspace(0.0, max_height_mm, RADIOMETRY_HEIGHTS)
+    return heights, np.array([irradiance_per_radiance(lens, float(h), float(wavelength_nm),
+                                                      n_side=RADIOMETRY_SIDE) for h in heights])

@@ -1,0 +1,249 @@
+"""Lens summaries and figures: the numbers behind `workbench lens info` and the PNGs of `lens plot`."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from workbench.optics.lens.analysis import (axial_color, distortion, lateral_color, ray_fan, real_fov_deg,
+                                            relative_illumination, spot_diagram)
+from workbench.optics.lens.glass import LINE_C_NM, LINE_D_NM, LINE_F_NM
+from workbench.optics.lens.model import Lens
+from workbench.optics.lens.paraxial import paraxial, sensor_distance_mm, sensor_z_mm
+from workbench.optics.lens.psf import diffraction_mtf, mtf_from_psf, psf_diffraction
+from workbench.optics.lens.pupil import chief_ray_on_sensor, make_bundle
+
+FIELD_FRACTIONS = (0.0, 0.5, 0.7, 1.0)
+
+
+def max_field_deg(lens: Lens, step_deg: float = 1.0, limit_deg: float = 89.0) -> float:
+    """Largest field angle (deg, on a step grid) whose chief ray reaches the sensor."""
+    best = 0.0
+    a = step_deg
+    while a <= limit_deg:
+        try:
+            chief_ray_on_sensor(lens, a, LINE_D_NM)
+        except ValueError:
+            break
+        best = a
+        a += step_deg
+    return best
+
+
+def lens_summary(lens: Lens, max_field: float | None = None,
+                 sensor_mm: tuple[float, float] | None = None) -> dict:
+    """Paraxial data and an aberration summary at FIELD_FRACTIONS of `max_field` (deg; default the
+    largest traceable field, or the sensor's half-diagonal field when `sensor_mm` = (width, height)
+    is given, which also adds the paraxial and real (chief-ray) fields of view)."""
+    p = paraxial(lens)
+    fov = None
+    if sensor_mm is not None:
+        w, h = sensor_mm
+        d = math.hypot(w, h)
+        fov = {k: {"paraxial_deg": p.fov_deg(v), "real_deg": _real_fov_or_none(lens, v)}
+               for k, v in (("horizontal", w), ("vertical", h), ("diagonal", d))}
+        if max_field is None and fov["diagonal"]["real_deg"] is not None:
+            max_field = fov["diagonal"]["real_deg"] / 2
+    mf = max_field_deg(lens) if max_field is None else float(max_field)
+    fields = [round(f * mf, 6) for f in FIELD_FRACTIONS]
+    dist = distortion(lens, fields)
+    lat, lat_ok = lateral_color(lens, fields)
+    heights = [float(h) if ok else 0.0 for h, ok in zip(dist.real_height_mm, dist.valid)]
+    ri = relative_illumination(lens, heights)
+    rows = []
+    for i, f in enumerate(fields):
+        try:
+            rms = spot_diagram(lens, f).rms_um
+        except ValueError:
+            rms = None
+        rows.append({"field_deg": f, "image_height_mm": heights[i] if dist.valid[i] else None,
+                     "spot_rms_um": rms,
+                     "distortion_pct": float(dist.distortion_percent[i]) if dist.valid[i] else None,
+                     "relative_illumination": float(ri[i]) if dist.valid[i] else None,
+                     "lateral_color_um": float(lat[i]) if lat_ok[i] else None})
+    return {"name": lens.name, "description": lens.description, "n_surfaces": len(lens.surfaces),
+            "paraxial": p.as_dict(), "sensor_distance_mm": sensor_distance_mm(lens),
+            "field_of_view": fov, "max_field_deg": mf, "axial_color_mm": axial_color(lens), "fields": rows}
+
+
+def _real_fov_or_none(lens: Lens, size_mm: float) -> float | None:
+    try:
+        return real_fov_deg(lens, size_mm)
+    except ValueError:
+        return None
+
+
+def format_summary(s: dict) -> str:
+    p = s["paraxial"]
+    lines = [f"lens {s['name']}: {s['description']}".rstrip(": "),
+             f"  EFL {p['efl_mm']:.4f} mm   BFL {p['bfl_mm']:.4f} mm   f/{p['f_number']:.3f}   "
+             f"EPD {p['epd_mm']:.4f} mm   track {p['total_track_mm']:.4f} mm",
+             f"  entrance pupil {p['entrance_pupil_mm']:.4f} mm behind the first vertex; exit pupil "
+             f"{p['exit_pupil_mm']:.4f} mm from the last vertex (diameter {p['exit_pupil_diameter_mm']:.4f})",
+             f"  sensor {s['sensor_distance_mm']:.4f} mm behind the last vertex; "
+             f"axial colour BFL(F)−BFL(C) {s['axial_color_mm'] * 1e3:.2f} µm",
+             f"  field (max {s['max_field_deg']:g}°):",
+             "    field°   height mm   spot RMS µm   distortion %   rel. illum.   lateral colour µm"]
+
+    def f(v, fmt):
+        return format(v, fmt) if v is not None else "—"
+    if s.get("field_of_view"):
+        lines.insert(-2, "  field of view (paraxial / real chief ray): " + ", ".join(
+            f"{k} {f(v['paraxial_deg'], '.2f')}° / {f(v['real_deg'], '.2f')}°"
+            for k, v in s["field_of_view"].items()))
+    for r in s["fields"]:
+        lines.append(f"    {r['field_deg']:6.2f}   {f(r['image_height_mm'], '9.4f')}   "
+                     f"{f(r['spot_rms_um'], '11.3f')}   {f(r['distortion_pct'], '12.3f')}   "
+                     f"{f(r['relative_illumination'], '11.3f')}   {f(r['lateral_color_um'], '8.3f')}")
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------ figures
+def _fig():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def plot_layout(lens: Lens, ax, fields_deg) -> None:
+    """Cross-section (y–z) with a meridional fan per field traced to the sensor."""
+    zv = lens.vertex_z_mm
+    for i, s in enumerate(lens.surfaces):
+        y = np.linspace(-s.semi_aperture_mm, s.semi_aperture_mm, 61)
+        if s.is_stop:
+            top = s.semi_aperture_mm * 1.3
+            ax.plot([zv[i]] * 2, [s.semi_aperture_mm, top], "k", lw=2)
+            ax.plot([zv[i]] * 2, [-s.semi_aperture_mm, -top], "k", lw=2)
+            continue
+        ax.plot(zv[i] + s.sag_mm(y), y, "k", lw=1)
+        if not s.material.is_air and i + 1 < len(lens.surfaces):
+            # Element edge: each face runs out flat to the larger clear radius, then a rim joins them.
+            n = lens.surfaces[i + 1]
+            ya = max(s.semi_aperture_mm, n.semi_aperture_mm)
+            za = zv[i] + float(s.sag_mm(s.semi_aperture_mm))
+            zb = zv[i + 1] + float(n.sag_mm(n.semi_aperture_mm))
+            for sgn in (1, -1):
+                ax.plot([za, za, zb, zb], [sgn * s.semi_aperture_mm, sgn * ya, sgn * ya,
+                                           sgn * n.semi_aperture_mm], "k", lw=1)
+    zs = sensor_z_mm(lens)
+    colours = ["tab:blue", "tab:green", "tab:red", "tab:purple"]
+    for k, f in enumerate(fields_deg):
+        try:
+            b = make_bundle(lens, f, math.inf, LINE_D_NM)
+        except ValueError:
+            continue
+        _, _, v0, v1 = b.box
+        v = np.linspace(v0, v1, 11)
+        r = b.trace(np.zeros_like(v), v, LINE_D_NM, record=True)
+        path = r.path_mm
+        end = r.points + r.dirs * ((zs - r.points[:, 2]) / np.where(r.dirs[:, 2] != 0, r.dirs[:, 2], 1))[:, None]
+        for j in np.nonzero(r.valid)[0]:
+            start = path[0, j] + b.d0 * (path[1, j, 2] - path[0, j, 2] - 0.15 * lens.total_track_mm) / b.d0[2]
+            pts = np.vstack([start, path[1:, j], end[j]])
+            ax.plot(pts[:, 2], pts[:, 1], color=colours[k % 4], lw=0.6)
+    ax.axvline(zs, color="0.5", lw=1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("z (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(f"{lens.name}: layout and ray fans")
+
+
+def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Path]:
+    """layout.png, spots.png, ray_fans.png, mtf.png, distortion.png, relative_illumination.png."""
+    plt = _fig()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    mf = max_field_deg(lens) if max_field is None else float(max_field)
+    fields = [f * mf for f in FIELD_FRACTIONS]
+    written = []
+
+    def save(fig, name):
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=110)
+        plt.close(fig)
+        written.append(out / name)
+
+    fig, ax = plt.subplots(figsize=(9, 5))
+    plot_layout(lens, ax, fields[::-1][:3])
+    save(fig, "layout.png")
+
+    wls = ((LINE_F_NM, "tab:blue"), (LINE_D_NM, "tab:green"), (LINE_C_NM, "tab:red"))
+    fig, axes = plt.subplots(1, len(fields), figsize=(3.2 * len(fields), 3.4))
+    for ax, f in zip(axes, fields):
+        for wl, col in wls:
+            try:
+                sd = spot_diagram(lens, f, wl, n_side=24)
+            except ValueError:
+                continue
+            ax.plot(sd.x_um, sd.y_um, ".", ms=1.5, color=col)
+            if wl == LINE_D_NM:
+                ax.set_title(f"{f:.1f}°  RMS {sd.rms_um:.2f} µm", fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (µm)")
+    axes[0].set_ylabel("y (µm)")
+    save(fig, "spots.png")
+
+    fig, axes = plt.subplots(2, len(fields), figsize=(3.2 * len(fields), 5), sharex=True)
+    for k, f in enumerate(fields):
+        for wl, col in wls:
+            try:
+                fan = ray_fan(lens, f, wl)
+            except ValueError:
+                continue
+            axes[0, k].plot(fan.pupil_t[fan.valid_t], fan.error_t_um[fan.valid_t], color=col)
+            axes[1, k].plot(fan.pupil_s[fan.valid_s], fan.error_s_um[fan.valid_s], color=col)
+        axes[0, k].set_title(f"{f:.1f}° tangential", fontsize=9)
+        axes[1, k].set_title("sagittal", fontsize=9)
+        axes[1, k].set_xlabel("pupil (mm)")
+    axes[0, 0].set_ylabel("εy (µm)")
+    axes[1, 0].set_ylabel("εx (µm)")
+    save(fig, "ray_fans.png")
+
+    p = paraxial(lens)
+    lam = 550.0
+    fig, ax = plt.subplots(figsize=(6, 4))
+    nu_c = 1.0 / (lam * 1e-6 * p.f_number)
+    for f, col in zip(fields, ("k", "tab:blue", "tab:green", "tab:red")):
+        try:
+            h = chief_ray_on_sensor(lens, f, lam)[1]
+            rms = spot_diagram(lens, f, lam, n_side=24).rms_um
+        except ValueError:
+            continue
+        spacing = max(lam * 1e-3 * p.f_number / 4, 10 * rms / 256)
+        size = int(np.clip(2 ** math.ceil(math.log2(max(10 * rms / spacing, 64))), 64, 256))
+        try:
+            psf = psf_diffraction(lens, h, lam, math.inf, spacing, size)
+        except ValueError:
+            continue
+        for axis, ls in (("y", "-"), ("x", "--")):
+            fr, m = mtf_from_psf(psf, spacing, axis)
+            keep = fr <= nu_c
+            ax.plot(fr[keep], m[keep], ls, color=col, label=f"{f:.1f}° {'T' if axis == 'y' else 'S'}")
+    fr = np.linspace(0, nu_c, 200)
+    ax.plot(fr, diffraction_mtf(fr, lam, p.f_number), ":", color="0.4", label="diffraction limit")
+    ax.set_xlabel("cycles/mm")
+    ax.set_ylabel("MTF (550 nm)")
+    ax.legend(fontsize=7)
+    save(fig, "mtf.png")
+
+    angles = np.linspace(0, mf, 25)
+    d = distortion(lens, angles)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(d.distortion_percent[d.valid], angles[d.valid])
+    ax.set_xlabel("distortion (%)")
+    ax.set_ylabel("field (deg)")
+    save(fig, "distortion.png")
+
+    h = d.real_height_mm[d.valid]
+    ri = relative_illumination(lens, h, n_side=64)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(h, ri, label="traced")
+    ax.plot(h, np.cos(np.radians(angles[d.valid])) ** 4, "--", label="cos⁴θ")
+    ax.set_xlabel("image height (mm)")
+    ax.set_ylabel("relative illumination")
+    ax.legend()
+    save(fig, "relative_illumination.png")
+    return written
+

@@ -1,0 +1,77 @@
+"""Parameters of the spectral render: spectral representation, sampling budget, daylight."""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from workbench.params import Params
+
+class DaylightParams(Params):
+    """Sun (directional) + uniform sky, both spectral over 300–1100 nm (NIR included).
+
+    The sun's position comes from `sun_elevation_deg`/`sun_azimuth_deg` (compass azimuth:
+    0 = north = +Y, 90 = east = +X), or, when `time_of_day_h` is set, from local solar time,
+    latitude and day of year (the angles are then ignored). `turbidity` is the Linke/Preetham
+    turbidity (2 = very clear, 3 = clear, 6+ = hazy); it sets the Ångström aerosol coefficient.
+    `sun_visible`: composite the solar disc (0.53° wide) onto pinhole renders where camera rays
+    reach the sky (render/sun_disc.py); the directional sun lights the scene either way."""
+
+    sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0)
+    sun_azimuth_deg: float = Field(135.0, ge=0.0, lt=360.0)
+    time_of_day_h: float | None = Field(None, ge=0.0, le=24.0)
+    latitude_deg: float = Field(37.4, ge=-90.0, le=90.0)
+    day_of_year: int = Field(172, ge=1, le=366)
+    turbidity: float = Field(3.0, ge=1.0, le=10.0)
+    sun_scale: float = Field(1.0, ge=0.0, le=1e3)
+    sky_scale: float = Field(1.0, ge=0.0, le=1e3)
+    sun_visible: bool = True
+
+
+class RenderParams(Params):
+    """How to render spectral radiance with Mitsuba.
+
+    representation: 'bands' = `band_count` box bands over the wavelength range (output at band
+    centres); 'basis' = `basis_count` smooth raised-cosine functions, projected back onto an
+    `output_step_nm` grid; 'sensor' = the sensor's own channel QE curves as film responses
+    (output = QE-weighted mean radiance per channel).
+    Sampling: exactly one of `spp` (fixed samples per pixel), `target_rel_error` (relative RMS
+    error wanted, spp = (c/e)² with c measured by a pilot render on this scene; `error_metric`
+    chooses broadband (channel sum) or the mean per-channel error) or `shot_noise_ratio` (render
+    noise = this fraction of the photon shot noise 1/√N_e of the sensor's exposure, N_e measured on
+    a pilot render through the project's optics and sensor; 0.3 adds ≈ 4 % to the total noise). Rendering runs in chunks of
+    `chunk_spp` after a `preview_spp` preview, checking for cancellation between chunks.
+    Wavelength range: `wavelength_min_nm`/`wavelength_max_nm`, or None to follow the sensor's QE
+    (400–700 nm when no sensor is given); 'sensor' always uses the QE curves' own range."""
+
+    representation: Literal["bands", "basis", "sensor"] = "bands"
+    band_count: int = Field(16, ge=1, le=128)
+    basis_count: int = Field(6, ge=2, le=32)
+    output_step_nm: float = Field(10.0, gt=0.0, le=100.0)
+    wavelength_min_nm: float | None = Field(None, ge=350.0, le=1000.0)
+    wavelength_max_nm: float | None = Field(None, ge=350.0, le=1000.0)
+    spp: int | None = Field(64, ge=1, le=1 << 20)
+    target_rel_error: float | None = Field(None, gt=0.0, lt=1.0)
+    shot_noise_ratio: float | None = Field(None, gt=0.0, le=10.0)
+    error_metric: Literal["broadband", "per_channel"] = "broadband"
+    pilot_spp: int = Field(4, ge=1, le=256)
+    max_spp: int = Field(16384, ge=1, le=1 << 20)
+    max_depth: int = Field(6, ge=1, le=64)
+    chunk_spp: int = Field(16, ge=1, le=1 << 16)
+    preview_spp: int = Field(1, ge=1, le=1 << 16)
+    seed: int = Field(0, ge=0, lt=2**32)
+    variant: Literal["cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral"] | None = None
+    daylight: DaylightParams = Field(default_factory=DaylightParams)
+
+    @model_validator(mode="after")
+    def _check(self) -> "RenderParams":
+        chosen = [n for n in ("spp", "target_rel_error", "shot_noise_ratio") if getattr(self, n) is not None]
+        if len(chosen) != 1:
+            raise ValueError(f"give exactly one of spp ({self.spp}), target_rel_error ({self.target_rel_error}) "
+                             f"or shot_noise_ratio ({self.shot_noise_ratio}); set the others to None")
+        lo, hi = self.wavelength_min_nm, self.wavelength_max_nm
+        if (lo is None) != (hi is None):
+            raise ValueError("wavelength_min_nm and wavelength_max_nm must both be set or both None")
+        if lo is not None and hi - lo < 1.0:
+            raise ValueError(f"wavelength_max_nm ({hi}) must exceed wavelength_min_nm ({lo}) by ≥ 1 nm")
+        return self

@@ -1,0 +1,135 @@
+"""City + camera pose + film + daylight → a loaded Mitsuba scene and its shape → label table.
+
+Every mesh becomes one Mitsuba shape with the id `<class>_<instance>_<k>`; the id table maps
+each id (`shape.id()`) to its ShapeLabel. Materials are Lambertian with the city's explicit
+spectral reflectance (0 outside its samples, so it must cover the film's range, NIR included).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.render.daylight import daylight_emitters
+from workbench.render.film import FilmSRFs
+from workbench.render.params import DaylightParams
+from workbench.scene.city.types import CameraPose, City
+
+
+@dataclass(frozen=True)
+class ShapeLabel:
+    """What a Mitsuba shape belongs to: the label class and the city instance id (> 0)."""
+
+    class_name: str
+    instance_id: int
+
+
+def camera_to_world(pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(origin, target, up) for look_at. Positive roll turns the camera's up toward its right."""
+    p, r = np.radians(pose.pan_deg), np.radians(pose.roll_deg)
+    fwd = pose.forward()
+    right = np.array([np.sin(p), -np.cos(p), 0.0])
+    up = np.cross(right, fwd)
+    up = np.cos(r) * up + np.sin(r) * right
+    origin = np.asarray(pose.position_m, dtype=np.float64)
+    return origin, origin + fwd, up
+
+
+def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
+    """A Mitsuba perspective (pinhole) sensor: horizontal FOV, looking along the pose."""
+    if not 0 < fov_deg < 180:
+        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+    import mitsuba as mi
+
+    origin, target, up = camera_to_world(pose)
+    return {"type": "perspective", "fov": float(fov_deg), "fov_axis": "x",
+            "near_clip": 0.01, "far_clip": 1.0e5,
+            "to_world": mi.ScalarTransform4f().look_at(origin=origin.tolist(), target=target.tolist(),
+                                                        up=up.tolist())}
+
+
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf):
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+        raise ValueError(f"mesh '{name}': vertices must be V×3 and faces F×3 (F ≥ 1), got "
+                         f"{v.shape} and {f.shape}")
+    if f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
+        raise ValueError(f"mesh '{name}': face indices outside 0…{len(v) - 1} or non-finite vertices")
+    mesh = mi.Mesh(name, len(v), len(f), has_vertex_normals=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = type(params["vertex_positions"])(v.astype(np.float32).ravel())
+    params["faces"] = type(params["faces"])(f.astype(np.uint32).ravel())
+    params.update()
+    mesh.set_bsdf(bsdf)
+    return mesh
+
+
+def _bsdf(mi, material, film_range_nm: tuple[float, float]):
+    wl = np.asarray(material.wavelengths_nm, dtype=np.float64)
+    refl = np.asarray(material.reflectance, dtype=np.float64)
+    if wl.shape != refl.shape or wl.size < 2:
+        raise ValueError(f"material '{material.name}': reflectance and wavelengths_nm must be equal "
+                         f"length ≥ 2, got {refl.shape} and {wl.shape}")
+    if wl[0] > film_range_nm[0] or wl[-1] < film_range_nm[1]:
+        raise ValueError(f"material '{material.name}' is defined on {wl[0]:.0f}–{wl[-1]:.0f} nm but "
+                         f"the film needs {film_range_nm[0]:.0f}–{film_range_nm[1]:.0f} nm")
+    if not np.all(np.isfinite(refl)) or refl.min() < 0 or refl.max() > 1:
+        raise ValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
+    return mi.load_dict({"type": "diffuse", "reflectance": {
+        "type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}})
+
+
+def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height: int,
+                film_srfs: FilmSRFs, daylight: DaylightParams, sensor: dict | None = None, *,
+                max_depth: int = 6):
+    """Load the city into Mitsuba (the spectral variant must already be set: variants.py).
+
+    film_srfs: the film's response curves (film.py: box_bands, raised_cosine_basis,
+        sensor_channels), which also fix the wavelength range every spectrum must cover.
+    sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
+        film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
+    Returns (mi.Scene, id_table: dict[shape id → ShapeLabel])."""
+    import mitsuba as mi
+
+    if "spectral" not in (mi.variant() or ""):
+        raise ValueError(f"build_scene needs a spectral Mitsuba variant (call "
+                         f"workbench.render.variants.select_variant() first); current: {mi.variant()}")
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise ValueError(f"render resolution must be 1…16384 per side, got {width}×{height}")
+    if not 1 <= max_depth <= 64:
+        raise ValueError(f"max_depth must be in 1…64, got {max_depth}")
+    cam = dict(sensor) if sensor is not None else pinhole_sensor(pose, fov_deg)
+    cam["film"] = film_srfs.mitsuba_film(width, height)
+    cam["sampler"] = {"type": "independent", "sample_count": 1}
+    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
+             "sensor": cam, **daylight_emitters(daylight)}
+    rng = film_srfs.range_nm
+    bsdfs = {}
+    id_table: dict[str, ShapeLabel] = {}
+    for obj in city.objects:
+        if obj.instance_id <= 0:
+            raise ValueError(f"city object '{obj.class_name}' has instance_id {obj.instance_id}; must be > 0")
+        for k, m in enumerate(obj.meshes):
+            if m.material not in city.materials:
+                raise ValueError(f"mesh {k} of {obj.class_name} {obj.instance_id} uses material "
+                                 f"'{m.material}', which the city does not define")
+            if m.material not in bsdfs:
+                bsdfs[m.material] = _bsdf(mi, city.materials[m.material], rng)
+            sid = f"{obj.class_name}_{obj.instance_id}_{k}"
+            if sid in scene:
+                raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
+            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[m.material])
+            id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
+    return mi.load_dict(scene), id_table
+
+
+def set_camera_pose(mi_scene, pose: CameraPose) -> None:
+    """Move the loaded scene's camera to `pose` in place (no reload, no recompilation)."""
+    import mitsuba as mi
+
+    origin, target, up = camera_to_world(pose)
+    params = mi.traverse(mi_scene)
+    params["sensor.to_world"] = mi.Transform4f().look_at(origin=origin.tolist(), target=target.tolist(),
+                                                         up=up.tolist())
+    params.update()

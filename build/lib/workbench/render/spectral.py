@@ -1,0 +1,198 @@
+"""Progressive spectral rendering: a generator that yields progress, checks a cancel token between
+chunks of samples, and returns a Scene in photons/s/sr/m²/nm (plus a depth map in JIT variants).
+
+Chunks: a `preview_spp` chunk first (fast preview), then `chunk_spp` chunks; chunk i uses the
+Mitsuba seed drawn from numpy's SeedSequence([seed, i]), so the same seed gives a bit-identical
+image and different chunks are independent. The LLVM backend ignores integrator.cancel() (one
+megakernel), so chunks are the cancellation points (research/mitsuba.md §5).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Generator
+
+import numpy as np
+
+from workbench.render.film import FilmSRFs, box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
+from workbench.render.labels import BACKGROUND_DEPTH_M
+from workbench.render.params import RenderParams
+from workbench.render.sampling import noise_constant, spp_for_error
+from workbench.render.scene_builder import build_scene
+from workbench.render.variants import select_variant
+from workbench.scene.city.types import CameraPose, City
+from workbench.scene.types import Scene
+
+DEFAULT_RANGE_NM = (400.0, 700.0)
+
+
+@dataclass
+class RenderProgress:
+    """One step of a render: samples done so far, planned total, and a preview: the radiance so
+    far (H×W×Nλ float32, photons/s/sr/m²/nm on the result's wavelengths)."""
+
+    spp_done: int
+    spp_total: int
+    elapsed_s: float
+    message: str
+    preview: np.ndarray
+
+    @property
+    def fraction(self) -> float:
+        return min(self.spp_done / self.spp_total, 1.0)
+
+
+class RenderCancelled(Exception):
+    """Raised when a render is cancelled before its first chunk finished (nothing to return)."""
+
+
+def film_for(params: RenderParams, sensor_qe: tuple[np.ndarray, np.ndarray] | None = None) -> FilmSRFs:
+    """The film SRFs for the chosen representation; the range follows the sensor when not given."""
+    if params.representation == "sensor":
+        if sensor_qe is None:
+            raise ValueError("representation 'sensor' needs sensor_qe=(wavelengths_nm, K×Nλ QE)")
+        return sensor_channels(*sensor_qe)
+    if params.wavelength_min_nm is not None:
+        lo, hi = params.wavelength_min_nm, params.wavelength_max_nm
+    elif sensor_qe is not None:
+        lo, hi = sensor_wavelength_range(*sensor_qe)
+    else:
+        lo, hi = DEFAULT_RANGE_NM
+    if params.representation == "bands":
+        return box_bands(lo, hi, params.band_count)
+    return raised_cosine_basis(lo, hi, params.basis_count, params.output_step_nm)
+
+
+def chunk_seed(seed: int, index: int) -> int:
+    """Mitsuba seed (uint32) of chunk `index` of a render with `seed`."""
+    return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
+
+
+def _is_cancelled(cancel) -> bool:
+    if cancel is None:
+        return False
+    if hasattr(cancel, "is_set"):
+        return bool(cancel.is_set())
+    if callable(cancel):
+        return bool(cancel())
+    raise ValueError(f"cancel must be None, an Event-like object with is_set() or a callable, "
+                     f"got {type(cancel).__name__}")
+
+
+def _render_chunk(mi_scene, spp: int, seed: int, index: int) -> np.ndarray:
+    import mitsuba as mi
+
+    # always pass spp: mi.render(spp=…) changes the sampler's count for later calls (gotcha 2)
+    return np.array(mi.render(mi_scene, spp=int(spp), seed=chunk_seed(seed, index)), dtype=np.float64)
+
+
+def depth_map_m(mi_scene) -> np.ndarray | None:
+    """Distance (m) from the camera centre to the first hit along each pixel-centre ray of the
+    scene's sensor; sky = BACKGROUND_DEPTH_M.
+
+    JIT variants only (one vectorised ray cast); None in the scalar variant."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if not mi.variant().startswith(("llvm", "cuda")):
+        return None
+    sensor = mi_scene.sensors()[0]
+    w, h = (int(v) for v in sensor.film().crop_size())
+    idx = dr.arange(mi.UInt32, w * h)
+    pos = mi.Point2f((mi.Float(idx % w) + 0.5) / w, (mi.Float(idx // w) + 0.5) / h)
+    ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
+    si = mi_scene.ray_intersect(ray)
+    # the perspective camera starts rays at the near-clip plane: measure from the camera centre
+    centre = sensor.world_transform().translation()
+    t = dr.select(si.is_valid(), dr.norm(si.p - centre), BACKGROUND_DEPTH_M)
+    dr.eval(t)
+    return np.array(t, dtype=np.float32).reshape(h, w)
+
+
+def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: float,
+                  cancel=None, name: str = "render") -> Generator[RenderProgress, None, Scene]:
+    """Render an already loaded scene (build_scene) progressively; return its spectral Scene.
+
+    Yields RenderProgress after every chunk; between chunks, a set `cancel` (threading.Event or
+    a callable returning True) stops the render: the samples so far are returned with
+    meta['cancelled'] = True, or RenderCancelled is raised when no chunk had finished."""
+    import mitsuba as mi
+
+    if params.shot_noise_ratio is not None:
+        raise ValueError("render.shot_noise_ratio needs the project's sensor to turn into a target error; "
+                         "render a city project (render_city_frame) or give spp / target_rel_error")
+    t0 = time.perf_counter()
+    acc, done, index, c_meas, cancelled = None, 0, 0, None, False
+
+    def add(img, spp):
+        nonlocal acc, done, index
+        acc = img * spp if acc is None else acc + img * spp
+        done += spp
+        index += 1
+
+    def preview():
+        return film.channels_to_radiance(acc / done).astype(np.float32)
+
+    if params.spp is None:
+        pilots = []
+        for _ in range(2):
+            if _is_cancelled(cancel):
+                cancelled = True
+                break
+            pilots.append(_render_chunk(mi_scene, params.pilot_spp, params.seed, index))
+            add(pilots[-1], params.pilot_spp)
+        if len(pilots) == 2:
+            c_meas = noise_constant(*pilots, params.pilot_spp, params.error_metric)
+            total = max(spp_for_error(c_meas, params.target_rel_error, params.max_spp), done)
+        else:
+            total = done
+        if acc is not None:
+            c_txt = "n/a" if c_meas is None else f"{c_meas:.3g}"
+            yield RenderProgress(done, total, time.perf_counter() - t0,
+                                 f"pilot: c = {c_txt}, {total} spp for {params.target_rel_error:.3g} "
+                                 f"{params.error_metric} error", preview())
+    else:
+        total = params.spp
+    while not cancelled and done < total:
+        if _is_cancelled(cancel):
+            cancelled = True
+            break
+        k = min(params.preview_spp if done == 0 else params.chunk_spp, total - done)
+        add(_render_chunk(mi_scene, k, params.seed, index), k)
+        yield RenderProgress(done, total, time.perf_counter() - t0, f"{done}/{total} spp", preview())
+    cancelled = cancelled or done < total
+    if acc is None:
+        raise RenderCancelled(f"{name}: cancelled before the first chunk finished")
+    channels = acc / done
+    if not np.all(np.isfinite(channels)):
+        raise ValueError(f"{name}: the renderer returned NaN/Inf radiance (variant, scene or spectra)")
+    radiance = film.channels_to_radiance(channels)
+    depth = depth_map_m(mi_scene)
+    hits = depth[depth < BACKGROUND_DEPTH_M] if depth is not None else np.zeros(0)
+    meta = {"representation": film.kind, "spp": done, "spp_planned": total, "cancelled": cancelled,
+            "noise_constant": c_meas, "variant": mi.variant(), "seed": params.seed,
+            "render_s": time.perf_counter() - t0, "channel_names": list(film.names),
+            "channel_integrals_nm": film.integrals_nm.tolist(),
+            "channel_centroids_nm": film.centroids_nm.tolist()}
+    return Scene(radiance.astype(np.float32), film.output_wavelengths_nm, float(fov_deg),
+                 distance_m=float(np.median(hits)) if hits.size else BACKGROUND_DEPTH_M,
+                 depth_m=depth, name=name, meta=meta)
+
+
+def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width: int, height: int,
+                    fov_deg: float, sensor_qe: tuple[np.ndarray, np.ndarray] | None = None,
+                    lens_sensor: dict | None = None, cancel=None,
+                    name: str = "city") -> Generator[RenderProgress, None, Scene]:
+    """Render the city from `pose` into a spectral Scene (photons/s/sr/m²/nm), progressively.
+
+    sensor_qe: (wavelengths_nm, K×Nλ QE) of the camera; it sets the wavelength range (unless
+    params give one) and is the film for representation 'sensor'. lens_sensor: an optional
+    Mitsuba sensor dict replacing the pinhole (fov_deg must then describe it). Drive with
+    `scene = yield from render_spectral(...)` or `workbench.jobs.run_job(render_spectral(...))`."""
+    select_variant(params.variant)
+    film = film_for(params, sensor_qe)
+    mi_scene, _ = build_scene(city, pose, fov_deg, width, height, film, params.daylight,
+                              lens_sensor, max_depth=params.max_depth)
+    return (yield from render_loaded(mi_scene, film, params, fov_deg=fov_deg, cancel=cancel, name=name))
+
+

@@ -1,0 +1,132 @@
+"""Parameters of the procedural city (`CityRecipe`), of the camera poses (`PoseParams`) and the
+label classes (`CLASS_IDS`).
+
+Street geometry: a grid of blocks_x × blocks_y square blocks of block_size_m (kerb to kerb, the
+sidewalk ring included) separated by two-way streets of 2·lanes_per_direction lanes. Traffic
+keeps to the right. Counts (n_cars …) are per arrangement: the arrangement index changes where
+the movable objects and street furniture go, never the streets or the buildings.
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from workbench.params import Params
+
+# Label classes (COCO category ids); 0 is background/sky and is not a category.
+BACKGROUND_ID = 0
+CLASS_IDS: dict[str, int] = {
+    "car": 1,
+    "pedestrian": 2,
+    "bus": 3,
+    "truck": 4,
+    "building": 5,
+    "tree": 6,
+    "lamp": 7,
+    "bench": 8,
+    "mailbox": 9,
+    "road": 10,
+    "sidewalk": 11,
+    "marking": 12,
+    "ground": 13,
+}
+
+# Smallest building lot left inside a block once the sidewalk ring is taken off (m).
+MIN_LOT_M = 20.0
+
+
+class CityRecipe(Params):
+    """Everything that determines a generated city; the same recipe gives the same city."""
+
+    seed: int = Field(0, ge=0, description="seed of streets, buildings and placements")
+    arrangement: int = Field(0, ge=0, description="placement index: changes objects, not buildings")
+    blocks_x: int = Field(2, ge=1, le=20, description="blocks along +X")
+    blocks_y: int = Field(2, ge=1, le=20, description="blocks along +Y")
+    block_size_m: float = Field(100.0, gt=0, le=500.0, description="block side, sidewalks included")
+    lane_width_m: float = Field(3.5, ge=2.5, le=5.0)
+    lanes_per_direction: int = Field(1, ge=1, le=3)
+    sidewalk_width_m: float = Field(4.0, ge=2.0, le=12.0)
+    curb_height_m: float = Field(0.15, ge=0.0, le=0.3, description="sidewalk top above the road")
+    ground_margin_m: float = Field(30.0, ge=0.0, le=500.0, description="grass beyond the outer streets")
+    building_height_min_m: float = Field(8.0, ge=3.0, le=400.0)
+    building_height_max_m: float = Field(40.0, ge=3.0, le=400.0)
+    n_cars: int = Field(16, ge=0, le=2000)
+    n_pedestrians: int = Field(24, ge=0, le=5000)
+    n_buses: int = Field(2, ge=0, le=200)
+    n_trucks: int = Field(1, ge=0, le=200)
+    n_trees: int = Field(24, ge=0, le=5000)
+    n_lamps: int = Field(16, ge=0, le=5000)
+    n_benches: int = Field(8, ge=0, le=5000)
+    n_mailboxes: int = Field(4, ge=0, le=5000)
+
+    @model_validator(mode="after")
+    def _check_consistent(self) -> "CityRecipe":
+        if self.building_height_min_m > self.building_height_max_m:
+            raise ValueError(
+                f"building_height_min_m ({self.building_height_min_m}) must not exceed "
+                f"building_height_max_m ({self.building_height_max_m})")
+        lot = self.block_size_m - 2 * self.sidewalk_width_m
+        if lot < MIN_LOT_M:
+            raise ValueError(
+                f"block_size_m={self.block_size_m} leaves a {lot:.1f} m building lot after two "
+                f"sidewalks of sidewalk_width_m={self.sidewalk_width_m}; need block_size_m >= "
+                f"{2 * self.sidewalk_width_m + MIN_LOT_M:.1f}")
+        return self
+
+    @property
+    def street_width_m(self) -> float:
+        """Carriageway width kerb to kerb (m): both directions' lanes."""
+        return 2 * self.lanes_per_direction * self.lane_width_m
+
+    @property
+    def pitch_m(self) -> float:
+        """Distance between neighbouring street centre lines (m)."""
+        return self.block_size_m + self.street_width_m
+
+
+class PoseParams(Params):
+    """Camera poses as in the paper: 1.5 m above the road in a lane, pan about the lane direction.
+
+    'random': position uniform along a random lane (lateral jitter ≤ lateral_jitter_m), pan =
+    lane heading + U(pan_range_deg), tilt U(tilt_range_deg), roll U(roll_range_deg).
+    'target': like the paper's camera generator (a camera ~10 m from a target object): pick a
+    class of target_classes (equally likely), then one of its objects; put the camera in a lane
+    at a distance in target_distance_range_m, the target within max_target_bearing_deg of the
+    lane direction; pan = bearing to the target + U(pan_range_deg); tilt, roll as in 'random'.
+    'manual': manual_position_xy_m at height_m above the road, manual_* angles; manual_pan_deg
+    is the absolute yaw about +Z from +X (the `CameraPose` convention)."""
+
+    mode: Literal["random", "target", "manual"] = "random"
+    height_m: float = Field(1.5, gt=0.0, le=50.0, description="camera height above the road")
+    pan_range_deg: tuple[float, float] = (-10.0, 10.0)
+    tilt_range_deg: tuple[float, float] = (-5.0, 5.0)
+    roll_range_deg: tuple[float, float] = (-5.0, 5.0)
+    lateral_jitter_m: float = Field(0.3, ge=0.0, le=1.0, description="offset from the lane centre")
+    target_classes: tuple[str, ...] = ("car", "bus", "truck", "pedestrian")
+    target_distance_range_m: tuple[float, float] = (8.0, 12.0)
+    max_target_bearing_deg: float = Field(45.0, gt=0.0, le=180.0,
+                                          description="target direction vs lane direction")
+    manual_position_xy_m: tuple[float, float] | None = None
+    manual_pan_deg: float = Field(0.0, ge=-360.0, le=360.0)
+    manual_tilt_deg: float = Field(0.0, ge=-90.0, le=90.0)
+    manual_roll_deg: float = Field(0.0, ge=-180.0, le=180.0)
+    seed: int = Field(0, ge=0)
+
+    @model_validator(mode="after")
+    def _check_ranges(self) -> "PoseParams":
+        limits = {"pan_range_deg": 180.0, "tilt_range_deg": 90.0, "roll_range_deg": 180.0}
+        for name, lim in limits.items():
+            lo, hi = getattr(self, name)
+            if not (-lim <= lo <= hi <= lim):
+                raise ValueError(f"{name}=({lo}, {hi}) must satisfy -{lim} <= low <= high <= {lim}")
+        unknown = [c for c in self.target_classes if c not in CLASS_IDS]
+        if unknown or not self.target_classes:
+            raise ValueError(f"target_classes={self.target_classes!r}: need one or more of "
+                             f"{', '.join(CLASS_IDS)}")
+        lo, hi = self.target_distance_range_m
+        if not 0 < lo <= hi <= 500:
+            raise ValueError(f"target_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
+        if self.mode == "manual" and self.manual_position_xy_m is None:
+            raise ValueError("mode='manual' needs manual_position_xy_m=(x, y) in metres")
+        return self

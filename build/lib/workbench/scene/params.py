@@ -1,0 +1,58 @@
+"""Scene section of the project: which analytic chart or city, its light and sampling."""
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, field_validator, model_validator
+
+from workbench import spectra
+from workbench.params import Params
+
+SCENE_KINDS = ("uniform", "macbeth", "slanted_edge", "hdr_tunnel", "city")
+
+
+class WavelengthParams(Params):
+    """Wavelength sampling (nm), both ends included. 400–700 nm in 10 nm steps by default."""
+
+    start_nm: float = Field(400.0, ge=300.0, le=1100.0)
+    stop_nm: float = Field(700.0, ge=300.0, le=1100.0)
+    step_nm: float = Field(10.0, gt=0.0, le=200.0)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        if self.stop_nm < self.start_nm:
+            raise ValueError(f"stop_nm ({self.stop_nm}) must be ≥ start_nm ({self.start_nm})")
+        if (self.stop_nm - self.start_nm) / self.step_nm > 400:
+            raise ValueError("more than 400 wavelength samples; use a larger step_nm")
+        return self
+
+    def grid(self) -> np.ndarray:
+        return spectra.wavelength_grid(self.start_nm, self.stop_nm, self.step_nm)
+
+
+class SceneParams(Params):
+    """The scene: an analytic chart (uniform, macbeth, slanted_edge, hdr_tunnel) or a city.
+
+    The chart is sampled on the sensor's pixel grid × oversample over the camera's field of view
+    unless fov_deg is given. adjust_illuminance_lux rescales the optical image to a mean sensor
+    illuminance (the paper's experiments use 1000 lux); None keeps the absolute radiometry."""
+
+    kind: Literal["uniform", "macbeth", "slanted_edge", "hdr_tunnel", "city"] = "macbeth"
+    illuminant: str = "D65"
+    mean_luminance_cd_m2: float = Field(100.0, gt=0.0, le=1e9)
+    distance_m: float = Field(10.0, gt=0.0, le=1e6)
+    fov_deg: float | None = Field(None, gt=0.0, lt=180.0)
+    oversample: int = Field(1, ge=1, le=8)
+    wavelengths: WavelengthParams = WavelengthParams()
+    adjust_illuminance_lux: float | None = Field(None, gt=0.0, le=1e7)
+    edge_angle_deg: float = Field(5.0, ge=-45.0, le=45.0)
+    edge_contrast: float = Field(0.8, gt=0.0, le=1.0)
+    hdr_exit_luminance_cd_m2: float = Field(20000.0, gt=0.0, le=1e9)
+    hdr_tunnel_luminance_cd_m2: float = Field(0.05, gt=0.0, le=1e6)
+
+    @field_validator("illuminant")
+    @classmethod
+    def _known_illuminant(cls, value: str) -> str:
+        spectra.illuminant_spd(value, spectra.DEFAULT_WAVELENGTHS_NM)   # raises with the allowed names
+        return value

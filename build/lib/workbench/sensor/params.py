@@ -1,0 +1,192 @@
+"""Sensor parameters (DESIGN.md §4; ISETCam's pixel and sensor structures) and presets.
+
+Units are in the field names. Conventions that differ from ISETCam are stated on the field:
+analog gain multiplies (ISETCam divides), an exposure of 0 s is a zero exposure (ISETCam turns
+auto-exposure on), and `exposure_s=None` asks for auto-exposure.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from workbench.params import Params
+from workbench.spectra import RESOURCES
+
+MAX_PIXELS = 2 ** 25
+"""Largest sensor simulated in memory (33.5 Mpx, e.g. 8192×4096): each full-frame stage keeps a
+few float32 copies, and the optical image upstream is H×W×Nλ."""
+
+CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO")
+AUTO_EXPOSURE_METHOD_NAMES = ("mean", "brightest", "percentile", "cfa")
+
+CfaPattern = Literal["RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO"]
+AutoExposureMethod = Literal["mean", "brightest", "percentile", "cfa"]
+
+
+def resolve_resource(name: str) -> Path:
+    """A data-file name relative to resources/ (or an absolute path) → its path."""
+    p = Path(name)
+    return p if p.is_absolute() else RESOURCES / p
+
+
+def csv_column_names(name: str) -> list[str]:
+    """Curve names in a spectrum CSV's header row (without the wavelength column)."""
+    with open(resolve_resource(name), encoding="utf-8") as fh:
+        return [c.strip() for c in fh.readline().strip().split(",")[1:]]
+
+
+class SensorParams(Params):
+    """Everything that defines a simulated image sensor.
+
+    noise_flag (ISETCam's `noiseFlag`):
+      -1  ideal: mean electrons only; no noise, no analog gain/offset, no clipping of volts
+          (DN are still quantised and limited to the code range);
+       0  no noise; analog gain/offset, clipping to the swing and quantisation;
+       1  as 0 plus photon shot noise (true Poisson);
+       2  as 1 plus dark current, read noise, PRNU, DSNU and column FPN (the default).
+    """
+
+    rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height)")
+    cols: int = Field(640, ge=1, le=65536, description="pixel columns (image width)")
+    pixel_pitch_um: float = Field(3.0, ge=0.3, le=100.0, description="pixel centre spacing (µm)")
+    fill_factor: float = Field(0.75, gt=0.0, le=1.0, description="photosensitive fraction of the pixel area")
+    conversion_gain_uV_per_e: float = Field(100.0, gt=0.0, le=1000.0, description="µV per electron")
+    voltage_swing_V: float = Field(1.0, gt=0.0, le=10.0, description="pixel output range (V)")
+    dark_voltage_V_per_s: float = Field(1e-3, ge=0.0, le=10.0, description="dark-current voltage rate (V/s)")
+    read_noise_V: float = Field(1e-3, ge=0.0, le=1.0, description="read noise σ (V)")
+    dsnu_sigma_V: float = Field(0.0, ge=0.0, le=1.0, description="dark-signal non-uniformity σ (V)")
+    prnu_sigma_pct: float = Field(0.0, ge=0.0, le=50.0, description="photo-response non-uniformity σ (%)")
+    column_fpn_offset_sigma_V: float = Field(0.0, ge=0.0, le=1.0, description="column offset σ (V)")
+    column_fpn_gain_sigma_pct: float = Field(0.0, ge=0.0, le=50.0, description="column gain σ (%)")
+    analog_gain: float = Field(1.0, gt=0.0, le=1000.0,
+                               description="volts out = analog_gain × volts + analog_offset_V (ISETCam's gain divides)")
+    analog_offset_V: float = Field(0.0, ge=-10.0, le=10.0, description="black-level offset added after the gain (V)")
+    bit_depth: int = Field(8, ge=0, le=24, description="ADC bits; 0 = analog read-out in volts")
+    cfa_pattern: CfaPattern = Field("GRBG", description="2×2 colour-filter tile read row by row")
+    filter_file: str | None = Field("sensors/bayer_dye_filters.csv",
+                                    description="colour-filter CSV under resources/ (columns named R,G,B,C,W); "
+                                                "None = no colour filters (MONO only)")
+    photodiode_qe_file: str | None = Field("sensors/silicon_photodiode_qe.csv",
+                                           description="photodiode QE CSV; None = QE 1 (ISETCam's default pixel)")
+    ir_cut_file: str | None = Field("sensors/ir_cut_650.csv", description="IR-cut filter CSV; None = no IR cut")
+    regrid_method: Literal["area", "isetcam"] = Field(
+        "area", description="optical image → pixel grid: 'area' averages over each pixel (flux "
+                            "conserving); 'isetcam' = Gaussian pre-blur + bilinear (regridOI2ISA)")
+    exposure_s: float | list[list[float]] | None = Field(
+        None, description="exposure (s): a number, a per-CFA-position tile (rows of the CFA tile), "
+                          "or None for auto-exposure")
+    auto_exposure_method: AutoExposureMethod = Field("mean", description="see AUTO_EXPOSURE_METHODS")
+    auto_exposure_level: float = Field(0.4, gt=0.0, le=1.0,
+                                       description="target as a fraction of the swing (percentile fraction "
+                                                   "for 'percentile'); the paper's experiment uses mean 0.4")
+    ev_bias: float = Field(0.0, ge=-16.0, le=16.0, description="exposure bias: t = t0 · 2^ev_bias, t0 = exposure_s or the "
+                                                           "auto-exposure")
+    max_exposure_s: float = Field(10.0, gt=0.0, le=3600.0, description="longest exposure auto-exposure may pick (s)")
+    noise_flag: Literal[-1, 0, 1, 2] = Field(2, description="-1 ideal, 0 no noise, 1 shot noise, 2 all noise")
+    seed: int = Field(0, ge=0, le=2 ** 63 - 1, description="seed of the fixed patterns and of the temporal noise")
+
+    @field_validator("exposure_s")
+    @classmethod
+    def _exposure_not_negative(cls, v):
+        if v is None:
+            return v
+        values = [v] if isinstance(v, (int, float)) else [x for row in v for x in row]
+        bad = [x for x in values if not (x >= 0.0 and x <= 3600.0)]
+        if bad:
+            raise ValueError(f"exposure must lie in 0–3600 s, got {bad[0]}")
+        if not isinstance(v, (int, float)) and (not v or len({len(r) for r in v}) != 1 or not v[0]):
+            raise ValueError("a per-CFA exposure must be a non-empty rectangular list of rows")
+        return v
+
+    @field_validator("filter_file", "photodiode_qe_file", "ir_cut_file")
+    @classmethod
+    def _file_exists(cls, v):
+        if v is not None and not resolve_resource(v).is_file():
+            raise ValueError(f"spectral data file '{v}' not found (names are relative to {RESOURCES})")
+        return v
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        n = self.rows * self.cols
+        if n > MAX_PIXELS:
+            raise ValueError(
+                f"sensor of rows×cols = {self.rows}×{self.cols} = {n:,} pixels exceeds the simulation limit "
+                f"of {MAX_PIXELS:,} pixels; reduce rows/cols (simulate a crop or a binned sensor with a "
+                f"larger pixel_pitch_um)")
+        if abs(self.analog_offset_V) >= self.voltage_swing_V:
+            raise ValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
+                             f"voltage_swing_V = {self.voltage_swing_V} V")
+        from workbench.sensor.cfa import cfa_layout
+        tile, names = cfa_layout(self.cfa_pattern)
+        if isinstance(self.exposure_s, list):
+            shape = (len(self.exposure_s), len(self.exposure_s[0]))
+            if shape != tile.shape:
+                raise ValueError(f"exposure_s tile has shape {shape}, the {self.cfa_pattern} CFA tile is {tile.shape}")
+        needed = [c for c in names if c != "M"]
+        if needed:
+            if self.filter_file is None:
+                raise ValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
+            have = csv_column_names(self.filter_file)
+            missing = [c for c in needed if c not in have]
+            if missing:
+                raise ValueError(f"filter_file '{self.filter_file}' has columns {have}, missing {missing} "
+                                 f"needed by cfa_pattern {self.cfa_pattern}")
+        return self
+
+    # Derived quantities -------------------------------------------------------------------
+    @property
+    def conversion_gain_V_per_e(self) -> float:
+        return self.conversion_gain_uV_per_e * 1e-6
+
+    @property
+    def pixel_area_m2(self) -> float:
+        return (self.pixel_pitch_um * 1e-6) ** 2
+
+    @property
+    def full_well_e(self) -> float:
+        """Electrons that fill the voltage swing (swing / conversion gain)."""
+        return self.voltage_swing_V / self.conversion_gain_V_per_e
+
+    @property
+    def dark_current_e_per_s(self) -> float:
+        return self.dark_voltage_V_per_s / self.conversion_gain_V_per_e
+
+    @property
+    def read_noise_e(self) -> float:
+        return self.read_noise_V / self.conversion_gain_V_per_e
+
+    @property
+    def lsb_V(self) -> float:
+        """Volts per code (swing / 2^bits); the swing itself for an analog read-out."""
+        return self.voltage_swing_V / 2 ** self.bit_depth if self.bit_depth else 1.0
+
+    @property
+    def max_dn(self) -> float:
+        """Largest output code (2^bits − 1), or the swing (V) for an analog read-out."""
+        return float(2 ** self.bit_depth - 1) if self.bit_depth else self.voltage_swing_V
+
+    @property
+    def sensor_size_m(self) -> tuple[float, float]:
+        """(height, width) of the pixel array (m)."""
+        p = self.pixel_pitch_um * 1e-6
+        return self.rows * p, self.cols * p
+
+
+SENSOR_PRESETS: dict[str, SensorParams] = {
+    # The paper's camera (Table 1) on ISETCam's default pixel: 10,000 e⁻ well, 10 e⁻ read noise.
+    "paper_table1": SensorParams(),
+    # ISETCam sensorCreate(): qqcif 72×88, 2.8 µm, GRBG, analog volts, pd QE 1, brightest AE at 0.95.
+    "isetcam_default": SensorParams(rows=72, cols=88, pixel_pitch_um=2.8, bit_depth=0,
+                                    photodiode_qe_file=None, auto_exposure_method="brightest",
+                                    auto_exposure_level=0.95),
+    # ON Semi MT9V024-like automotive RCCC: 6 µm, FF 0.8, 110 µV/e⁻, 2.8 V (25,455 e⁻), no IR cut
+    # (QE data to 1100 nm; give the scene NIR bands to use it), 10-bit ADC.
+    "auto_rccc": SensorParams(rows=480, cols=752, pixel_pitch_um=6.0, fill_factor=0.8,
+                              conversion_gain_uV_per_e=110.0, voltage_swing_V=2.8, bit_depth=10,
+                              cfa_pattern="RCCC", ir_cut_file=None),
+    # ON Semi AR0132AT-like automotive RGGB: 3.75 µm, 110 µV/e⁻, 2.8 V (25,455 e⁻), 12-bit.
+    "auto_rggb": SensorParams(rows=960, cols=1280, pixel_pitch_um=3.75, conversion_gain_uV_per_e=110.0,
+                              voltage_swing_V=2.8, bit_depth=12, cfa_pattern="RGGB"),
+}

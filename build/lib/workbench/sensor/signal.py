@@ -1,0 +1,174 @@
+"""Irradiance → mean photo-electron rate per pixel (ISETCam's signalCurrent + regridOI2ISA).
+
+mean e⁻/s of a pixel = A_pixel · fill factor · Σ_λ E(λ) · QE_k(λ) · Δλ, with E the irradiance
+(photons/s/m²/nm) over the pixel and QE_k the effective QE of the pixel's CFA channel.
+The optical image and the pixel array are both centred on the optical axis; pixels beyond
+the optical image receive no light.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+
+from workbench.optics.types import OpticalImage
+from workbench.sensor.cfa import cfa_layout, channel_qe
+from workbench.sensor.params import SensorParams
+from workbench.units import band_widths_nm
+
+REGRID_METHODS = ("area", "isetcam")
+"""'area': each pixel averages the (piecewise-constant) irradiance over its square — flux
+conserving for any ratio of sample spacing to pixel pitch. 'isetcam': ISETCam's regridOI2ISA —
+Gaussian pre-blur (kernel ceil(pitch/spacing) samples, σ = kernel/4) then bilinear interpolation
+at the pixel centres."""
+
+
+def _edges(n: int, spacing: float) -> np.ndarray:
+    return (np.arange(n + 1) - n / 2.0) * spacing
+
+
+def _area_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
+    src_edges = _edges(n_src, s)
+    lo = _edges(n_dst, p)[:-1]
+    hi = lo + p
+    j0 = np.clip(np.floor(lo / s + n_src / 2.0).astype(np.int64), 0, n_src - 1)
+    span = int(np.ceil(p / s)) + 2
+    rows, cols, vals = [], [], []
+    for k in range(span):
+        j = j0 + k
+        ok = j < n_src
+        jj = np.minimum(j, n_src - 1)
+        overlap = np.minimum(hi, src_edges[jj + 1]) - np.maximum(lo, src_edges[jj])
+        ok &= overlap > 0
+        rows.append(np.nonzero(ok)[0])
+        cols.append(j[ok])
+        vals.append(overlap[ok] / p)
+    return sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                        shape=(n_dst, n_src))
+
+
+def _isetcam_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
+    kernel = int(np.ceil(p / s - 1e-9))
+    if kernel > 1:
+        half = kernel // 2
+        offsets = np.arange(-half, half + 1)
+        g = np.exp(-0.5 * (offsets / (kernel / 4.0)) ** 2)
+        j = np.arange(n_src)[:, None] + offsets[None, :]
+        ok = (j >= 0) & (j < n_src)
+        w = np.where(ok, g[None, :], 0.0)
+        w /= w.sum(axis=1, keepdims=True)
+        blur = sp.csr_array((w[ok], (np.nonzero(ok)[0], j[ok])), shape=(n_src, n_src))
+    else:
+        blur = sp.eye_array(n_src, format="csr")
+    centres = (np.arange(n_dst) - (n_dst - 1) / 2.0) * p
+    u = centres / s + (n_src - 1) / 2.0
+    inside = (u >= -0.5) & (u <= n_src - 0.5)
+    u = np.clip(u, 0.0, n_src - 1.0)
+    i0 = np.minimum(np.floor(u).astype(np.int64), max(n_src - 2, 0))
+    f = u - i0
+    i1 = np.minimum(i0 + 1, n_src - 1)
+    r = np.nonzero(inside)[0]
+    interp = sp.csr_array((np.concatenate([1 - f[r], f[r]]), (np.concatenate([r, r]),
+                           np.concatenate([i0[r], i1[r]]))), shape=(n_dst, n_src))
+    return (interp @ blur).tocsr()
+
+
+@lru_cache(maxsize=16)
+def resample_matrix(n_src: int, src_spacing_m: float, n_dst: int, dst_spacing_m: float,
+                    method: str = "area") -> sp.csr_array:
+    """Sparse (n_dst × n_src) 1-D resampling from a centred grid of samples to centred pixels."""
+    if method not in REGRID_METHODS:
+        raise ValueError(f"unknown regrid method '{method}'; allowed: {', '.join(REGRID_METHODS)}")
+    build = _area_matrix if method == "area" else _isetcam_matrix
+    m = build(n_src, src_spacing_m, n_dst, dst_spacing_m).astype(np.float32)
+    m.sum_duplicates()
+    return m
+
+
+@lru_cache(maxsize=32)
+def _weights_cached(params_key: str, wl_key: tuple[float, ...]) -> np.ndarray:
+    params = SensorParams.model_validate_json(params_key)
+    wl = np.asarray(wl_key)
+    w = channel_qe(params, wl) * band_widths_nm(wl)[:, None] * params.pixel_area_m2 * params.fill_factor
+    w = w.astype(np.float32)
+    w.flags.writeable = False
+    return w
+
+
+def channel_weights(params: SensorParams, wavelengths_nm: np.ndarray) -> np.ndarray:
+    """(Nλ, K) float32 weights A·FF·QE_k·Δλ (m²·nm): irradiance @ weights = e⁻/s per channel."""
+    key = params.model_dump_json(include={"cfa_pattern", "filter_file", "photodiode_qe_file",
+                                          "ir_cut_file", "pixel_pitch_um", "fill_factor"})
+    return _weights_cached(key, tuple(np.asarray(wavelengths_nm, dtype=np.float64).ravel().tolist()))
+
+
+def film_channel_weights(oi: OpticalImage, params: SensorParams) -> np.ndarray:
+    """(K, K) weights for an optical image rendered with the sensor's own channels as the film
+    (render representation 'sensor'): band k holds the QE_k-weighted mean irradiance, so pixel
+    channel k collects A·FF·band_k·∫QE_k dλ."""
+    _, names = cfa_layout(params.cfa_pattern)
+    integrals = np.asarray(oi.meta.get("channel_integrals_nm", []), dtype=np.float64)
+    if integrals.size != len(names) or oi.irradiance_photons.shape[2] != len(names):
+        raise ValueError(f"sensor: the optical image was rendered with {integrals.size} sensor channels "
+                         f"{oi.meta.get('channel_names')}, this sensor has {len(names)} ({names}); "
+                         "render it again with this sensor or use the 'bands' representation")
+    return np.diag(params.pixel_area_m2 * params.fill_factor * integrals).astype(np.float32)
+
+
+def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> np.ndarray:
+    """Per pixel Σ_λ E·w[:, channel]: one matrix-vector product per CFA tile position."""
+    h, w = irr.shape[:2]
+    out = np.empty((h, w), dtype=np.float32)
+    th, tw = tile.shape
+    for i in range(th):
+        for j in range(tw):
+            out[i::th, j::tw] = irr[i::th, j::tw] @ weights[:, tile[i, j]]
+    return out
+
+
+def pixel_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
+    """Mean photo-electron rate (e⁻/s) of every pixel, rows×cols float32, before any noise.
+
+    Fast path when the optical image is already on the pixel grid (same spacing; same size, or
+    larger by an even number of samples so that it crops centred); otherwise the irradiance,
+    projected on each channel's QE, is resampled by `method` (REGRID_METHODS; default
+    params.regrid_method)."""
+    method = method or params.regrid_method
+    irr = oi.irradiance_photons
+    if irr.ndim != 3 or irr.shape[2] != np.asarray(oi.wavelengths_nm).size:
+        raise ValueError(f"sensor: optical image irradiance must be H×W×Nλ with Nλ = "
+                         f"{np.asarray(oi.wavelengths_nm).size} wavelengths, got shape {irr.shape}")
+    if not (oi.sample_spacing_m > 0 and np.isfinite(oi.sample_spacing_m)):
+        raise ValueError(f"sensor: optical image sample_spacing_m must be > 0, got {oi.sample_spacing_m}")
+    if irr.dtype != np.float32:
+        irr = irr.astype(np.float32)
+    weights = (film_channel_weights(oi, params) if oi.meta.get("representation") == "sensor"
+               else channel_weights(params, oi.wavelengths_nm))
+    tile, _ = cfa_layout(params.cfa_pattern)
+    rows, cols = params.rows, params.cols
+    pitch_m = params.pixel_pitch_um * 1e-6
+    h, w = irr.shape[:2]
+    same_grid = abs(oi.sample_spacing_m - pitch_m) <= 1e-6 * pitch_m
+    if same_grid and h >= rows and w >= cols and (h - rows) % 2 == 0 and (w - cols) % 2 == 0:
+        r0, c0 = (h - rows) // 2, (w - cols) // 2
+        rate = _project_by_tile(irr[r0:r0 + rows, c0:c0 + cols], weights, tile)
+    else:
+        planes = irr.reshape(-1, irr.shape[2]) @ weights           # (h·w, K) e⁻/s on the OI grid
+        r_m = resample_matrix(h, oi.sample_spacing_m, rows, pitch_m, method)
+        c_m = resample_matrix(w, oi.sample_spacing_m, cols, pitch_m, method)
+        rate = np.empty((rows, cols), dtype=np.float32)
+        th, tw = tile.shape
+        for k in range(weights.shape[1]):
+            plane = planes[:, k].reshape(h, w)
+            resampled = (c_m @ (r_m @ plane).T).T
+            mask = tile == k
+            for i in range(th):
+                for j in range(tw):
+                    if mask[i, j]:
+                        rate[i::th, j::tw] = resampled[i::th, j::tw]
+    if not np.isfinite(rate).all():
+        raise ValueError("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
+                         "(photons/s/m²/nm); fix the optics stage output")
+    np.maximum(rate, 0.0, out=rate)                                 # tiny negatives from FFT optics
+    return rate

@@ -1,0 +1,44 @@
+"""Frame renderers for the compute tests (module-level, so spawned and Ray workers import them).
+
+Attempts are counted with marker files in the folder named by $WB_TEST_MARKERS, which the tests
+set before workers start."""
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "labels"))
+
+from labels_helpers import tiny_renderer  # noqa: E402
+
+from workbench.errors import ParameterError  # noqa: E402
+
+MARKERS_ENV = "WB_TEST_MARKERS"
+
+
+def count_attempt(tag: str) -> int:
+    """Record one attempt of `tag`; return how many were recorded before this one."""
+    folder = Path(os.environ[MARKERS_ENV])
+    before = len(list(folder.glob(f"{tag}.*")))
+    (folder / f"{tag}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    return before
+
+
+def crash_once_renderer(project, seeds):
+    """tiny_renderer, except that the first attempt at frame 1 kills its own worker (SIGKILL) half-way."""
+    if seeds.index == 1 and count_attempt(f"crash-{project.seed}-1") == 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return tiny_renderer(project, seeds)
+
+
+def bad_project_renderer(project, seeds):
+    """Refuses every project (a deterministic error), counting attempts."""
+    count_attempt(f"bad-{project.seed}-{seeds.index}")
+    raise ParameterError("render.band_count", project.render.band_count, "≤ 0 in this test (always refused)")
+
+
+def slow_renderer(project, seeds):
+    """tiny_renderer after a pause, so a run can be killed while frames are in flight."""
+    time.sleep(float(os.environ.get("WB_TEST_SLEEP_S", "1")))
+    return tiny_renderer(project, seeds)

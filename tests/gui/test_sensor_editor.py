@@ -1,0 +1,73 @@
+"""Sensor editor: edits and presets emit ('sensor', changes); set_project emits nothing; the CFA
+tile, the QE chart and the EMVA 1288 plot draw real pixels."""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import Qt
+
+from workbench.gui.editors.sensor import SensorEditor
+from workbench.project import Project
+from workbench.sensor.params import SENSOR_PRESETS
+
+
+def make_editor(qtbot):
+    editor = SensorEditor()
+    qtbot.addWidget(editor)
+    editor.resize(700, 800)
+    editor.show()
+    qtbot.waitExposed(editor)
+    return editor
+
+
+def test_set_project_shows_values_and_emits_nothing(qtbot):
+    editor = make_editor(qtbot)
+    emitted = []
+    editor.edited.connect(lambda *a: emitted.append(a))
+    project = Project(sensor=SENSOR_PRESETS["auto_rccc"])
+    editor.set_project(project)
+    assert emitted == []
+    assert editor.form.fields["cols"].value() == 752
+    assert editor.cfa.pattern == "RCCC"
+
+
+def test_form_edit_and_preset_emit_sensor_changes(qtbot):
+    editor = make_editor(qtbot)
+    editor.set_project(Project())
+    with qtbot.waitSignal(editor.edited) as sig:
+        combo = editor.form.fields["cfa_pattern"].combo
+        combo.setCurrentText("RGGB")
+        combo.activated.emit(combo.currentIndex())
+    assert sig.args == ["sensor", {"cfa_pattern": "RGGB"}]
+    assert editor.cfa.pattern == "RGGB"
+    with qtbot.waitSignal(editor.edited) as sig:
+        editor.apply_preset("auto_rggb")
+    section, changes = sig.args
+    assert section == "sensor"
+    assert Project().sensor.updated(cfa_pattern="RGGB", **changes) == SENSOR_PRESETS["auto_rggb"]
+    assert "cfa_pattern" not in changes          # already RGGB: only the differing fields
+
+
+def test_cfa_tile_and_qe_chart_draw(qtbot, grab):
+    editor = make_editor(qtbot)
+    editor.set_project(Project())
+    tile = grab(editor.cfa)
+    assert tile.reshape(-1, 3).std(axis=0).max() > 20
+    editor.tabs.setCurrentIndex(1)
+    qtbot.wait(50)
+    chart = grab(editor.qe_chart)
+    assert len(np.unique(chart.reshape(-1, 3), axis=0)) > 20
+
+
+def test_emva_runs_in_background_and_plots(qtbot, grab):
+    editor = make_editor(qtbot)
+    editor.set_project(Project())
+    editor.tabs.setCurrentIndex(2)
+    with qtbot.waitSignal(editor.emva_finished, timeout=60_000) as sig:
+        qtbot.mouseClick(editor.emva_button, Qt.MouseButton.LeftButton)
+        assert not editor.emva_button.isEnabled()
+    result = sig.args[0]
+    assert abs(result["conversion_gain_uV_per_e"] - 100.0) < 5.0
+    assert "µV/e⁻" in editor.emva_status.text()
+    qtbot.waitUntil(lambda: editor.emva_button.isEnabled())
+    qtbot.wait(50)
+    assert len(np.unique(grab(editor.emva_chart).reshape(-1, 3), axis=0)) > 20

@@ -1,0 +1,1 @@
+"""Parameter editors (lens, sensor, ISP): each emits edited(section, {field: value})."""

@@ -1,0 +1,203 @@
+"""Sensor editor: every SensorParams field (form generator), presets, the CFA tile, the QE curves
+and an EMVA 1288 characterisation run on a background thread."""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import QRectF, QSize, Qt, Signal
+from PySide6.QtGui import QColor, QPainter
+from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QPushButton, QScrollArea, QTabWidget,
+                               QVBoxLayout, QWidget)
+from superqt.utils import create_worker
+
+from workbench.gui.forms import ParamsForm
+from workbench.gui.mplcanvas import ChartCanvas
+from workbench.sensor.cfa import cfa_layout, channel_qe
+from workbench.sensor.emva import characterize, draw_photon_transfer
+from workbench.sensor.params import SENSOR_PRESETS, SensorParams
+from workbench.spectra import RESOURCES, load_spectrum_csv
+
+CHANNEL_COLOURS = {"R": "#d62728", "G": "#2ca02c", "B": "#1f77b4", "C": "#b0b0b0", "W": "#f2f2f2",
+                   "M": "#808080"}
+QE_WAVELENGTHS_NM = np.arange(350.0, 1101.0, 5.0)
+
+
+def spectrum_files() -> list[str]:
+    """Spectral CSVs shipped in resources/sensors/ (names relative to resources/)."""
+    return sorted(f"sensors/{p.name}" for p in (RESOURCES / "sensors").glob("*.csv"))
+
+
+def draw_qe(fig, params: SensorParams, wavelengths_nm: np.ndarray = QE_WAVELENGTHS_NM) -> None:
+    """Effective QE per CFA channel (solid) with the photodiode QE and IR-cut transmittance (dashed)."""
+    ax = fig.add_subplot()
+    _, names = cfa_layout(params.cfa_pattern)
+    qe = channel_qe(params, wavelengths_nm)
+    for k, ch in enumerate(names):
+        ax.plot(wavelengths_nm, qe[:, k], color=CHANNEL_COLOURS[ch] if ch != "W" else "k", label=ch)
+    for name, label in ((params.photodiode_qe_file, "photodiode QE"), (params.ir_cut_file, "IR cut")):
+        if name is not None:
+            ax.plot(wavelengths_nm, load_spectrum_csv(name, wavelengths_nm)[0][:, 0], "--", lw=0.8,
+                    color="0.4" if label == "IR cut" else "0.7", label=label)
+    ax.set(xlabel="wavelength (nm)", ylabel="QE / transmittance", ylim=(0, 1.02),
+           title=f"{params.cfa_pattern}: effective channel QE")
+    ax.legend(fontsize=7, loc="upper right")
+
+
+class CfaTile(QWidget):
+    """Two periods of the CFA tile drawn as coloured pixels with their channel letters."""
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.pattern = "GRBG"
+        self.setMinimumSize(QSize(72, 72))
+        self.setToolTip("CFA tile (two periods), read row by row")
+
+    def set_pattern(self, pattern: str) -> None:
+        self.pattern = pattern
+        self.update()
+
+    def paintEvent(self, _event) -> None:
+        tile, names = cfa_layout(self.pattern)
+        th, tw = tile.shape
+        n = 2 * th
+        side = min(self.width(), self.height()) / n
+        p = QPainter(self)
+        for r in range(n):
+            for c in range(n):
+                ch = names[tile[r % th, c % tw]]
+                rect = QRectF(c * side, r * side, side, side)
+                p.fillRect(rect, QColor(CHANNEL_COLOURS[ch]))
+                p.setPen(QColor("black"))
+                p.drawRect(rect)
+                p.drawText(rect, Qt.AlignmentFlag.AlignCenter, ch)
+        p.end()
+
+
+class SensorEditor(QWidget):
+    """edited("sensor", {field: value}) for every accepted change, presets included."""
+
+    edited = Signal(str, dict)
+    emva_finished = Signal(dict)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self._params = SensorParams()
+        self._seed = 0
+        self._worker = None
+        self.emva_result: dict | None = None
+
+        self.presets = QComboBox(self)
+        self.presets.addItems(list(SENSOR_PRESETS))
+        self.presets.setToolTip("sensor presets (workbench.sensor.params.SENSOR_PRESETS)")
+        apply_preset = QPushButton("Apply preset", self)
+        apply_preset.clicked.connect(lambda: self.apply_preset(self.presets.currentText()))
+        self.cfa = CfaTile(self)
+        self.summary = QLabel(self)
+        self.summary.setWordWrap(True)
+        header = QHBoxLayout()
+        left = QVBoxLayout()
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Preset:", self))
+        row.addWidget(self.presets, 1)
+        row.addWidget(apply_preset)
+        left.addLayout(row)
+        left.addWidget(self.summary)
+        header.addLayout(left, 1)
+        header.addWidget(self.cfa)
+
+        files = spectrum_files()
+        self.form = ParamsForm(SensorParams, self, choices={
+            "filter_file": files, "photodiode_qe_file": files, "ir_cut_file": files})
+        self.form.edited.connect(self._form_edited)
+        scroll = QScrollArea(self)
+        scroll.setWidgetResizable(True)
+        scroll.setWidget(self.form)
+
+        self.qe_chart = ChartCanvas(self)
+        self.emva_button = QPushButton("Characterise (EMVA 1288)", self)
+        self.emva_button.setToolTip("photon-transfer measurement of this sensor on a background thread")
+        self.emva_button.clicked.connect(self.run_emva)
+        self.emva_status = QLabel("not run", self)
+        self.emva_status.setWordWrap(True)
+        self.emva_chart = ChartCanvas(self, figsize=(9, 3))
+        emva = QWidget(self)
+        ev = QVBoxLayout(emva)
+        top = QHBoxLayout()
+        top.addWidget(self.emva_button)
+        top.addWidget(self.emva_status, 1)
+        ev.addLayout(top)
+        ev.addWidget(self.emva_chart, 1)
+
+        self.tabs = QTabWidget(self)
+        self.tabs.addTab(scroll, "Parameters")
+        self.tabs.addTab(self.qe_chart, "QE curves")
+        self.tabs.addTab(emva, "EMVA 1288")
+        lay = QVBoxLayout(self)
+        lay.addLayout(header)
+        lay.addWidget(self.tabs, 1)
+        self._refresh()
+
+    # ----------------------------------------------------------------------------------------
+    def set_project(self, project) -> None:
+        """Show the project's sensor; emits nothing."""
+        self._seed = project.seed
+        if project.sensor != self._params:
+            self._params = project.sensor
+            self.form.set_params(project.sensor)
+            self._refresh()
+
+    def _refresh(self) -> None:
+        p = self._params
+        self.cfa.set_pattern(p.cfa_pattern)
+        self.summary.setText(f"{p.cols}×{p.rows} px, {p.pixel_pitch_um:g} µm; full well {p.full_well_e:,.0f} e⁻, "
+                             f"read noise {p.read_noise_e:.3g} e⁻, {p.bit_depth or 'analog'}"
+                             f"{' bit' if p.bit_depth else ''}")
+        self.qe_chart.redraw(lambda fig: draw_qe(fig, p))
+
+    def _form_edited(self, changes: dict) -> None:
+        self._params = self.form.params()
+        self._refresh()
+        self.edited.emit("sensor", changes)
+
+    def apply_preset(self, name: str) -> None:
+        """Emit the fields in which preset `name` differs from the shown sensor (one edit)."""
+        preset = SENSOR_PRESETS[name].model_dump()
+        current = self._params.model_dump()
+        changes = {k: v for k, v in preset.items() if current[k] != v}
+        if changes:
+            self._params = SENSOR_PRESETS[name]
+            self.form.set_params(self._params)
+            self._refresh()
+            self.edited.emit("sensor", changes)
+
+    # ----------------------------------------------------------------------------------------
+    def run_emva(self) -> None:
+        """Characterise the shown sensor on a worker thread; the plot appears when it returns."""
+        if self._worker is not None:
+            return
+        params = self._params
+        if params.noise_flag < 1:
+            params = params.updated(noise_flag=2)
+        self.emva_button.setEnabled(False)
+        self.emva_status.setText("measuring the photon-transfer curve…")
+        self._worker = create_worker(characterize, params, seed=self._seed, size_px=128,
+                                     _start_thread=False, _ignore_errors=True)
+        self._worker.returned.connect(self._emva_returned)
+        self._worker.errored.connect(self._emva_errored)
+        self._worker.finished.connect(self._emva_finished)
+        self._worker.start()
+
+    def _emva_returned(self, result: dict) -> None:
+        self.emva_result = result
+        self.emva_status.setText(
+            f"K {result['conversion_gain_uV_per_e']:.3g} µV/e⁻, read noise {result['read_noise_e']:.3g} e⁻, "
+            f"dark current {result['dark_current_e_per_s']:.3g} e⁻/s, saturation "
+            f"{result['saturation_capacity_e']:,.0f} e⁻, DR {result['dynamic_range_dB']:.1f} dB")
+        self.emva_chart.redraw(lambda fig: draw_photon_transfer(result, fig))
+        self.emva_finished.emit(result)
+
+    def _emva_errored(self, exc: Exception) -> None:
+        self.emva_status.setText(f"EMVA characterisation failed: {exc}")
+
+    def _emva_finished(self) -> None:
+        self._worker = None
+        self.emva_button.setEnabled(True)
