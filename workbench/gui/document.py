@@ -14,15 +14,15 @@ from pathlib import Path
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
-from workbench.errors import WorkbenchError
+from workbench.errors import ParameterError, WorkbenchError
+from workbench.files import atomic_write_text
 from workbench.gui.paths import autosave_dir
+from workbench.project import PROJECTS_DIR, Project, load_project, project_from_dict, save_project
 from workbench.scene.city.recipe import CityRecipe, PoseParams
-from workbench.project import (PROJECTS_DIR, Project, ProjectError, atomic_write_text, load_project,
-                               project_from_dict, save_project)
 
 AUTOSAVE_INTERVAL_MS = 15_000
 OPTIONAL_SECTIONS = {"city": CityRecipe, "pose": PoseParams}
-LOAD_ERRORS = (ProjectError, WorkbenchError, OSError, ValueError)
+LOAD_ERRORS = (WorkbenchError, OSError, ValueError)
 
 
 def sample_projects() -> dict[str, Path]:
@@ -138,7 +138,7 @@ class Document(QObject):
     def new_from_sample(self, name: str) -> None:
         samples = sample_projects()
         if name not in samples:
-            raise ProjectError(f"no sample project '{name}' (samples: {', '.join(samples)})")
+            raise ParameterError("sample", name, f"one of {', '.join(samples)}")
         self.reset(load_project(samples[name]), None)
 
     def open(self, path: str | Path) -> None:
