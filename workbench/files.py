@@ -83,7 +83,7 @@ def _refuse_duplicate_keys(pairs: list[tuple[str, object]]) -> dict:
 def parse_json(text: str, path: str | os.PathLike, what: str) -> object:
     """Decode JSON text; a syntax error, nesting too deep or a key given twice is an InputFileError."""
     try:
-        return json.loads(text, object_pairs_hook=_refuse_duplicate_keys)
+        data = json.loads(text, object_pairs_hook=_refuse_duplicate_keys)
     except json.JSONDecodeError as exc:
         raise InputFileError(path, f"not valid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg} "
                                    f"(a {what} is JSON)") from None
@@ -92,6 +92,28 @@ def parse_json(text: str, path: str | os.PathLike, what: str) -> object:
     except _DuplicateKey as exc:
         key = exc.key if len(exc.key) <= 40 else exc.key[:37] + "..."
         raise InputFileError(path, f"a JSON object gives the key {key!r} twice; keep one") from None
+    if not _valid_unicode(data):
+        raise InputFileError(path, "a JSON string holds an unpaired surrogate escape (\\ud800–\\udfff): not "
+                                   "valid Unicode")
+    return data
+
+
+def _valid_unicode(data: object) -> bool:
+    """No string (key or value) holds an unpaired surrogate, which JSON's \\u escapes can spell."""
+    stack = [data]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend(node.keys())
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+        elif isinstance(node, str):
+            try:
+                node.encode("utf-8")
+            except UnicodeEncodeError:
+                return False
+    return True
 
 
 def read_json(path: str | os.PathLike, what: str, max_bytes: int = MAX_INPUT_BYTES) -> object:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
 from workbench.errors import InputFileError, ParameterError
 from workbench.files import atomic_write_text, parse_json, read_text
@@ -66,6 +66,19 @@ class Project(Params):
     isp: ISPParams = ISPParams()
     render: RenderParams = RenderParams()
     experiment: ExperimentParams = ExperimentParams()
+
+    @model_validator(mode="after")
+    def _focus_beyond_focal_length(self):
+        """The object in focus (optics.focus_distance_m, else scene.distance_m) lies beyond the
+        effective focal length, so the image is real; refused here instead of in the optics stage."""
+        from workbench.optics.formation.lens_setup import effective_params
+        f_mm = effective_params(self.optics).focal_length_mm
+        field, distance_m = (("optics.focus_distance_m", self.optics.focus_distance_m)
+                             if self.optics.focus_distance_m is not None else ("scene.distance_m", self.scene.distance_m))
+        if not distance_m * 1e3 > f_mm:
+            raise ParameterError(field, distance_m, f"must exceed the effective focal length ({f_mm:.4g} mm) for "
+                                                    "a real image")
+        return self
 
 
 # Pydantic's tags of union members in an error location ('float', 'list[list[float]]'): not fields.

@@ -86,6 +86,8 @@ def test_error_never_echoes_file_contents(tmp_path):
     (("scene", "illuminant"), "blackbody:nan", "1000"),
     (("scene", "illuminant"), "blackbody:1", "1000"),
     (("optics", "lens_file"), "no_such_lens.json", "no such lens"),
+    (("optics", "focus_distance_m"), 1e-100, "must exceed the effective focal length (2.376 mm)"),
+    (("scene", "distance_m"), 1e-6, "must exceed the effective focal length"),
 ])
 def test_bad_values_name_the_field(path, value, allowed):
     data = json.loads(_paper_text())
@@ -98,6 +100,14 @@ def test_bad_values_name_the_field(path, value, allowed):
     field = ".".join(str(p) for p in path)
     assert info.value.field == field, str(info.value)
     assert allowed in str(info.value)
+
+
+def test_a_lens_model_without_a_lens_is_refused_when_it_loads():
+    data = json.loads(_paper_text())
+    data["optics"]["model"] = "raytrace"
+    with pytest.raises(ParameterError) as info:
+        project_from_dict(data)
+    assert info.value.field == "optics.lens_file" and "needs a lens file" in str(info.value)
 
 
 def test_schema_1_migrates_and_drops_the_unused_illuminance():

@@ -1,12 +1,13 @@
 """Benchmarks: speed-versus-error measurements, run by `workbench bench NAME`.
 
-Every benchmark lives in this package: a module per subject (MODULES) whose functions
-`fn(args) -> BenchResult` register with `@register_bench(name)`; `all_benches()` imports them
-and returns the registry. The command line prints a result's rows as a table (or JSON with
+Every benchmark lives in this package: a module per subject whose functions
+`fn(args) -> BenchResult` register with `@register_bench(name)`; `all_benches()` imports every
+module here and returns the registry. The command line prints a result's rows as a table (or JSON with
 --json). Timing goes through workbench.bench.timing."""
 from __future__ import annotations
 
 import importlib
+import pkgutil
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -34,8 +35,8 @@ def register_bench(name: str, help: str = ""):
 
 def all_benches() -> Registry[Callable]:
     """The registry with every benchmark module of this package imported."""
-    for name in MODULES:
-        importlib.import_module(f"{__name__}.{name}")
+    for module in pkgutil.iter_modules(__path__):
+        importlib.import_module(f"{__name__}.{module.name}")
     return BENCHES
 
 

@@ -21,24 +21,26 @@ NETWORKS = ("mobile", "resnet18")
 
 def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
     from workbench.detect.representations import REPRESENTATIONS, network_input
-    from workbench.isp import isp_compute
+    from workbench.isp import sensor_image_to_srgb
     from workbench.pipeline import form_optical_image, make_scene
     from workbench.project import load_project
-    from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
 
     base = load_project("paper_camera")
     pitch = base.sensor.pixel_pitch_um * base.sensor.cols / cols       # same field of view at every size
     project = base.updated(sensor=base.sensor.updated(rows=rows, cols=cols, pixel_pitch_um=pitch),
                            scene=base.scene.updated(kind="macbeth"))
     oi = form_optical_image(make_scene(project), project)
-    rate = pixel_signal_rate(oi, project.sensor)
+    rate = irradiance_to_signal_rate(oi, project.sensor)
     rng = np.random.default_rng(0)
     t = resolve_exposure(rate, project.sensor)
-    image = expose(rate, project.sensor, t, rng, wavelengths_nm=oi.wavelengths_nm)
-    isp = isp_compute(image, project.isp)
-    sensor_ms = median_times_ms(lambda: expose(rate, project.sensor, t, rng, wavelengths_nm=oi.wavelengths_nm),
-                                repeats).wall_ms
-    isp_ms = median_times_ms(lambda: isp_compute(image, project.isp), repeats).wall_ms
+
+    def capture():
+        return signal_rate_to_sensor_image(rate, project.sensor, t, rng, wavelengths_nm=oi.wavelengths_nm)
+    image = capture()
+    isp = sensor_image_to_srgb(image, project.isp)
+    sensor_ms = median_times_ms(capture, repeats).wall_ms
+    isp_ms = median_times_ms(lambda: sensor_image_to_srgb(image, project.isp), repeats).wall_ms
     out = []
     for rep in REPRESENTATIONS:
         input_ms = median_times_ms(lambda r=rep: network_input(image, isp, r), repeats).wall_ms
@@ -110,7 +112,7 @@ def bench_detect(args) -> BenchResult:
     notes = ["torch.set_num_threads(1) for every CPU row (the study's training setting); batch "
              f"{BATCH}, per-image = batch time / {BATCH}; medians of {repeats} runs after a warm-up "
              f"(views: {3 * repeats})",
-             "view: paper camera, Macbeth chart; sensor = expose (noise, ADC) from the cached pixel signal; "
+             "view: paper camera, Macbeth chart; sensor = signal_rate_to_sensor_image (noise, ADC) from the cached pixel signal; "
              "raw skips the ISP; input = network_input (scaling, packing, layout)",
              "network train = forward + loss + backward (no optimiser step); raw input is packed 4×H/2×W/2",
              "*_ms = wall clock; *_cpu_ms = process CPU time (the robust figure when other processes share the cores)"]

@@ -116,7 +116,7 @@ def _bench_scene(name: str, scene: Scene, ref_rays: int, fast_rays: int, has_edg
                  cam: OpticsParams | None = None, full_model: tuple | None = None) -> list[dict]:
     """Rows for one scene. full_model: (reference OpticalImage, its time, a second render of it) to
     compare against instead of raytrace with ref_rays (which then becomes one more level)."""
-    from workbench.optics.selector import compare_to_reference, select_level
+    from workbench.optics.formation.selector import compare_to_reference, select_level
     cam = cam or _camera()
     ref_label = f"raytrace ({ref_rays} rays, reference)"
     extra = []

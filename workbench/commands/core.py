@@ -27,21 +27,20 @@ def register(sub) -> None:
 
 def stage_report(result, project) -> dict:
     """Exposure, mean electrons and SNR per channel, clipped fraction, per-stage time."""
+    from workbench.sensor import snr_dB
     img = result.sensor_image
-    sp = project.sensor
-    read_e = sp.read_noise_V / (sp.conversion_gain_uV_per_e * 1e-6)
-    dsnu_e = sp.dsnu_sigma_V / (sp.conversion_gain_uV_per_e * 1e-6)
+    exposure_s = float(np.mean(img.exposure_s))
     channels = {}
     for k, name in enumerate(img.channel_names):
         mask = img.channel_mask(k)
         if not mask.any():
             continue
         e_mean = float(img.electrons[mask].mean())
-        noise_var = e_mean + read_e ** 2 + dsnu_e ** 2 + (sp.prnu_sigma_pct / 100 * e_mean) ** 2
+        snr = snr_dB(e_mean, project.sensor, exposure_s)
         channels[name] = {
             "mean_electrons": e_mean,
             "mean_dn": float(img.dn[mask].mean()),
-            "snr_dB": float(10 * np.log10(e_mean ** 2 / noise_var)) if e_mean > 0 else None,
+            "snr_dB": None if np.isnan(snr) else snr,
             "fraction_clipped": float((img.dn[mask] >= img.max_dn).mean()),
         }
     exposure = img.exposure_s

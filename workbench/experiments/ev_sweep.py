@@ -18,6 +18,7 @@ import numpy as np
 
 from workbench.errors import ParameterError
 from workbench.jobs import CancelToken, Job, Progress
+from workbench.sensor.snr import snr_dB
 
 THUMBNAIL_WIDTH_PX = 160
 
@@ -52,18 +53,6 @@ def ev_values(start: float, stop: float, step: float) -> list[float]:
     if n > 200:
         raise ParameterError("ev step", step, f"gives {n} exposures; at most 200 are allowed")
     return [round(start + i * step, 9) for i in range(n)]
-
-
-def snr_dB(mean_e: float, sensor, exposure_s: float) -> float:
-    """SNR (dB) of a pixel holding mean_e electrons under the sensor's noise model."""
-    if sensor.noise_flag < 1 or not mean_e > 0:
-        return float("nan")
-    var = mean_e
-    if sensor.noise_flag == 2:
-        var += sensor.dark_current_e_per_s * exposure_s + sensor.read_noise_e ** 2 \
-            + (sensor.dsnu_sigma_V / sensor.conversion_gain_V_per_e) ** 2 \
-            + (sensor.prnu_sigma_pct / 100 * mean_e) ** 2
-    return float(10 * np.log10(mean_e ** 2 / var))
 
 
 def thumbnail(srgb: np.ndarray, width_px: int = THUMBNAIL_WIDTH_PX) -> np.ndarray:

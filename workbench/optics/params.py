@@ -10,12 +10,16 @@ import math
 from pathlib import PurePosixPath
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
+
+from workbench.errors import ParameterError
 
 from workbench.params import Params
 
 OpticsModelName = Literal["pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto"]
 
+LENS_MODELS = ("psf_grid", "raytrace")
+"""Optics levels that trace a real lens and so need lens_file."""
 PAPER_SENSOR_WIDTH_MM = 640 * 3e-3
 PAPER_HFOV_DEG = 44.0
 
@@ -121,6 +125,13 @@ class OpticsParams(Params):
         if not all(math.isfinite(k) for k in v):
             raise ValueError(f"distortion_k must be finite numbers, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _lens_for_lens_models(self):
+        if self.model in LENS_MODELS and self.lens_file is None:
+            raise ParameterError("lens_file", None, f"optics model '{self.model}' needs a lens file (a prescription "
+                                                    "under resources/lenses/, e.g. 'dgauss.50mm')")
+        return self
 
     @property
     def focal_length_m(self) -> float:

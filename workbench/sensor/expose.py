@@ -125,7 +125,8 @@ def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, gen: np.random.
 
 
 def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
-           rng: np.random.Generator | None = None, *, wavelengths_nm: np.ndarray | None = None) -> SensorImage:
+                                rng: np.random.Generator | None = None, *,
+                                wavelengths_nm: np.ndarray | None = None) -> SensorImage:
     """One exposure of a rows×cols mean electron-rate image (e⁻/s) → SensorImage.
 
     exposure_s: seconds, or an array of the CFA tile's shape (per-CFA exposure).

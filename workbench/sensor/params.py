@@ -145,7 +145,7 @@ class SensorParams(Params):
 
     @property
     def lsb_V(self) -> float:
-        """Volts per code (swing / 2^bits); the swing itself for an analog read-out."""
+        """Volts per code (swing / 2^bits); 1.0 for an analog read-out, whose DN are its volts (unquantised)."""
         return self.voltage_swing_V / 2 ** self.bit_depth if self.bit_depth else 1.0
 
     @property

@@ -11,12 +11,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from functools import lru_cache
 from pathlib import Path, PurePosixPath
 
-from workbench.errors import InputFileError
-from workbench.files import parse_json, read_text
+from workbench.errors import InputFileError, OutputPathError
+from workbench.files import atomic_write_text, parse_json, read_text
 from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
 from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
@@ -139,16 +138,12 @@ def save_lens(lens: Lens, path) -> Path:
     p = Path(path)
     ext = p.suffix.lower()
     if ext == ".json":
-        text = json.dumps(lens_to_json(lens), indent=1)
+        text = json.dumps(lens_to_json(lens), indent=1, allow_nan=False)
     elif ext == ".dat":
         text = lens_to_dat(lens)
     else:
-        raise ValueError(f"save_lens: extension {ext!r} of {str(p)!r} not writable; allowed: .json, .dat")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=p.name, suffix=".tmp")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, p)
+        raise OutputPathError(p, f"a lens is saved as .json or .dat, not {ext!r}")
+    atomic_write_text(p, text)
     return p
 
 
