@@ -49,7 +49,7 @@ def build_chart(name: str, lens: Lens, max_field: float) -> Figure:
 
 def select_for_project(project) -> tuple[str, dict, str]:
     """(chosen level, the selector's report, a note on the scene it judged) for the project."""
-    from workbench.optics.selector import select_level
+    from workbench.optics.formation.selector import select_level
     from workbench.pipeline import make_scene
     note = ""
     if project.scene.kind == "city":
