@@ -179,7 +179,7 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
 
 
 def atomic_write_json(path: Path, obj) -> None:
-    from workbench.project import atomic_write_text
+    from workbench.files import atomic_write_text
     atomic_write_text(path, json.dumps(obj, indent=1, default=str) + "\n")
 
 
