@@ -180,8 +180,7 @@ class MainWindow(QMainWindow):
 
     # -- document → views ------------------------------------------------------------------
     def _update_title(self, *_changed) -> None:
-        mark = " *" if self.document.dirty else ""
-        self.setWindowTitle(f"{self.document.display_name}{mark} — Camera Workbench")
+        self.setWindowTitle(f"{self.document.display_name}[*] — Camera Workbench")
         self.setWindowModified(self.document.dirty)
 
     def _project_changed(self, project: Project) -> None:
