@@ -246,6 +246,12 @@ class MainWindow(QMainWindow):
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard
             | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Save)
 
+    def ask_recover(self, autosave_file: Path) -> bool:
+        """Yes/No: recover the edits of a session that ended without saving (tests replace this)."""
+        answer = QMessageBox.question(self, "Recover unsaved edits", "A previous session ended without "
+                                      f"saving. Recover its edits?\n({autosave_file})")
+        return answer == QMessageBox.StandardButton.Yes
+
     def may_discard(self) -> bool:
         """True when the current project may be replaced (saved, discarded, or not dirty)."""
         if not self.document.dirty:
@@ -321,9 +327,7 @@ class MainWindow(QMainWindow):
         found = find_recoverable()
         if not found:
             return
-        answer = QMessageBox.question(self, "Recover unsaved edits",
-                                      f"A previous session ended without saving. Recover its edits?\n({found[0]})")
-        if answer == QMessageBox.StandardButton.Yes:
+        if self.ask_recover(found[0]):
             self.document.recover(found[0])
         else:
             found[0].unlink(missing_ok=True)
