@@ -50,3 +50,12 @@ def thread_budget(_job):
     select_variant("llvm_ad_spectral")
     import drjit as dr
     return dr.thread_count(), os.environ.get("OMP_NUM_THREADS")
+
+
+def progress_renderer(project, seeds, on_progress=None):
+    """tiny_renderer that first reports 4 steps of progress, a little apart."""
+    from types import SimpleNamespace
+    for k in range(1, 5):
+        time.sleep(0.3)
+        on_progress(SimpleNamespace(spp_done=k, spp_total=4))
+    return tiny_renderer(project, seeds)

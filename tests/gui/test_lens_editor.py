@@ -110,15 +110,16 @@ def test_open_a_pbrt_lens_file(qtbot, user_lenses, tmp_path):
     assert not editor.import_lens(tmp_path / "missing.zmx")
 
 
-def test_optics_form_and_selector(qtbot, user_lenses):
+def test_optics_form_and_the_selector_runs_for_auto(qtbot, user_lenses):
     project = Project()
-    editor, emitted = make_editor(qtbot, project.updated(optics=project.optics.updated(model="auto")))
+    editor, emitted = make_editor(qtbot, project)
+    assert "Ask the selector" in editor.selector_text.text()
     combo = editor.form.fields["off_axis"].combo
     combo.setCurrentText("none")
     combo.activated.emit(combo.currentIndex())
     assert emitted == [("optics", {"off_axis": "none"})]
     with qtbot.waitSignal(editor.selection_ready, timeout=120_000) as sig:
-        editor.run_selector()
+        editor.set_project(project.updated(optics=project.optics.updated(model="auto")))
     level = sig.args[0]["level"]
     assert level in ("pinhole", "diffraction_limited", "thin_lens")
     assert f"auto → '{level}'" in editor.selector_text.text() and "budget" in editor.selector_text.text()

@@ -94,6 +94,7 @@ class LensEditor(QWidget):
         self._chart_job: tuple[str, int] = ("", -1)   # (chart, generation) being built
         self._drawn: dict[str, int] = {}           # chart → generation it shows
         self._select_worker = None
+        self._select_pending = False
 
         self.lens_choice = QComboBox(self)
         self.lens_choice.activated.connect(self._lens_chosen)
@@ -176,10 +177,12 @@ class LensEditor(QWidget):
                 self.table_status.setText(f"cannot read lens {project.optics.lens_file}: {exc}")
         elif old.optics != project.optics or old.sensor.sensor_size_m != project.sensor.sensor_size_m:
             self._lens_changed()
-        if old is None or old.optics.model != project.optics.model:
-            self.selector_text.setText(f"level of detail: '{project.optics.model}'"
-                                       + (" — press “Ask the selector” for its choice and reason"
-                                          if project.optics.model == "auto" else ""))
+        if project.optics.model == "auto" and (old is None or old.optics != project.optics
+                                               or old.scene != project.scene or old.sensor != project.sensor):
+            self.run_selector()
+        elif old is None or old.optics.model != project.optics.model:
+            self.selector_text.setText(f"level of detail: '{project.optics.model}' — “Ask the selector” "
+                                       "shows what 'auto' would pick, and why")
 
     def _fill_choices(self, lens_file: str | None) -> None:
         self.lens_choice.blockSignals(True)
@@ -374,8 +377,12 @@ class LensEditor(QWidget):
 
     def run_selector(self) -> None:
         """Ask the automatic level-of-detail selector (on a worker) which optics level it picks."""
-        if self._select_worker is not None or self._project is None:
+        if self._project is None:
             return
+        if self._select_worker is not None:
+            self._select_pending = True
+            return
+        self._select_pending = False
         self.select_button.setEnabled(False)
         self.selector_text.setText("the selector is comparing the levels on a probe…")
         self._select_worker = create_worker(select_for_project, self._project, _start_thread=False,
@@ -400,3 +407,5 @@ class LensEditor(QWidget):
     def _selector_finished(self) -> None:
         self._select_worker = None
         self.select_button.setEnabled(True)
+        if self._select_pending:
+            self.run_selector()
