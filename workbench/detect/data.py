@@ -225,12 +225,16 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
 
 
 class RateCache:
-    """Least-recently-used cache of per-frame signal rates, bounded in MB."""
+    """Least-recently-used cache of per-frame signal rates, bounded in MB (RATES: the one cache
+    of a process, shared by every view and run in it)."""
 
     def __init__(self, limit_mb: float):
         self.limit_bytes = int(limit_mb * 2 ** 20)
         self._items: OrderedDict = OrderedDict()
         self._bytes = 0
+
+    def set_limit(self, limit_mb: float) -> None:
+        self.limit_bytes = int(limit_mb * 2 ** 20)
 
     def get(self, key, make):
         if key in self._items:
@@ -245,6 +249,9 @@ class RateCache:
                 _, old = self._items.popitem(last=False)
                 self._bytes -= sum(a.nbytes for a in old)
         return value
+
+
+RATES = RateCache(1024.0)
 
 
 def experiment_sensor(project):
@@ -276,7 +283,7 @@ class DetectionView:
     'linear' or 'srgb'; evs: one EV bias, or several for an EV mix (every epoch each EV is given
     to an equal share of the frames, by a seeded permutation); seed: noise and augmentation seed;
     augment: mirror the scene with probability ½ and cut crop_hw windows (training);
-    cache_mb: memory for cached signal rates. A key is an item number (in the epoch set by
+    cache_mb: the limit of the process's signal-rate cache (RATES). A key is an item number (in the epoch set by
     set_epoch) or an (item, epoch) pair, so loader worker processes need no epoch state.
     Item: (input C×h×w float32 tensor, target dict with boxes_xyxy, classes, ignored_xyxy,
     ignored_classes, frame index, ev, exposure_s, sensor_isp_s). `timing` sums seconds spent
@@ -300,7 +307,8 @@ class DetectionView:
         self.augment, self.crop_hw = augment, crop_hw
         self.sensor = experiment_sensor(dataset.project)
         self._sensors = {(h, w): self.sensor}
-        self._cache = RateCache(cache_mb)
+        RATES.set_limit(cache_mb)
+        self._rate_key = (str(dataset.folder), dataset.fingerprint, self.sensor.model_dump_json())
         self._exposure: dict[int, float] = {}
         self.epoch = 0
         self._ev_by_epoch: dict[int, np.ndarray] = {}
@@ -342,7 +350,8 @@ class DetectionView:
         rec = self.frame_record(item)
         ev = self._ev_of(item, epoch)
         t0 = time.perf_counter()
-        rates = self._cache.get(rec.index, lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
+        rates = RATES.get((*self._rate_key, rec.index),
+                          lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
         t1 = time.perf_counter()
         if rec.index not in self._exposure:
             self._exposure[rec.index] = float(auto_exposure(rates[0], self.sensor))

@@ -61,7 +61,7 @@ class Profile:
 
 PROFILES = {
     "quick": Profile(
-        name="quick", image_hw=(240, 320), nets=("mobile",), seeds=3, epochs={"isp": 8, "exposure": 3},
+        name="quick", image_hw=(240, 320), nets=("mobile",), seeds=3, epochs={"isp": 12, "exposure": 3},
         batch_size=8, crop_hw=(128, 160), lr=3e-3, threads=1, device="cpu", loader_workers=0, cache_mb=1024.0,
         note="quick profile: 320×240 frames, the 'mobile' net, 1 thread, training on 160×128 windows; "
              "designed to finish each experiment in ≤ 20 min on one uncontended CPU core (≤ 30 min on a "
