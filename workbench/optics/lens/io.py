@@ -48,8 +48,11 @@ def shipped_lens_path(name: str) -> Path:
         raise InputFileError(name, "a lens name is relative to resources/lenses/ (no '..', not absolute)")
     for ext in ("",) + _FORMATS:
         q = LENS_DIR / f"{rel}{ext}"
-        if q.is_file():
-            return q
+        try:
+            if q.is_file():
+                return q
+        except OSError:                     # a name too long for the file system, …: not a lens
+            break
     raise InputFileError(name, f"no such lens file, and not a shipped lens (available: "
                                f"{', '.join(available_lenses())})")
 
