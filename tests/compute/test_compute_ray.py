@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from compute_helpers import bad_project_renderer, crash_once_renderer, slow_renderer, tiny_renderer
+from compute_helpers import (bad_project_renderer, crash_once_renderer, progress_renderer, slow_renderer,
+                             tiny_renderer)
 
 from workbench.compute import ComputeSpec, JobFailed, run_jobs
 from workbench.jobs import run_job
@@ -131,3 +132,18 @@ def test_driver_killed_mid_run_resumes_from_disk(ray_cluster, reference, tmp_pat
     result = run_job(run_dataset(Project(seed=21), N, out, compute=RAY, renderer=slow_renderer))
     assert len(result.reused) == len(written) and sorted(result.reused + result.rendered) == list(range(N))
     assert frame_contents(out, N) == frame_contents(reference, N)
+
+
+@pytest.mark.parametrize("backend", [pytest.param("local", marks=pytest.mark.slow), "ray"])
+def test_frames_in_flight_report_their_progress(backend, tmp_path, request):
+    if backend == "ray":
+        request.getfixturevalue("ray_cluster")
+    spec = ComputeSpec(backend=backend, workers=1)
+    seen = []
+    result = run_job(run_dataset(Project(seed=8), 2, tmp_path, compute=spec, renderer=progress_renderer),
+                     seen.append)
+    assert sorted(result.rendered) == [0, 1]
+    live = [p for p in seen if p.message.startswith("rendering frame")]
+    assert live and any(0 < p.done % 1 for p in live)                # a frame part-way counts part-way
+    done = [p.done for p in seen if not p.message.startswith("checked")]
+    assert done == sorted(done) and done[-1] == 2

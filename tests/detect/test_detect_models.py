@@ -53,3 +53,16 @@ def test_user_module_plugs_in_through_the_registry(monkeypatch):
     total, _ = centernet_loss(net(torch.rand(1, 4, 16, 24)), targets)
     total.backward()
     assert math.isfinite(total.item()) and net.body.weight.grad is not None
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+@pytest.mark.parametrize("name", ["mobile", "resnet18"])
+def test_train_step_and_decode_on_cuda(name):
+    from workbench.detect.centernet import decode
+    net = build_detector(name, 4, 3, input_stride=2).cuda()
+    targets = collate_targets([encode_targets([[8, 8, 40, 30]], [2], 3, (64, 96))] * 2)
+    outputs = net(torch.rand(2, 4, 32, 48, device="cuda"))
+    total, parts = centernet_loss(outputs, {k: v.cuda() for k, v in targets.items()})
+    total.backward()
+    assert parts["heatmap"].device.type == "cuda" and math.isfinite(total.item())
+    assert len(decode(outputs)) == 2

@@ -104,7 +104,7 @@ TREE = textwrap.dedent("""
 def test_cancel_kills_the_process_tree(qtbot, tmp_path):
     panel = make_panel(qtbot)
     panel.run_argv([sys.executable, "-c", TREE], tmp_path / "none")
-    qtbot.waitUntil(lambda: "PID-OF-CHILD " in panel.log.toPlainText(), timeout=20_000)
+    qtbot.waitUntil(lambda: "PID-OF-CHILD " in panel.log.toPlainText(), timeout=60_000)
     child = int(panel.log.toPlainText().split("PID-OF-CHILD ")[-1].split()[0])
     parent = panel._process.processId()
     assert psutil.pid_exists(child)

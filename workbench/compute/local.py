@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import ctypes
+import itertools
 import multiprocessing
 import os
 import signal
 import sys
+from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
+from workbench.compute.progress import TaskProgress, reporting_to
 from workbench.errors import WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
@@ -54,14 +57,26 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker_init(parent_pid: int, threads: int | None) -> None:
+_progress_queue = None          # in a pool worker: where report_progress sends (key, done, total)
+
+
+def _worker_init(parent_pid: int, threads: int | None, progress_queue=None) -> None:
+    global _progress_queue
     die_with_parent(parent_pid)
     apply_thread_budget(threads)
+    _progress_queue = progress_queue
+
+
+def _run_reporting(fn, key: int, job):
+    """fn(job) in a pool worker, its report_progress calls sent to the driver as (key, done, total)."""
+    with reporting_to(lambda done, total: _progress_queue.put((key, done, total))):
+        return fn(job)
 
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
              cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
-             threads_per_worker: int | None = None) -> Generator[tuple[J, R], None, None]:
+             threads_per_worker: int | None = None, task_progress: bool = False
+             ) -> Generator[tuple[J, R] | TaskProgress, None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
@@ -73,6 +88,8 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
     cancel is checked between jobs: once set, no further job starts, jobs already running are
     waited for (their results are not yielded) and JobCancelled is raised.
     A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
+    task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
+    compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
         raise ValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
@@ -88,14 +105,20 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
                 raise JobFailed(f"job {job!r} failed: {exc}") from exc
             yield job, result
         return
-    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker)
+    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker,
+                         task_progress)
 
 
-def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads):
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_progress):
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue() if task_progress else None
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
                                   max_tasks_per_child=max_tasks_per_child,
-                                  initializer=_worker_init, initargs=(os.getpid(), threads))
+                                  initializer=_worker_init, initargs=(os.getpid(), threads, queue))
     pending: dict[cf.Future, object] = {}
+    keys: dict[int, object] = {}              # running jobs by progress key
+    key_of: dict[cf.Future, int] = {}
+    counter = itertools.count()
     try:
         exhausted = False
         while True:
@@ -103,15 +126,22 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads):
                 job = next(jobs, _END)
                 if job is _END:
                     exhausted = True
-                else:
+                elif queue is None:
                     pending[pool.submit(fn, job)] = job
+                else:
+                    key = next(counter)
+                    fut = pool.submit(_run_reporting, fn, key, job)
+                    pending[fut], keys[key], key_of[fut] = job, job, key
             if cancel is not None and cancel.cancelled:
                 raise JobCancelled("cancelled")
             if not pending:
                 return
             done, _ = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
+            if queue is not None:
+                yield from _drain(queue, keys)
             for fut in done:
                 job = pending.pop(fut)
+                keys.pop(key_of.pop(fut, None), None)
                 try:
                     result = fut.result()
                 except Exception as exc:
@@ -119,6 +149,19 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads):
                 yield job, result
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+        if queue is not None:
+            queue.close()
+
+
+def _drain(queue, keys: dict):
+    """TaskProgress for every report waiting in the queue from a job still running."""
+    while True:
+        try:
+            key, done, total = queue.get_nowait()
+        except Empty:
+            return
+        if key in keys:
+            yield TaskProgress(keys[key], done, total)
 
 
 _END = object()

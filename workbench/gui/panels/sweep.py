@@ -68,8 +68,10 @@ class SweepPanel(QWidget):
         self.thumbnails = QListWidget(self)
         self.thumbnails.setViewMode(QListView.ViewMode.IconMode)
         self.thumbnails.setIconSize(QSize(128, 96))
-        self.thumbnails.setResizeMode(QListView.ResizeMode.Adjust)
+        self.thumbnails.setFlow(QListView.Flow.LeftToRight)
+        self.thumbnails.setWrapping(False)                  # one row, scrolled sideways
         self.thumbnails.setMovement(QListView.Movement.Static)
+        self.thumbnails.setMinimumHeight(150)
         self.chart = ChartCanvas(self)
 
         controls = QHBoxLayout()
