@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.compute.local import THREAD_BUDGET_ENV
 from workbench.errors import InputFileError, ParameterError
 
 log = logging.getLogger(__name__)
@@ -31,12 +32,16 @@ CHECKPOINT_FORMAT = "camera-workbench-detector-checkpoint"
 
 
 def choose_threads(requested: int | None = None, concurrent_processes: int = 1) -> int:
-    """Torch threads for one process: `requested`, else half the usable cores shared among
-    concurrent_processes (at least 1), so that two CPU-bound processes never oversubscribe."""
+    """Torch threads for one process: `requested`, else the thread budget the compute backend gave
+    this worker, else half the usable cores shared among concurrent_processes (at least 1), so
+    that two CPU-bound processes never oversubscribe."""
     if requested is not None:
         if requested < 1:
             raise ParameterError("threads", requested, "an integer ≥ 1 (or None: half the cores)")
         return int(requested)
+    budget = os.environ.get(THREAD_BUDGET_ENV, "")
+    if budget.isdigit() and int(budget) > 0:
+        return int(budget)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return max(1, cores // (2 * max(1, concurrent_processes)))
 

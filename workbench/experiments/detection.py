@@ -35,6 +35,7 @@ from typing import Generator
 
 import numpy as np
 
+from workbench.compute import ComputeSpec
 from workbench.errors import OutputPathError, ParameterError
 from workbench.experiments.results import RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, read_results
 from workbench.jobs import CancelToken, Progress
@@ -236,14 +237,16 @@ class ExperimentResult:
 
 def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path, *, profile: str = "quick",
                    seeds: int | None = None, workers: int = 0, cancel: CancelToken | None = None,
-                   profile_override: Profile | None = None) -> Generator[Progress, None, ExperimentResult]:
+                   profile_override: Profile | None = None,
+                   compute: ComputeSpec | None = None) -> Generator[Progress, None, ExperimentResult]:
     """Run (or resume) experiment `kind` ('isp' | 'exposure') of `project` on the data set in
     data_dir (rendered from the same project's scene, city, pose, optics and render settings; its
     sensor, ISP and experiment settings are the project's). A long job: yields Progress, returns
     an ExperimentResult. workers: 0 = runs in this process (cancellable inside a run), ≥ 1 =
-    that many processes (cancellable between runs). profile_override replaces the named profile
-    (tests use tiny ones)."""
-    from workbench.compute.local import run_jobs
+    that many processes (cancellable between runs); compute, when given, says where instead (e.g.
+    one Ray task per training run, each with its CPUs as thread budget and, for the paper
+    profile, a GPU). profile_override replaces the named profile (tests use tiny ones)."""
+    from workbench.compute import run_jobs
     from workbench.detect.data import DetectionDataset
     from workbench.detect.train import run_detection_job
     from workbench.render.dataset import code_version
@@ -274,10 +277,12 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     write_outputs(doc, out)
     yield Progress(len(reused), len(jobs), f"{prof.note}; {len(jobs)} runs, {len(reused)} already done")
     role_of = {job.key: role for role, job in jobs}
-    fn = partial(run_detection_job, cancel=cancel) if workers == 0 else run_detection_job
+    compute = compute or ComputeSpec(workers=workers)
+    in_process = compute.backend == "local" and compute.workers == 0
+    fn = partial(run_detection_job, cancel=cancel) if in_process else run_detection_job
     trained = []
     phases = [[job for _, job in todo if not job.config.init], [job for _, job in todo if job.config.init]]
-    for job, result in (pair for phase in phases for pair in run_jobs(fn, phase, workers, cancel)):
+    for job, result in (pair for phase in phases for pair in run_jobs(fn, phase, compute, cancel)):
         result["role"] = role_of[job.key]
         runs = [r for r in runs if r["key"] != job.key] + [result]
         trained.append(job.key)

@@ -73,6 +73,9 @@ class SweepPanel(QWidget):
         self.thumbnails.setMovement(QListView.Movement.Static)
         self.thumbnails.setMinimumHeight(150)
         self.chart = ChartCanvas(self)
+        self.chart.redraw(lambda fig: fig.text(0.5, 0.5, "Run the sweep: mean level, clipped fraction and SNR "
+                                                        "against EV appear here", ha="center", va="center",
+                                               color="0.4"))
 
         controls = QHBoxLayout()
         for text, spin in (("EV from", self.start), ("to", self.stop), ("step", self.step)):
