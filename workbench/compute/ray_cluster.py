@@ -95,7 +95,8 @@ def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None 
     jobs = iter(jobs)
     try:
         if spec.gpus_per_task and not ray.cluster_resources().get("GPU"):
-            raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU")
+            raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU "
+                            "(--gpus-per-task 0 runs the tasks on CPUs)")
         window = QUEUE_PER_SLOT * task_slots(spec)
         board = ray.remote(num_cpus=0)(_ProgressBoard).remote() if task_progress else None
         exhausted = False

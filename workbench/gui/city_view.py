@@ -142,11 +142,6 @@ class CityView(QWidget):
         same_city = self._city_key is not None and self._city_key[0] == key[0]
         self._city_key = key
         self.pose = pose
-        if not same_city or self.city is None:
-            self.city = city
-            self._redraw_city(reset_view=True)
-        else:
-            self._redraw_camera()
         p = pose.position_m
         for name, value in zip(("x", "y", "height", "pan", "tilt", "roll"),
                                (p[0], p[1], p[2], pose.pan_deg, pose.tilt_deg, pose.roll_deg)):
@@ -154,6 +149,11 @@ class CityView(QWidget):
             box.blockSignals(True)
             box.setValue(float(value))
             box.blockSignals(False)
+        if not same_city or self.city is None:
+            self.city = city
+            self._redraw_city(reset_view=True)
+        else:
+            self._redraw_camera()
         self.status.setText(f"{len(city.objects)} objects; camera at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.2f}) m, "
                             f"pan {pose.pan_deg:.1f}°")
 
@@ -215,6 +215,8 @@ class CityView(QWidget):
     def _gizmo_moved(self, center) -> None:
         """The camera gizmo was dropped: move the camera there (keeping its height and angles)."""
         x, y = float(center[0]), float(center[1])
+        if self.pose is None or np.hypot(x - self.pose.position_m[0], y - self.pose.position_m[1]) < 0.01:
+            return                        # placed, not moved
         self.pose_boxes["x"].setValue(x)
         self.pose_boxes["y"].setValue(y)
         self.apply_typed_pose()

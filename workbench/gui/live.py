@@ -24,16 +24,14 @@ WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so th
 
 
 def limit_worker_threads(n: int = WORKER_THREADS) -> None:
-    """Cap the compute libraries the worker uses (process-wide) so the GUI thread is not starved.
-    OpenMP/BLAS pools are capped by app.py's environment before numpy loads."""
+    """Cap the compute libraries the worker uses (process-wide) so the GUI thread is not starved;
+    called before every run, as torch and Dr.Jit load lazily. OpenMP/BLAS pools are capped by
+    app.py's environment before numpy loads."""
     import sys
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(n)
-    try:
-        import drjit as dr
-        dr.set_thread_count(n)
-    except (ImportError, AttributeError):
-        pass
+    if "drjit" in sys.modules:          # imported by the first render (which sets its LLVM path)
+        sys.modules["drjit"].set_thread_count(n)
 
 
 @dataclass
@@ -169,7 +167,6 @@ class LiveRunner(QObject):
 
     # -- worker thread ---------------------------------------------------------------------
     def _loop(self) -> None:
-        limit_worker_threads()
         while True:
             with self._cond:
                 while self._pending is None and not self._stop:
@@ -181,6 +178,7 @@ class LiveRunner(QObject):
                 token = self._token = CancelToken()
             self.busyChanged.emit(True)
             self.runs_started += 1
+            limit_worker_threads()
             try:
                 self._run(project, submitted_at, token)
             except JobCancelled:

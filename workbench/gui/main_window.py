@@ -180,8 +180,7 @@ class MainWindow(QMainWindow):
 
     # -- document → views ------------------------------------------------------------------
     def _update_title(self, *_changed) -> None:
-        mark = " *" if self.document.dirty else ""
-        self.setWindowTitle(f"{self.document.display_name}{mark} — Camera Workbench")
+        self.setWindowTitle(f"{self.document.display_name}[*] — Camera Workbench")
         self.setWindowModified(self.document.dirty)
 
     def _project_changed(self, project: Project) -> None:
@@ -246,6 +245,12 @@ class MainWindow(QMainWindow):
             self, "Unsaved changes", f"Save the changes to {self.document.display_name}?",
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard
             | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Save)
+
+    def ask_recover(self, autosave_file: Path) -> bool:
+        """Yes/No: recover the edits of a session that ended without saving (tests replace this)."""
+        answer = QMessageBox.question(self, "Recover unsaved edits", "A previous session ended without "
+                                      f"saving. Recover its edits?\n({autosave_file})")
+        return answer == QMessageBox.StandardButton.Yes
 
     def may_discard(self) -> bool:
         """True when the current project may be replaced (saved, discarded, or not dirty)."""
@@ -322,9 +327,7 @@ class MainWindow(QMainWindow):
         found = find_recoverable()
         if not found:
             return
-        answer = QMessageBox.question(self, "Recover unsaved edits",
-                                      f"A previous session ended without saving. Recover its edits?\n({found[0]})")
-        if answer == QMessageBox.StandardButton.Yes:
+        if self.ask_recover(found[0]):
             self.document.recover(found[0])
         else:
             found[0].unlink(missing_ok=True)
