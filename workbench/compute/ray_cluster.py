@@ -61,7 +61,7 @@ def connect(spec) -> bool:
     if ray.is_initialized():
         return False
     if spec.address is None:
-        ray.init(num_cpus=spec.workers, num_gpus=None, log_to_driver=False)
+        ray.init(num_cpus=spec.workers, include_dashboard=False, log_to_driver=False)
     else:
         ray.init(address=spec.address, log_to_driver=False)
     return True
