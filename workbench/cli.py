@@ -7,17 +7,18 @@ import json
 import logging
 import sys
 
+from workbench.errors import WorkbenchError
+
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens", "selftest")
-# Modules that register benchmarks when imported.
-BENCH_MODULES = ("workbench.bench.pipeline", "workbench.bench.render", "workbench.bench.optics",
-                 "workbench.isp.bench", "workbench.sensor.bench", "workbench.bench.city",
-                 "workbench.optics.lens.bench")
+COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "gui")
 
 
 def _bench(args: argparse.Namespace) -> int:
     from workbench.bench import BENCHES, format_table
     fn = BENCHES[args.name]
+    if args.out is not None:
+        from workbench.files import prepare_output_folder
+        prepare_output_folder(args.out)
     result = fn(args)
     if args.json:
         print(json.dumps({"title": result.title, "rows": result.rows, "notes": result.notes,
@@ -40,15 +41,9 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.register(sub)
-    from workbench.bench import BENCHES
-    for modname in BENCH_MODULES:
-        try:
-            importlib.import_module(modname)
-        except ModuleNotFoundError as exc:
-            if exc.name != modname:
-                raise
+    from workbench.bench import all_benches
     bench = sub.add_parser("bench", help="speed-versus-error benchmarks (prints a table)")
-    bench.add_argument("name", choices=sorted(BENCHES), help="which benchmark")
+    bench.add_argument("name", choices=sorted(all_benches()), help="which benchmark")
     bench.add_argument("--json", action="store_true", help="print the figures as JSON")
     bench.add_argument("--quick", action="store_true", help="small sizes and few repeats (CI)")
     bench.add_argument("--out", default=None, help="folder for plots the benchmark writes")
@@ -56,18 +51,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line(exc: BaseException) -> str:
+    """The error as one line: WorkbenchError messages are written so; others are collapsed."""
+    if isinstance(exc, OSError) and not isinstance(exc, WorkbenchError) and exc.filename is not None:
+        text = f"{exc.filename}: {exc.strerror or exc}"
+    else:
+        text = str(exc) or type(exc).__name__
+    return " ".join(text.split())
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Errors a user can act on (WorkbenchError, a path the system refuses, a
+    value refused by the core) print one line `workbench CMD: error: …` and return 2."""
     from workbench.logs import setup_logging
+    if not (sys.argv[1:] if argv is None else argv):    # bare `workbench`: the window, given a display
+        from workbench.commands.gui import has_display_for_gui
+        if has_display_for_gui():
+            argv = ["gui"]
     args = build_parser().parse_args(argv)
     setup_logging()
     logging.getLogger("workbench.cli").info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))
+    command = " ".join(filter(None, (args.command, getattr(args, "lens_command", None))))
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"workbench {args.command}: error: {exc}", file=sys.stderr)
+    except (WorkbenchError, OSError, ValueError) as exc:
+        print(f"workbench {command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"workbench {args.command}: cancelled", file=sys.stderr)
+        print(f"workbench {command}: cancelled", file=sys.stderr)
         return 130
 
 

@@ -31,6 +31,9 @@ class ParameterError(WorkbenchError, ValueError):
         prefix = f"{source}: " if source else ""
         super().__init__(f"{prefix}{field}: {allowed} (given: {given_txt})")
 
+    def __reduce__(self):              # picklable, so an error raised in a worker process reaches the caller
+        return type(self), (self.field, self.given, self.allowed, self.source)
+
 
 class InputFileError(WorkbenchError, ValueError):
     """A file that cannot be read or used; the message names the file and never echoes its contents."""
@@ -38,6 +41,9 @@ class InputFileError(WorkbenchError, ValueError):
     def __init__(self, path: str | os.PathLike, problem: str):
         self.path, self.problem = str(path), problem
         super().__init__(f"{self.path}: {problem}")
+
+    def __reduce__(self):
+        return type(self), (self.path, self.problem)
 
 
 class OutputPathError(WorkbenchError, OSError):
@@ -50,6 +56,9 @@ class OutputPathError(WorkbenchError, OSError):
     def __str__(self) -> str:          # OSError's own __str__ would show errno fields
         return f"{self.path}: {self.problem}"
 
+    def __reduce__(self):
+        return type(self), (self.path, self.problem)
+
 
 class StageError(WorkbenchError, RuntimeError):
     """A simulation stage that cannot run on its input; names the stage."""
@@ -57,6 +66,9 @@ class StageError(WorkbenchError, RuntimeError):
     def __init__(self, stage: str, problem: str):
         self.stage, self.problem = stage, problem
         super().__init__(f"stage '{stage}': {problem}")
+
+    def __reduce__(self):
+        return type(self), (self.stage, self.problem)
 
 
 def check_finite(stage: str, array: np.ndarray) -> np.ndarray:

@@ -151,8 +151,8 @@ class Pipeline:
         return dict(scene=scene_key, optics=optics_key, signal=signal_key, sensor=sensor_key, isp=isp_key)
 
     def _compute(self, stage: str):
-        from workbench.isp import isp_compute
-        from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
+        from workbench.isp import sensor_image_to_srgb
+        from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
         p = self._project
         if stage == "scene":
             if self._fixed_scene is not None:
@@ -171,16 +171,17 @@ class Pipeline:
             check_finite("optics", oi.irradiance_photons)
             return oi
         if stage == "signal":
-            rate = pixel_signal_rate(self._get("optics"), p.sensor)
+            rate = irradiance_to_signal_rate(self._get("optics"), p.sensor)
             check_finite("signal", rate)
             return rate
         if stage == "sensor":
             oi = self._get("optics")
             rate = self._get("signal")
-            image = expose(rate, p.sensor, resolve_exposure(rate, p.sensor), wavelengths_nm=oi.wavelengths_nm)
+            image = signal_rate_to_sensor_image(rate, p.sensor, resolve_exposure(rate, p.sensor),
+                                                wavelengths_nm=oi.wavelengths_nm)
             check_finite("sensor", image.dn)
             return image
-        result = isp_compute(self._get("sensor"), p.isp)
+        result = sensor_image_to_srgb(self._get("sensor"), p.isp)
         check_finite("isp", result.srgb)
         return result
 

@@ -1,19 +1,24 @@
 """The saved project: camera + scene + experiment set-up as one validated JSON document.
 
 A project file is JSON with a format tag and a schema_version; it never holds code or pickles.
-Loading validates every field and refuses a bad file with the field, the value and what is
-allowed; saving is atomic (temporary file + rename), so a crash never leaves half a project.
+Loading refuses an unusable file with an InputFileError naming it and a bad value with a
+ParameterError naming the dotted field, the value and what is allowed (workbench/errors.py).
+Saving validates what it writes (no NaN or infinity; the written text must load back) and is
+atomic (workbench/files.py).
 """
 from __future__ import annotations
 
 import json
+import math
 import os
-import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
+from workbench.errors import InputFileError, ParameterError
+from workbench.files import atomic_write_text, parse_json, read_text
 from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.params import Params
@@ -21,20 +26,27 @@ from workbench.render.params import RenderParams
 from workbench.resource_dir import RESOURCES
 from workbench.scene.city.recipe import CityRecipe, PoseParams
 from workbench.scene.params import SceneParams
-from workbench.sensor.params import SensorParams
+from workbench.sensor.params import AutoExposureMethod, SensorParams
 
 FORMAT_TAG = "camera-workbench-project"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 PROJECTS_DIR = RESOURCES / "projects"
+
+EvBias = Annotated[float, Field(ge=-16.0, le=16.0)]
 
 
 class ExperimentParams(Params):
-    """Exposure-bias experiment (anchor: the paper's script): t = t_auto · 2^EV."""
+    """Exposure-bias experiment (anchor: the paper's script): t = t_auto · 2^EV.
 
-    ev_biases: list[float] = Field(default_factory=lambda: [-4.0, -2.0, 0.0, 2.0, 4.0])
-    auto_exposure_method: str = "mean"
-    auto_exposure_level: float = Field(0.4, gt=0.0, le=1.0)
-    mean_illuminance_lux: float = Field(1000.0, gt=0.0, le=1e7)
+    The mean sensor illuminance of the experiment is scene.adjust_illuminance_lux (schema 1 had an
+    unused experiment.mean_illuminance_lux; migration 1 → 2 drops it)."""
+
+    ev_biases: list[EvBias] = Field(default_factory=lambda: [-4.0, -2.0, 0.0, 2.0, 4.0], min_length=1,
+                                    max_length=64,
+                                    description="exposure biases (EV, −16…16) of the sweep around auto-exposure")
+    auto_exposure_method: AutoExposureMethod = Field("mean", description="auto-exposure method of the sweep")
+    auto_exposure_level: float = Field(0.4, gt=0.0, le=1.0,
+                                       description="auto-exposure target as a fraction of the swing")
 
 
 class Project(Params):
@@ -55,95 +67,147 @@ class Project(Params):
     render: RenderParams = RenderParams()
     experiment: ExperimentParams = ExperimentParams()
 
-
-class ProjectError(ValueError):
-    """A project file that cannot be used; the message says what to change."""
-
-
-def _format_validation_error(exc: ValidationError, source: str) -> str:
-    lines = [f"{source}: {exc.error_count()} invalid field(s):"]
-    for err in exc.errors():
-        loc = ".".join(str(p) for p in err["loc"]) or "(document)"
-        given = err.get("input")
-        given_txt = json.dumps(given, default=str)
-        if len(given_txt) > 60:
-            given_txt = given_txt[:57] + "..."
-        lines.append(f"  {loc}: {err['msg']} (given: {given_txt})")
-    return "\n".join(lines)
+    @model_validator(mode="after")
+    def _focus_beyond_focal_length(self):
+        """The object in focus (optics.focus_distance_m, else scene.distance_m) lies beyond the
+        effective focal length, so the image is real; refused here instead of in the optics stage."""
+        from workbench.optics.formation.lens_setup import effective_params
+        f_mm = effective_params(self.optics).focal_length_mm
+        field, distance_m = (("optics.focus_distance_m", self.optics.focus_distance_m)
+                             if self.optics.focus_distance_m is not None else ("scene.distance_m", self.scene.distance_m))
+        if not distance_m * 1e3 > f_mm:
+            raise ParameterError(field, distance_m, f"must exceed the effective focal length ({f_mm:.4g} mm) for "
+                                                    "a real image")
+        return self
 
 
-# Migrations from schema version N to N+1: functions dict -> dict. None yet (version 1).
-MIGRATIONS: dict[int, callable] = {}
+# Pydantic's tags of union members in an error location ('float', 'list[list[float]]'): not fields.
+_TYPE_TAGS = {"float", "int", "str", "bool", "none", "bytes", "list", "tuple", "dict", "set"}
 
 
-def project_from_dict(data: dict, source: str = "project") -> Project:
-    """Validate a decoded project document (migrating older schema versions)."""
+def _field_path(loc: tuple) -> str:
+    parts = []
+    for part in loc:
+        if isinstance(part, str) and ("[" in part or part in _TYPE_TAGS):
+            continue
+        text = str(part)
+        parts.append(text if text.isprintable() and text else repr(text))
+    return ".".join(parts) or "(document)"
+
+
+def parameter_error(exc: ValidationError, source: str | None = None, prefix: str = "") -> ParameterError:
+    """The first error of a pydantic ValidationError as a ParameterError naming its dotted field
+    (after `prefix`); the others are counted and named in the message."""
+    errors = exc.errors()
+    first = errors[0]
+    field = _field_path(((prefix,) if prefix else ()) + tuple(first["loc"]))
+    allowed = first["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, ")
+    given = first.get("input")
+    cause = (first.get("ctx") or {}).get("error")
+    if isinstance(cause, ParameterError):        # raised by a validator: its field may be absolute
+        if field == "(document)":                  # ('isp.demosaic') or relative to the location
+            field = cause.field
+        elif field.split(".")[-1] != cause.field.split(".")[-1]:
+            field = f"{field}.{cause.field}"
+        given, allowed = cause.given, cause.allowed
+    others = sorted({_field_path(((prefix,) if prefix else ()) + tuple(e["loc"])) for e in errors[1:]} - {field})
+    if others:
+        shown = ", ".join(others[:4]) + (", …" if len(others) > 4 else "")
+        allowed = f"{allowed} [also invalid: {shown}]"
+    return ParameterError(field, given, " ".join(allowed.split()), source)
+
+
+def _drop_mean_illuminance_lux(data: dict) -> dict:
+    """1 → 2: experiment.mean_illuminance_lux was never read (scene.adjust_illuminance_lux sets the
+    illuminance), so dropping it keeps every result."""
+    experiment = data.get("experiment")
+    if isinstance(experiment, dict):
+        data["experiment"] = {k: v for k, v in experiment.items() if k != "mean_illuminance_lux"}
+    return data | {"schema_version": 2}
+
+
+# Migrations from schema version N to N+1 (decoded document → decoded document).
+MIGRATIONS: dict[int, Callable[[dict], dict]] = {1: _drop_mean_illuminance_lux}
+
+
+def project_from_dict(data: object, source: str | None = None) -> Project:
+    """Validate a decoded project document (migrating older schema versions).
+
+    Raises InputFileError if it is not a project document at all, ParameterError naming the field
+    otherwise."""
+    where = source or "project"
     if not isinstance(data, dict):
-        raise ProjectError(f"{source}: a project file holds a JSON object, got {type(data).__name__}")
+        raise InputFileError(where, f"a project file holds a JSON object, not a {type(data).__name__}")
     if data.get("format") != FORMAT_TAG:
-        raise ProjectError(f"{source}: not a workbench project (format must be '{FORMAT_TAG}', "
-                           f"given {data.get('format')!r})")
+        raise ParameterError("format", data.get("format"), f"must be '{FORMAT_TAG}' (is this a workbench "
+                                                          "project file?)", source)
     version = data.get("schema_version")
-    if not isinstance(version, int) or version < 1:
-        raise ProjectError(f"{source}: schema_version must be a positive integer, given {version!r}")
+    if type(version) is not int or version < 1:
+        raise ParameterError("schema_version", version, "must be a positive integer", source)
     if version > SCHEMA_VERSION:
-        raise ProjectError(f"{source}: schema_version {version} was written by a newer workbench; "
-                           f"this one reads up to {SCHEMA_VERSION} — update the workbench")
+        raise ParameterError("schema_version", version, f"written by a newer workbench; this one reads up to "
+                                                        f"{SCHEMA_VERSION} — update the workbench", source)
     while version < SCHEMA_VERSION:
         data = MIGRATIONS[version](dict(data))
         version = data["schema_version"]
     try:
-        return Project.model_validate(data)
+        return Project.model_validate_json(json.dumps(data))
     except ValidationError as exc:
-        raise ProjectError(_format_validation_error(exc, source)) from None
+        raise parameter_error(exc, source) from None
 
 
 def resolve_project_path(path: str | os.PathLike) -> Path:
     """A path, or the name of a sample project in resources/projects (with or without .json)."""
     p = Path(path)
-    if p.exists():
+    if os.path.lexists(p):
         return p
-    for cand in (PROJECTS_DIR / p.name, PROJECTS_DIR / f"{p.name}.json"):
-        if cand.exists():
-            return cand
+    if p.name == str(path):
+        for cand in (PROJECTS_DIR / p.name, PROJECTS_DIR / f"{p.name}.json"):
+            try:
+                if cand.is_file():
+                    return cand
+            except OSError:                 # a name too long for the file system, …: no sample
+                break
     samples = ", ".join(sorted(q.stem for q in PROJECTS_DIR.glob("*.json")))
-    raise FileNotFoundError(f"no project file '{path}' (sample projects: {samples})")
+    raise InputFileError(p, f"no such project file (sample projects: {samples})")
 
 
 def load_project(path: str | os.PathLike) -> Project:
-    """Read and validate a project file; errors name the field and the allowed values."""
+    """Read and validate a project file: InputFileError for a file that cannot be read or decoded,
+    ParameterError naming the field for a bad value."""
     p = resolve_project_path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ProjectError(f"{p}: not a text file (a project file is UTF-8 JSON)") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ProjectError(f"{p}: not valid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
-    return project_from_dict(data, str(p))
+    return project_from_dict(parse_json(read_text(p, "project file"), p, "project file"), str(p))
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write text to path atomically: a temporary file in the same folder, fsync, rename."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)          # mkstemp makes 0600; give the usual file mode
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def _non_finite_field(node: object, path: str = "") -> tuple[str, float] | None:
+    if isinstance(node, float) and not math.isfinite(node):
+        return path or "(document)", node
+    if isinstance(node, dict):
+        items = ((f"{path}.{k}" if path else str(k), v) for k, v in node.items())
+    elif isinstance(node, (list, tuple)):
+        items = ((f"{path}.{i}", v) for i, v in enumerate(node))
+    else:
+        return None
+    for sub, value in items:
+        found = _non_finite_field(value, sub)
+        if found:
+            return found
+    return None
 
 
-def save_project(project: Project, path: str | os.PathLike) -> None:
-    """Save atomically as indented JSON."""
-    atomic_write_text(path, project.model_dump_json(indent=2) + "\n")
+def project_to_json(project: Project) -> str:
+    """The project as indented JSON, validated: a NaN or infinity anywhere is refused (JSON has no
+    such numbers; `null` would reload as a different value) and the text must load back."""
+    data = project.model_dump(mode="json")
+    bad = _non_finite_field(data)
+    if bad:
+        raise ParameterError(bad[0], bad[1], "must be a finite number (a project file cannot store NaN or "
+                                             "infinity)")
+    text = json.dumps(data, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+    project_from_dict(json.loads(text))
+    return text
+
+
+def save_project(project: Project, path: str | os.PathLike) -> Path:
+    """Validate and save atomically as indented JSON (see atomic_write_text); returns the file written."""
+    return atomic_write_text(path, project_to_json(project))

@@ -83,6 +83,8 @@ def daylight_spd(cct_K: float, wavelengths_nm: np.ndarray) -> np.ndarray:
     return _interp(sd.wavelengths, sd.values, wavelengths_nm)
 
 
+BLACKBODY_RANGE_K = (1000.0, 100000.0)
+"""Blackbody temperatures an illuminant may have: below 1000 K the visible spectrum underflows to 0."""
 ILLUMINANTS = ("D65", "D50", "D75", "A", "F2", "F11", "equal_energy")
 
 
@@ -103,13 +105,16 @@ def illuminant_spd(name: str, wavelengths_nm: np.ndarray) -> np.ndarray:
         if kind.lower() == "daylight":
             return daylight_spd(temp, wavelengths_nm)
         if kind.lower() == "blackbody":
+            if not BLACKBODY_RANGE_K[0] <= temp <= BLACKBODY_RANGE_K[1]:
+                raise ValueError(f"illuminant '{name}': blackbody temperature must be a number in "
+                                 f"{BLACKBODY_RANGE_K[0]:g}–{BLACKBODY_RANGE_K[1]:g} K")
             spd = blackbody_spd(temp, wavelengths_nm)
             return spd / spd.max()
     if key in colour.SDS_ILLUMINANTS and key in ILLUMINANTS:
         sd = colour.SDS_ILLUMINANTS[key]
         return _interp(sd.wavelengths, sd.values, wavelengths_nm)
     raise ValueError(f"unknown illuminant '{name}'; allowed: {', '.join(ILLUMINANTS)}, "
-                     "'daylight:<CCT K>' (4000–25000) or 'blackbody:<T K>'")
+                     "'daylight:<CCT K>' (4000–25000) or 'blackbody:<T K>' (1000–100000)")
 
 
 @lru_cache(maxsize=None)
@@ -167,18 +172,10 @@ def xyz_from_photons(photons: np.ndarray, wavelengths_nm: np.ndarray) -> np.ndar
     return energy @ (xyz_cmfs(wl) * band_widths_nm(wl)[:, None] * MAX_LUMINOUS_EFFICACY_LM_W)
 
 
-def load_spectrum_csv(path: Path | str, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """Read a CSV (first column wavelength nm, header row of names) and resample it.
-
-    Outside the file's range the values are zero: a filter or QE curve that the file does not
+def load_spectrum_csv(name: str, wavelengths_nm: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """Read a spectrum CSV named relative to resources/ (validated: see spectrum_csv) and resample
+    it. Outside the file's range the values are zero: a filter or QE curve that the file does not
     describe is taken to pass nothing. Returns (values (Nλ, K), names)."""
-    p = Path(path)
-    if not p.is_absolute():
-        p = RESOURCES / p
-    with open(p, encoding="utf-8") as fh:
-        header = fh.readline().strip().split(",")
-    data = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
-    wl = np.asarray(wavelengths_nm, dtype=np.float64)
-    out = _interp(data[:, 0], data[:, 1:], wl)
-    out[(wl < data[0, 0]) | (wl > data[-1, 0])] = 0.0
-    return out, header[1:]
+    from workbench.spectrum_csv import read_spectrum, resample
+    table = read_spectrum(name)
+    return resample(table, wavelengths_nm), list(table.names)

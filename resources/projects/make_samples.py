@@ -4,7 +4,7 @@
 """
 from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
-from workbench.project import PROJECTS_DIR, Project, save_project
+from workbench.project import PROJECTS_DIR, ExperimentParams, Project, save_project
 from workbench.render.params import RenderParams
 from workbench.scene.city import CityRecipe, PoseParams
 from workbench.scene.params import SceneParams, WavelengthParams
@@ -56,6 +56,27 @@ def main() -> None:
             description="The city frame through the automotive 2.4 mm lens (44 deg on the paper's sensor) at f/2.8, "
                         "traced inside Mitsuba for every camera ray (the full model).",
             optics=OpticsParams(model="raytrace", lens_file="automotive.2.4mm.json", f_number=2.8)),
+    ]
+    detection = city.updated(
+        name="city_detection_quick",
+        description="Data for the detection experiments (workbench experiment isp|exposure, quick profile): the "
+                    "paper's city made denser (60 cars, 120 pedestrians, 8 buses, 6 trucks per arrangement) seen "
+                    "from 1.5 m in a lane, aimed at a target object 6-20 m away; 320x240 pixels of 6 um "
+                    "(the paper's 3 um pixel binned 2x2, so the 44 deg field of view is kept), rendered in the "
+                    "sensor's own channels at 16 spp; exposure biases -4...+4 EV in steps of 1. Render its data set "
+                    "with: workbench dataset city_detection_quick --frames 400 --out DIR",
+        city=CityRecipe(seed=1, n_cars=60, n_pedestrians=120, n_buses=8, n_trucks=6),
+        pose=PoseParams(mode="target", seed=1, target_distance_range_m=(6.0, 20.0)),
+        sensor=SENSOR_PRESETS["paper_table1"].updated(rows=240, cols=320, pixel_pitch_um=6.0),
+        render=RenderParams(representation="sensor", spp=16),
+        experiment=ExperimentParams(ev_biases=[float(ev) for ev in range(-4, 5)]))
+    samples += [
+        detection,
+        detection.updated(
+            name="city_detection_paper",
+            description="The detection experiments' paper profile: city_detection_quick at the paper's 640x480 "
+                        "with its 3 um pixel (44 deg), 32 spp. Render ~3,000 frames (2,200 train / 800 test).",
+            sensor=SENSOR_PRESETS["paper_table1"], render=RenderParams(representation="sensor", spp=32)),
     ]
     for project in samples:
         save_project(project, PROJECTS_DIR / f"{project.name}.json")

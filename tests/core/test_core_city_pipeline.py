@@ -56,11 +56,11 @@ def test_render_noise_follows_the_sensor_shot_noise():
 def test_a_stored_sensor_channel_frame_feeds_the_sensor_like_the_live_pipeline(tmp_path):
     from workbench.render.city_frame import frame_optical_image, frame_seeds, render_city_frame
     from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, read_frame, write_frame
-    from workbench.sensor import pixel_signal_rate
+    from workbench.sensor import irradiance_to_signal_rate
     project = tiny_city(representation="sensor")
     live = Pipeline(project).signal_rate()
     frame = render_city_frame(project, frame_seeds(project.seed, 0))
     write_frame(tmp_path / "f.npz", frame, {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": 0}, "float16")
     stored, _ = read_frame(tmp_path / "f.npz")
-    rate = pixel_signal_rate(frame_optical_image(stored), project.sensor)
+    rate = irradiance_to_signal_rate(frame_optical_image(stored), project.sensor)
     np.testing.assert_allclose(rate, live, rtol=1e-3)                 # float16 storage: ≤ 2^-11

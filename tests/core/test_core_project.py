@@ -4,8 +4,8 @@ import os
 
 import pytest
 
-from workbench.project import (PROJECTS_DIR, Project, ProjectError, load_project, project_from_dict,
-                               save_project)
+from workbench.errors import InputFileError, ParameterError
+from workbench.project import PROJECTS_DIR, Project, load_project, project_from_dict, save_project
 
 
 def _paper() -> dict:
@@ -44,9 +44,10 @@ def test_each_malformed_field_is_named(path, value, expect):
     for key in path[:-1]:
         node = node[key]
     node[path[-1]] = value
-    with pytest.raises(ProjectError) as info:
+    with pytest.raises(ParameterError) as info:
         project_from_dict(data, "bad.json")
     msg = str(info.value)
+    assert info.value.field == ".".join(path) and info.value.source == "bad.json"
     assert expect in msg and "bad.json" in msg
     assert "given" in msg
 
@@ -54,23 +55,23 @@ def test_each_malformed_field_is_named(path, value, expect):
 def test_sensor_of_a_billion_pixels_says_what_to_change():
     data = _paper()
     data["sensor"]["rows"], data["sensor"]["cols"] = 31623, 31623
-    with pytest.raises(ProjectError, match="reduce rows/cols"):
+    with pytest.raises(ParameterError, match="reduce rows/cols"):
         project_from_dict(data)
 
 
 def test_document_level_errors(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text("{ not json")
-    with pytest.raises(ProjectError, match="not valid JSON at line 1"):
+    with pytest.raises(InputFileError, match="not valid JSON at line 1"):
         load_project(bad)
-    with pytest.raises(ProjectError, match="format must be"):
+    with pytest.raises(ParameterError, match="format: must be"):
         project_from_dict({"schema_version": 1})
     newer = _paper() | {"schema_version": 99}
-    with pytest.raises(ProjectError, match="newer workbench"):
+    with pytest.raises(ParameterError, match="newer workbench"):
         project_from_dict(newer)
-    with pytest.raises(ProjectError, match="JSON object"):
+    with pytest.raises(InputFileError, match="JSON object"):
         project_from_dict([1, 2])
-    with pytest.raises(FileNotFoundError, match="sample projects"):
+    with pytest.raises(InputFileError, match="sample projects"):
         load_project(tmp_path / "missing.json")
 
 

@@ -8,7 +8,7 @@ import pytest
 
 
 def test_lens_camera_bench_quick_rows(mi):
-    from workbench.optics.lens.bench import bench_lens_camera
+    from workbench.bench.lens_camera import bench_lens_camera
     result = bench_lens_camera(argparse.Namespace(quick=True, json=False, out=None))
     assert {(r["lens"], r["scene"]) for r in result.rows} == {
         (lens, scene) for lens in ("automotive.2.4mm", "dgauss.50mm") for scene in ("environment", "cornell box")}
@@ -31,5 +31,9 @@ def test_optics_bench_city_reference_is_the_full_model_on_the_levels_grid(mi):
     cam = _camera().model_copy(update={"focus_distance_m": scene.distance_m})
     pin = OPTICS_MODELS["pinhole"](scene, cam.model_copy(update={"model": "pinhole"}))
     assert pin.sample_spacing_m == pytest.approx(ref.sample_spacing_m, rel=1e-6)
-    # same camera equation scale: the frame means agree to the Monte Carlo and vignetting level
-    assert ref.irradiance_photons.mean() / pin.irradiance_photons.mean() == pytest.approx(1.0, abs=0.25)
+    # The same camera equation: the two seeds' frame mean against the pinhole's (cos⁴) agrees to the
+    # lens's relative illumination beyond cos⁴ (+3…5 % measured) and the Monte Carlo noise (seeds
+    # differ by ~2 %); an f-number off by 4 %, a (1+|m|)² or π factor would move it by ≥ 8 %.
+    seeds_mean = 0.5 * (ref.irradiance_photons.mean() + second.irradiance_photons.mean())
+    assert seeds_mean / pin.irradiance_photons.mean() == pytest.approx(1.0, abs=0.07)
+    assert second.irradiance_photons.mean() / ref.irradiance_photons.mean() == pytest.approx(1.0, abs=0.05)

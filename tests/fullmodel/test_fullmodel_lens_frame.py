@@ -68,8 +68,10 @@ def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     assert np.isfinite(oi.irradiance_photons).all()
     assert got == pytest.approx(expected, rel=0.01)   # Monte Carlo σ ≈ 0.15 % at 1024 spp
     assert oi.sample_spacing_m == pytest.approx(0.04e-3 / 16)
-    # units sanity: the paraxial camera equation π T L / (4 N²), within this wide angle's 6.5 %
-    assert got.mean() / (0.9 * L_photons.mean()) == pytest.approx(math.pi / (4 * 2.8 ** 2), rel=0.1)
+    # units sanity against the paraxial camera equation π T L / (4 N²), independent of the
+    # estimator: this wide-angle lens at f/2.8 delivers 0.935 of it on axis (pupil aberration)
+    paraxial_ratio = got.mean() / (0.9 * L_photons.mean()) / (math.pi / (4 * 2.8 ** 2))
+    assert paraxial_ratio == pytest.approx(0.935, abs=0.015)
 
 
 def _tiny_city_project(model: str, lux: float | None = None):

@@ -59,6 +59,6 @@ def test_dataset_command_reports_a_failed_frame_and_keeps_the_others(tmp_path, m
     rc = main(["dataset", str(tmp_path / "p.json"), "--frames", "2", "--out", str(tmp_path / "d"),
                "--workers", "0"])
     err = capsys.readouterr().err
-    assert rc == 1 and "FrameJob(index=1" in err and "400–700 nm" in err
+    assert rc == 1 and "frame 1 failed" in err and "400–700 nm" in err
     assert dataset.frame_path(tmp_path / "d", 0).exists()
     assert not (tmp_path / "d" / "manifest.json").exists()

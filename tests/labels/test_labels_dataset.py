@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from labels_helpers import tiny_renderer
 
 from workbench.compute.local import JobFailed, run_jobs
+from workbench.errors import OutputPathError, ParameterError
 from workbench.jobs import CancelToken, JobCancelled, run_job
 from workbench.project import Project
 from workbench.render.city_frame import FrameData, frame_optical_image, frame_seeds
@@ -118,9 +119,9 @@ def test_cancelled_and_damaged_run_resumes_to_the_uninterrupted_result(tmp_path)
 
 def test_out_dir_of_another_project_is_refused(tmp_path):
     drive_until(run_dataset(Project(seed=1), 1, tmp_path, workers=0, renderer=tiny_renderer))
-    with pytest.raises(ValueError, match="different project"):
+    with pytest.raises(OutputPathError, match="different project"):
         run_job(run_dataset(Project(seed=2), 1, tmp_path, workers=0, renderer=tiny_renderer))
-    with pytest.raises(ValueError, match="frames must be"):
+    with pytest.raises(ParameterError, match="frames: an integer"):
         run_job(run_dataset(Project(), 0, tmp_path / "x", renderer=tiny_renderer))
 
 

@@ -2,6 +2,8 @@
 import numpy as np
 import pytest
 
+from workbench.errors import InputFileError
+
 from workbench.optics.lens import (LINE_C_NM, LINE_D_NM, LINE_F_NM, available_lenses, glass_catalogue,
                                    load_lens, material, paraxial, save_lens)
 from workbench.optics.lens.io import lens_from_dat
@@ -157,7 +159,7 @@ def test_zmx_unsupported_surface_type_is_refused(tmp_path):
 
 
 def test_unknown_lens_name_lists_available():
-    with pytest.raises(FileNotFoundError, match="dgauss.50mm"):
+    with pytest.raises(InputFileError, match="dgauss.50mm"):
         load_lens("no-such-lens")
 
 

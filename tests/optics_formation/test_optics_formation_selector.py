@@ -4,7 +4,7 @@ import pytest
 
 from workbench.optics.formation import radiance_to_irradiance
 from workbench.optics.params import ErrorBudget, OpticsParams
-from workbench.optics.selector import reference_level, select_level
+from workbench.optics.formation.selector import reference_level, select_level
 from workbench.scene.types import Scene
 
 WL = np.arange(400.0, 701.0, 50.0)

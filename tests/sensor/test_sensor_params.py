@@ -5,8 +5,7 @@ from __future__ import annotations
 import pytest
 from pydantic import ValidationError
 
-from workbench.sensor import AUTO_EXPOSURE_METHODS, CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
-from workbench.sensor.params import AUTO_EXPOSURE_METHOD_NAMES
+from workbench.sensor import CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
 from workbench.sensor.cfa import cfa_layout
 
 BAD_VALUES = [
@@ -60,14 +59,15 @@ def test_per_cfa_exposure_must_match_tile():
         SensorParams(exposure_s=[[0.01, -0.02], [0.03, 0.04]])
 
 
-def test_offset_must_fit_in_swing_and_filters_must_have_the_channels(tmp_path):
+def test_offset_must_fit_in_swing_and_filters_must_have_the_channels(tmp_path, monkeypatch):
+    from workbench import spectrum_csv
     with pytest.raises(ValidationError, match="analog_offset_V"):
         SensorParams(analog_offset_V=1.0, voltage_swing_V=1.0)
-    only_rgb = tmp_path / "rgb.csv"
-    only_rgb.write_text("wavelength_nm,R,G,B\n400,0.1,0.2,0.3\n700,0.1,0.2,0.3\n")
-    SensorParams(filter_file=str(only_rgb), cfa_pattern="RGGB")
-    with pytest.raises(ValidationError, match="filter_file"):
-        SensorParams(filter_file=str(only_rgb), cfa_pattern="RCCC")
+    monkeypatch.setattr(spectrum_csv, "RESOURCES", tmp_path)      # spectral files live under resources/
+    (tmp_path / "rgb.csv").write_text("wavelength_nm,R,G,B\n400,0.1,0.2,0.3\n700,0.1,0.2,0.3\n")
+    SensorParams(filter_file="rgb.csv", photodiode_qe_file=None, ir_cut_file=None, cfa_pattern="RGGB")
+    with pytest.raises(ValidationError, match="filter_file 'rgb.csv' has no curve C"):
+        SensorParams(filter_file="rgb.csv", photodiode_qe_file=None, ir_cut_file=None, cfa_pattern="RCCC")
     with pytest.raises(ValidationError, match="filter_file"):
         SensorParams(filter_file=None, cfa_pattern="RGGB")
     SensorParams(filter_file=None, cfa_pattern="MONO")
@@ -82,7 +82,3 @@ def test_cfa_layouts():
     for name, letters in expected.items():
         tile, names = cfa_layout(name)
         assert [[names[i] for i in row] for row in tile] == letters
-
-
-def test_registry_matches_the_allowed_methods():
-    assert tuple(AUTO_EXPOSURE_METHODS) == AUTO_EXPOSURE_METHOD_NAMES

@@ -7,7 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from workbench.optics.types import OpticalImage
-from workbench.sensor import channel_qe, expose, pixel_signal_rate, sensor_compute
+from workbench.sensor import (channel_qe, irradiance_to_sensor_image, irradiance_to_signal_rate,
+                              signal_rate_to_sensor_image)
 from workbench.sensor.signal import resample_matrix
 from workbench.spectra import RESOURCES
 
@@ -33,7 +34,7 @@ def test_mean_electrons_equal_the_camera_equation():
     p = make_params(rows=6, cols=8, noise_flag=-1, bit_depth=0, cfa_pattern="RGGB", fill_factor=0.6)
     e = 1e15 * (1 + 0.5 * np.sin(WL16 / 40.0))                      # photons/s/m²/nm
     t = 0.004
-    img = expose(pixel_signal_rate(uniform_oi(p, e, WL16), p), p, t)
+    img = signal_rate_to_sensor_image(irradiance_to_signal_rate(uniform_oi(p, e, WL16), p), p, t)
     dl = WL16[1] - WL16[0]
     area = (3e-6) ** 2
     for ch, (r, c) in {"R": (0, 0), "G": (0, 1), "B": (1, 1)}.items():
@@ -85,10 +86,10 @@ def test_channel_qe_zero_outside_data_and_ir_cut_switch():
 @pytest.mark.parametrize("spacing_um", [0.7, 1.5, 3.0, 4.2, 9.0])
 def test_uniform_irradiance_gives_the_same_rate_on_any_grid(method, spacing_um):
     p = make_params(rows=10, cols=12, cfa_pattern="MONO")
-    ref = pixel_signal_rate(uniform_oi(p, 1e15, WL16), p)
+    ref = irradiance_to_signal_rate(uniform_oi(p, 1e15, WL16), p)
     # an OI twice as large as the sensor so that every pixel is covered
     n = int(np.ceil(2 * 12 * 3.0 / spacing_um)) + 3
-    got = pixel_signal_rate(uniform_oi(p, 1e15, WL16, spacing_um * 1e-6, (n, n)), p, method=method)
+    got = irradiance_to_signal_rate(uniform_oi(p, 1e15, WL16, spacing_um * 1e-6, (n, n)), p, method=method)
     np.testing.assert_allclose(got, ref, rtol=1e-5)
 
 
@@ -105,8 +106,8 @@ def test_crop_fast_path_equals_general_path():
     rng = np.random.default_rng(3)
     e = rng.random((10, 12, WL16.size), dtype=np.float32) * 1e15
     oi = OpticalImage(e, WL16, 3e-6, 4e-3, 4.0)
-    fast = pixel_signal_rate(oi, p)
-    general = pixel_signal_rate(OpticalImage(e, WL16, 3e-6 * (1 + 1e-5), 4e-3, 4.0), p)
+    fast = irradiance_to_signal_rate(oi, p)
+    general = irradiance_to_signal_rate(OpticalImage(e, WL16, 3e-6 * (1 + 1e-5), 4e-3, 4.0), p)
     np.testing.assert_allclose(fast, general, rtol=2e-4)
     manual = (e[2:8, 2:10] @ np.asarray(channel_qe(p, WL16), dtype=np.float32))
     assert fast[0, 0] == pytest.approx(manual[0, 0, 0] * 9e-12 * 0.75 * 20, rel=1e-5)
@@ -114,7 +115,7 @@ def test_crop_fast_path_equals_general_path():
 
 def test_sensor_outside_the_optical_image_is_dark():
     p = make_params(rows=8, cols=8, cfa_pattern="MONO")
-    rate = pixel_signal_rate(uniform_oi(p, 1e15, WL16, shape=(4, 4)), p)
+    rate = irradiance_to_signal_rate(uniform_oi(p, 1e15, WL16, shape=(4, 4)), p)
     assert rate[2:6, 2:6].min() > 0 and rate[:2].max() == 0 and rate[:, 6:].max() == 0
 
 
@@ -123,9 +124,9 @@ def test_nan_or_inf_irradiance_is_refused():
     oi = uniform_oi(p, 1e15, WL16)
     oi.irradiance_photons[1, 1, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        sensor_compute(oi, p)
+        irradiance_to_sensor_image(oi, p)
     with pytest.raises(ValueError, match="H×W×Nλ"):
-        pixel_signal_rate(OpticalImage(np.ones((4, 4), np.float32), WL16, 3e-6, 4e-3, 4.0), p)
+        irradiance_to_signal_rate(OpticalImage(np.ones((4, 4), np.float32), WL16, 3e-6, 4e-3, 4.0), p)
 
 
 def test_point_of_light_lands_in_the_central_pixel():
@@ -135,7 +136,7 @@ def test_point_of_light_lands_in_the_central_pixel():
                     fill_factor=1.0)
     e = np.zeros((9, 9, 1), np.float32)
     e[4, 4, 0] = 9e15
-    rate = pixel_signal_rate(OpticalImage(e, np.array([550.0]), 1e-6, 4e-3, 4.0), p)
+    rate = irradiance_to_signal_rate(OpticalImage(e, np.array([550.0]), 1e-6, 4e-3, 4.0), p)
     assert rate[1, 1] == pytest.approx(1e15 * 9e-12, rel=1e-5)
     assert rate.sum() == pytest.approx(rate[1, 1])
 
@@ -160,7 +161,7 @@ def test_isetcam_default_pixel_counts_the_documented_electrons():
     irradiance = np.pi * radiance / (1 + 4 * 4.0 ** 2)               # ISETCam's f/4, m = 0 form
     assert irradiance.mean() == pytest.approx(1.834e14, rel=2e-3)
     p = make_params("isetcam_default", rows=4, cols=4, cfa_pattern="MONO", filter_file=None, ir_cut_file=None)
-    rate = pixel_signal_rate(uniform_oi(p, irradiance, wl), p)
+    rate = irradiance_to_signal_rate(uniform_oi(p, irradiance, wl), p)
     np.testing.assert_allclose(rate, 3.34e5, rtol=3e-3)
 
 
@@ -174,7 +175,7 @@ def test_linear_ramp_is_sampled_at_the_pixel_centres(method, spacing_um):
     n = int(round(60.0 / spacing_um))                                 # OI 60 µm wide, sensor 30 µm
     x_um = (np.arange(n) - (n - 1) / 2) * spacing_um
     e = np.broadcast_to((1e15 * (1 + x_um / 100.0)).astype(np.float32)[None, :, None], (n, n, 1)).copy()
-    rate = pixel_signal_rate(OpticalImage(e, np.array([550.0]), spacing_um * 1e-6, 4e-3, 4.0), p, method)
+    rate = irradiance_to_signal_rate(OpticalImage(e, np.array([550.0]), spacing_um * 1e-6, 4e-3, 4.0), p, method)
     centres_um = (np.arange(10) - 4.5) * 3.0
     expected = 1e15 * (1 + centres_um / 100.0) * 9e-12
     # 'area' reads the OI as a staircase (each sample constant over its width): exact when the

@@ -1,13 +1,20 @@
 """Benchmarks: speed-versus-error measurements, run by `workbench bench NAME`.
 
-A benchmark is a function `fn(args) -> BenchResult` registered with `@register_bench(name)`;
-the command line prints its rows as a table (or JSON with --json)."""
+Every benchmark lives in this package: a module per subject whose functions
+`fn(args) -> BenchResult` register with `@register_bench(name)`; `all_benches()` imports every
+module here and returns the registry. The command line prints a result's rows as a table (or JSON with
+--json). Timing goes through workbench.bench.timing."""
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from dataclasses import dataclass, field
 from typing import Callable
 
-BENCHES: dict[str, Callable] = {}
+from workbench.registry import Registry
+
+MODULES = ("pipeline", "render", "optics", "isp", "sensor", "city", "lens_camera", "detect", "scale")
+BENCHES: Registry[Callable] = Registry("bench", "benchmark")
 
 
 @dataclass
@@ -22,9 +29,15 @@ def register_bench(name: str, help: str = ""):
     """Decorator: register `fn(args: argparse.Namespace) -> BenchResult` as `workbench bench name`."""
     def deco(fn):
         fn.bench_help = help
-        BENCHES[name] = fn
-        return fn
+        return BENCHES.register(name)(fn)
     return deco
+
+
+def all_benches() -> Registry[Callable]:
+    """The registry with every benchmark module of this package imported."""
+    for module in pkgutil.iter_modules(__path__):
+        importlib.import_module(f"{__name__}.{module.name}")
+    return BENCHES
 
 
 def format_table(result: BenchResult) -> str:

@@ -15,12 +15,12 @@ to --out.
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import timed
 from workbench.optics.formation import mtf
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OPTICS_MODELS
@@ -60,11 +60,10 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
         from workbench.render.spectral import render_spectral
         rows = cols * 3 // 4
         params = RenderParams(spp=spp, band_count=8)
-        t0 = time.perf_counter()
-        scene = run_job(render_spectral(demo_city(), demo_pose(), params, width=cols, height=rows,
-                                      fov_deg=44.0, name="demo city"))
+        scene, took = timed(lambda: run_job(render_spectral(demo_city(), demo_pose(), params, width=cols,
+                                                            height=rows, fov_deg=44.0, name="demo city")))
         notes.append(f"demo city rendered by Mitsuba through a pinhole ({cols}×{rows}, {spp} spp, 8 bands, "
-                     f"{time.perf_counter() - t0:.2f} s): the levels' input")
+                     f"{took.wall_ms * 1e-3:.2f} s): the levels' input")
     except Exception as exc:  # noqa: BLE001  (any render failure: report it and go on)
         return None, None, [f"city frame skipped: rendering failed here ({type(exc).__name__}: {exc})"]
     try:
@@ -77,12 +76,11 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
         images, times = [], []
         for seed in (0, 1):
             sensor = lens_sensor_dict(camera.lens, {"width": cols, "height": rows}, to_world, camera.sensor_width_mm)
-            t0 = time.perf_counter()
-            full = run_job(render_spectral(demo_city(), demo_pose(), params.model_copy(update={"seed": seed}),
-                                         width=cols, height=rows, fov_deg=camera.fov_deg, lens_sensor=sensor,
-                                         name="demo city, full model"))
+            full, took = timed(lambda: run_job(render_spectral(
+                demo_city(), demo_pose(), params.model_copy(update={"seed": seed}), width=cols, height=rows,
+                fov_deg=camera.fov_deg, lens_sensor=sensor, name="demo city, full model")))
             images.append(full_model_optical_image(full.radiance_photons, full.wavelengths_nm, camera, optics))
-            times.append(time.perf_counter() - t0)
+            times.append(took.wall_ms * 1e-3)
         notes.append(f"reference = the full model: the lens traced inside Mitsuba for every camera ray "
                      f"({spp} spp, focused at {scene.distance_m:.2f} m, diffraction added as for raytrace); "
                      "its time is a whole render, the levels' times exclude their pinhole render; the "
@@ -102,9 +100,8 @@ def _rel_rms(image: np.ndarray, reference: np.ndarray) -> float:
 
 def _timed(level: str, scene: Scene, params: OpticsParams):
     p = params.model_copy(update={"model": level})
-    t0 = time.perf_counter()
-    oi = OPTICS_MODELS[level](scene, p)
-    return oi, time.perf_counter() - t0
+    oi, took = timed(lambda: OPTICS_MODELS[level](scene, p))
+    return oi, took.wall_ms * 1e-3
 
 
 def _mtf50_per_mm(image: np.ndarray, spacing_m: float) -> float:
@@ -119,7 +116,7 @@ def _bench_scene(name: str, scene: Scene, ref_rays: int, fast_rays: int, has_edg
                  cam: OpticsParams | None = None, full_model: tuple | None = None) -> list[dict]:
     """Rows for one scene. full_model: (reference OpticalImage, its time, a second render of it) to
     compare against instead of raytrace with ref_rays (which then becomes one more level)."""
-    from workbench.optics.selector import compare_to_reference, select_level
+    from workbench.optics.formation.selector import compare_to_reference, select_level
     cam = cam or _camera()
     ref_label = f"raytrace ({ref_rays} rays, reference)"
     extra = []
@@ -151,9 +148,8 @@ def _bench_scene(name: str, scene: Scene, ref_rays: int, fast_rays: int, has_edg
         rows.append({"scene": name, "level": "full model, another seed (noise floor)", "time_s": ref_t,
                      "warm_time_s": float("nan"), "rel_rms_error": _rel_rms(second.irradiance_photons, ref_img),
                      "mtf50_cyc_per_mm": float("nan"), "mtf50_error": float("nan")})
-    t0 = time.perf_counter()
-    chosen, report = select_level(scene, cam)
-    rows.append({"scene": name, "level": f"auto → {chosen}", "time_s": time.perf_counter() - t0,
+    (chosen, _), took = timed(lambda: select_level(scene, cam))
+    rows.append({"scene": name, "level": f"auto → {chosen}", "time_s": took.wall_ms * 1e-3,
                  "warm_time_s": float("nan"), "rel_rms_error": float("nan"), "mtf50_cyc_per_mm": float("nan"),
                  "mtf50_error": float("nan")})
     return rows

@@ -22,10 +22,10 @@ def _median_ms(fn, repeats: int) -> float:
 
 def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 20.0) -> dict:
     """Stage medians (ms) for the paper's camera on the Macbeth chart at rows×cols."""
-    from workbench.isp import isp_compute
+    from workbench.isp import sensor_image_to_srgb
     from workbench.pipeline import form_optical_image, make_scene
     from workbench.project import load_project
-    from workbench.sensor import expose, pixel_signal_rate, resolve_exposure
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
 
     base = load_project("paper_camera")
     # Same field of view at every resolution: the pixel shrinks as the count grows.
@@ -35,19 +35,19 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
         scene=base.scene.updated(kind="macbeth", wavelengths=base.scene.wavelengths.updated(step_nm=bands_step_nm)))
     scene = make_scene(project)
     oi = form_optical_image(scene, project)
-    rate = pixel_signal_rate(oi, project.sensor)
+    rate = irradiance_to_signal_rate(oi, project.sensor)
     rng = np.random.default_rng(0)
     sensor, wl = project.sensor, oi.wavelengths_nm
 
     def capture(rate):
-        return expose(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
+        return signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
     image = capture(rate)
 
     def live():
-        isp_compute(capture(pixel_signal_rate(oi, sensor)), project.isp)
+        sensor_image_to_srgb(capture(irradiance_to_signal_rate(oi, sensor)), project.isp)
 
     tracemalloc.start()
-    isp_compute(capture(pixel_signal_rate(form_optical_image(make_scene(project), project), sensor)), project.isp)
+    sensor_image_to_srgb(capture(irradiance_to_signal_rate(form_optical_image(make_scene(project), project), sensor)), project.isp)
     peak_bytes = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
 
@@ -57,9 +57,9 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
         "bands": int(oi.wavelengths_nm.size),
         "scene_ms": _median_ms(lambda: make_scene(project), heavy),
         "optics_ms": _median_ms(lambda: form_optical_image(scene, project), heavy),
-        "signal_ms": _median_ms(lambda: pixel_signal_rate(oi, sensor), repeats),
+        "signal_ms": _median_ms(lambda: irradiance_to_signal_rate(oi, sensor), repeats),
         "sensor_ms": _median_ms(lambda: capture(rate), repeats),
-        "isp_ms": _median_ms(lambda: isp_compute(image, project.isp), repeats),
+        "isp_ms": _median_ms(lambda: sensor_image_to_srgb(image, project.isp), repeats),
         "sensor+isp_from_cached_irradiance_ms": _median_ms(live, repeats),
         "peak_traced_MB": peak_bytes / 2**20,
     }

@@ -27,21 +27,20 @@ def register(sub) -> None:
 
 def stage_report(result, project) -> dict:
     """Exposure, mean electrons and SNR per channel, clipped fraction, per-stage time."""
+    from workbench.sensor import snr_dB
     img = result.sensor_image
-    sp = project.sensor
-    read_e = sp.read_noise_V / (sp.conversion_gain_uV_per_e * 1e-6)
-    dsnu_e = sp.dsnu_sigma_V / (sp.conversion_gain_uV_per_e * 1e-6)
+    exposure_s = float(np.mean(img.exposure_s))
     channels = {}
     for k, name in enumerate(img.channel_names):
         mask = img.channel_mask(k)
         if not mask.any():
             continue
         e_mean = float(img.electrons[mask].mean())
-        noise_var = e_mean + read_e ** 2 + dsnu_e ** 2 + (sp.prnu_sigma_pct / 100 * e_mean) ** 2
+        snr = snr_dB(e_mean, project.sensor, exposure_s)
         channels[name] = {
             "mean_electrons": e_mean,
             "mean_dn": float(img.dn[mask].mean()),
-            "snr_dB": float(10 * np.log10(e_mean ** 2 / noise_var)) if e_mean > 0 else None,
+            "snr_dB": None if np.isnan(snr) else snr,
             "fraction_clipped": float((img.dn[mask] >= img.max_dn).mean()),
         }
     exposure = img.exposure_s
@@ -56,11 +55,26 @@ def stage_report(result, project) -> dict:
     }
 
 
+# Every file `write_outputs` may write; one an earlier run wrote but this run does not is removed.
+SIMULATE_OUTPUTS = ("irradiance.png", "labels.png", "raw.png", "linear.png", "srgb.png", "stages.npz",
+                    "report.json")
+
+
+def remove_stale_outputs(out: Path, written: set[str]) -> list[str]:
+    """Remove the files of SIMULATE_OUTPUTS in `out` that are not in `written` (left by an earlier,
+    different run, e.g. a city's labels.png before a chart run); return their names."""
+    stale = [name for name in SIMULATE_OUTPUTS if name not in written and (out / name).is_file()]
+    for name in stale:
+        (out / name).unlink()
+    return stale
+
+
 def write_outputs(result, project, out: Path) -> dict:
-    """PNG previews, stages.npz (arrays with units and wavelengths) and report.json."""
+    """PNG previews, stages.npz (arrays with units and wavelengths) and report.json; outputs of an
+    earlier run that this one does not replace are removed (named in report['removed_stale'])."""
+    from workbench.files import atomic_write_text, prepare_output_folder
     from workbench.previews import channels_to_rgb, irradiance_preview, save_png
-    from workbench.project import atomic_write_text
-    out.mkdir(parents=True, exist_ok=True)
+    prepare_output_folder(out)
     oi, img, isp = result.optical_image, result.sensor_image, result.isp
     preview = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta)
     save_png(out / "irradiance.png", preview)
@@ -88,6 +102,8 @@ def write_outputs(result, project, out: Path) -> dict:
     np.savez_compressed(tmp, **arrays)
     tmp.replace(out / "stages.npz")
     report = stage_report(result, project)
+    written = set(SIMULATE_OUTPUTS) - ({"labels.png"} if labels is None else set())
+    report["removed_stale"] = remove_stale_outputs(out, written)
     if labels is not None:
         counts: dict[str, int] = {}
         for o in labels.objects:
@@ -102,7 +118,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from workbench.jobs import run_job, tqdm_progress
     from workbench.pipeline import Pipeline
     from workbench.project import load_project
+    from workbench.files import prepare_output_folder
     project = load_project(args.project)
+    prepare_output_folder(args.out)          # refuse a bad --out before the run, not after
     bar = tqdm_progress("simulate")
     try:
         result = run_job(Pipeline(project).run_job(), bar)
@@ -111,16 +129,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     report = write_outputs(result, project, Path(args.out))
     print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
     extra = " labels.png" if result.labels is not None else ""
+    for name in report["removed_stale"]:
+        print(f"removed {args.out}/{name}: left by an earlier run, not written by this one")
     print(f"wrote {args.out}/: irradiance.png{extra} raw.png linear.png srgb.png stages.npz report.json")
     return 0
 
 
 def cmd_characterize(args: argparse.Namespace) -> int:
-    from workbench.project import atomic_write_text, load_project
+    from workbench.files import atomic_write_text, prepare_output_folder
+    from workbench.project import load_project
     from workbench.sensor.emva import characterize, plot_photon_transfer
     project = load_project(args.project)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_output_folder(args.out)
     result = characterize(project.sensor, seed=project.seed)
     atomic_write_text(out / "emva.json", json.dumps(result, indent=2, default=float) + "\n")
     plot_photon_transfer(result, out / "photon_transfer.png")
@@ -136,8 +156,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """The paper's camera on the Macbeth chart, the slanted edge and the HDR tunnel, then the
     paper's exposure-bias sweep (EV −4…+4 around the 'mean' auto-exposure at 0.4 of the swing)."""
     from workbench.pipeline import Pipeline
+    from workbench.files import prepare_output_folder
     from workbench.project import load_project
-    out = Path(args.out)
+    out = prepare_output_folder(args.out)
     base = load_project("paper_camera")
     t0 = time.perf_counter()
     rows = []
@@ -157,19 +178,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 def ev_sweep(project, out: Path) -> list[dict]:
-    """Exposure-bias sweep on the cached optical image: only the sensor and ISP re-run."""
+    """The project's EV biases on its frame (workbench.experiments.ev_sweep); sRGB PNG per EV."""
+    from workbench.experiments.ev_sweep import ev_sweep_job
+    from workbench.jobs import run_job
     from workbench.pipeline import Pipeline
+    from workbench.files import prepare_output_folder
     from workbench.previews import save_png
-    out.mkdir(parents=True, exist_ok=True)
-    exp = project.experiment
+    prepare_output_folder(out)
     pipe = Pipeline(project)
+    points = run_job(ev_sweep_job(project, pipe.signal_rate(), pipe.optical_image().wavelengths_nm,
+                                  project.experiment.ev_biases, thumbnail_width_px=project.sensor.cols))
     rows = []
-    for ev in exp.ev_biases:
-        sensor = project.sensor.updated(auto_exposure_method=exp.auto_exposure_method,
-                                        auto_exposure_level=exp.auto_exposure_level, exposure_s=None, ev_bias=ev)
-        pipe.set_project(project.updated(sensor=sensor))
-        img, isp = pipe.sensor_image(), pipe.isp_result()
-        save_png(out / f"srgb_ev{ev:+.0f}.png", isp.srgb)
-        rows.append({"ev": ev, "exposure_s": float(np.mean(img.exposure_s)), "mean_dn": float(img.dn.mean()),
-                     "fraction_clipped": float((img.dn >= img.max_dn).mean())})
+    for p in points:
+        save_png(out / f"srgb_ev{p.ev:+.0f}.png", p.thumbnail / 255.0)
+        rows.append({"ev": p.ev, "exposure_s": p.exposure_s, "mean_dn": p.mean_dn,
+                     "fraction_clipped": p.fraction_clipped, "snr_dB": p.snr_dB})
     return rows

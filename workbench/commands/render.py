@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.commands.compute_options import add_compute_options, compute_spec
+
 # Box colours per class id (RGB), cycling for ids beyond the list.
 CLASS_COLOURS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
                  (145, 30, 180), (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212),
@@ -26,9 +28,12 @@ def register(sub) -> None:
     p.add_argument("project", help="project file (or the name of a sample project)")
     p.add_argument("--frames", type=int, required=True, help="number of frames")
     p.add_argument("--out", required=True, help="output folder (a rerun resumes it)")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (0 = in this process)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="local worker processes (0 = in this process); with --backend ray and no "
+                        "--address, the CPUs of the local Ray cluster started for the run")
     p.add_argument("--float32", action="store_true",
                    help="store irradiance as float32 (default float16 with scale, ≤ 0.05 %% error)")
+    add_compute_options(p)
     p.set_defaults(func=cmd_dataset)
 
 
@@ -56,11 +61,12 @@ def cmd_render(args) -> int:
     from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
+    from workbench.errors import ParameterError
+    from workbench.files import prepare_output_folder
     project = load_project(args.project)
     if args.frame < 0:
-        raise ValueError(f"--frame must be ≥ 0, got {args.frame}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+        raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
+    out = prepare_output_folder(args.out)
     seeds = frame_seeds(project.seed, args.frame)
     bars = []          # the bar opens with the first chunk (after the project was checked)
 
@@ -98,28 +104,37 @@ def cmd_render(args) -> int:
 def cmd_dataset(args) -> int:
     from tqdm import tqdm
 
-    from workbench.compute.local import JobFailed
+    from workbench.compute import JobFailed
+    from workbench.errors import WorkbenchError
     from workbench.project import load_project
     from workbench.render.dataset import run_dataset
 
-    project = load_project(args.project)
-    job = run_dataset(project, args.frames, args.out, workers=args.workers,
-                      irradiance_dtype="float32" if args.float32 else "float16")
-    with tqdm(total=args.frames, desc="dataset", unit="frame") as bar:
-        while True:
-            try:
-                p = next(job)
-            except StopIteration as stop:
-                result = stop.value
-                break
-            except JobFailed as exc:
-                bar.close()
-                print(f"workbench dataset: error: {exc} (finished frames are kept; rerun to resume)",
-                      file=sys.stderr)
-                return 1
-            bar.n = int(p.done)
-            bar.set_postfix_str(p.message, refresh=False)
-            bar.refresh()
+    try:
+        project = load_project(args.project)
+        job = run_dataset(project, args.frames, args.out, compute=compute_spec(args, max_tasks_per_child=16),
+                          irradiance_dtype="float32" if args.float32 else "float16")
+        steps = iter(())
+        try:
+            steps = iter([next(job)])       # checks the folder and the spec before a bar is drawn
+        except StopIteration as stop:
+            result = stop.value
+        with tqdm(total=args.frames, desc="dataset", unit="frame") as bar:
+            while True:
+                try:
+                    p = next(steps, None) or next(job)
+                except StopIteration as stop:
+                    result = stop.value
+                    break
+                bar.n = round(p.done, 2)            # frames in flight count by their progress
+                bar.set_postfix_str(p.message, refresh=False)
+                bar.refresh()
+    except JobFailed as exc:
+        print(f"workbench dataset: error: {exc} (finished frames are kept; rerun to resume)",
+              file=sys.stderr)
+        return 1
+    except WorkbenchError as exc:
+        print(f"workbench dataset: error: {exc}", file=sys.stderr)
+        return 2
     print(json.dumps({"out": str(result.out_dir), "frames": result.frames,
                       "rendered": len(result.rendered), "reused": len(result.reused),
                       "coco": str(result.coco_path), "manifest": str(result.manifest_path)}, indent=1))

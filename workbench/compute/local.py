@@ -1,39 +1,95 @@
 """Run a list of independent jobs on this machine: in-process, or in a pool of spawned processes.
 
 The job API is what any backend scales out: a picklable module-level function `fn(job)` and a
-list of picklable jobs (plain data). A cluster backend (Ray) offers the same `run_jobs` generator.
+list (or lazy iterable) of picklable jobs (plain data). compute.ray_cluster offers the same generator.
+Pool workers die with the process that started them (Linux: PR_SET_PDEATHSIG), so a `kill -9` of
+the driver leaves no worker rendering on.
 """
 from __future__ import annotations
 
 import concurrent.futures as cf
+import ctypes
+import itertools
 import multiprocessing
+import os
+import signal
+import sys
+from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
+from workbench.compute.progress import TaskProgress, reporting_to
+from workbench.errors import WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
 J = TypeVar("J")
 R = TypeVar("R")
 
 POLL_S = 0.2          # how often a waiting pool checks the cancel token
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+THREAD_ENV_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+THREAD_BUDGET_ENV = "WORKBENCH_THREADS"      # read by render.variants (Dr.Jit) in this process
 
 
-class JobFailed(RuntimeError):
-    """A job raised; the message names the job, the original error is the __cause__."""
+class JobFailed(WorkbenchError, RuntimeError):
+    """A job raised (or its worker died more often than allowed); the message names the job and the
+    last error, the original error is the __cause__."""
+
+
+def apply_thread_budget(threads: int | None) -> None:
+    """Limit this process to `threads` threads in OpenMP/BLAS, torch and Dr.Jit (set before they start)."""
+    if not threads:
+        return
+    for name in (*THREAD_ENV_VARS, THREAD_BUDGET_ENV):
+        os.environ[name] = str(threads)
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(threads)
+    if "drjit" in sys.modules:
+        sys.modules["drjit"].set_thread_count(threads)
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Ask Linux to SIGKILL this process when its parent dies; exit now if it already has."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+    if os.getppid() != parent_pid:          # the parent died before prctl took effect
+        os._exit(1)
+
+
+_progress_queue = None          # in a pool worker: where report_progress sends (key, done, total)
+
+
+def _worker_init(parent_pid: int, threads: int | None, progress_queue=None) -> None:
+    global _progress_queue
+    die_with_parent(parent_pid)
+    apply_thread_budget(threads)
+    _progress_queue = progress_queue
+
+
+def _run_reporting(fn, key: int, job):
+    """fn(job) in a pool worker, its report_progress calls sent to the driver as (key, done, total)."""
+    with reporting_to(lambda done, total: _progress_queue.put((key, done, total))):
+        return fn(job)
 
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
-             cancel: CancelToken | None = None, *,
-             max_tasks_per_child: int | None = None) -> Generator[tuple[J, R], None, None]:
+             cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
+             threads_per_worker: int | None = None, task_progress: bool = False
+             ) -> Generator[tuple[J, R] | TaskProgress, None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
     workers ≥ 1 runs them in that many processes started with 'spawn' (each imports what fn needs
     itself, e.g. mitsuba; no state is inherited by forking); fn must be a module-level function
-    and jobs picklable. max_tasks_per_child recycles a worker process after that many jobs (to
-    bound slow leaks in native libraries).
+    and jobs picklable. Jobs are drawn from `jobs` lazily (at most 2 × workers ahead).
+    max_tasks_per_child recycles a worker process after that many jobs (to bound slow leaks in
+    native libraries); threads_per_worker is each worker's thread budget (OpenMP, torch, Dr.Jit).
     cancel is checked between jobs: once set, no further job starts, jobs already running are
     waited for (their results are not yielded) and JobCancelled is raised.
     A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
+    task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
+    compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
         raise ValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
@@ -49,13 +105,20 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
                 raise JobFailed(f"job {job!r} failed: {exc}") from exc
             yield job, result
         return
-    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child)
+    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker,
+                         task_progress)
 
 
-def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child):
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                  max_tasks_per_child=max_tasks_per_child)
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_progress):
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue() if task_progress else None
+    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                  max_tasks_per_child=max_tasks_per_child,
+                                  initializer=_worker_init, initargs=(os.getpid(), threads, queue))
     pending: dict[cf.Future, object] = {}
+    keys: dict[int, object] = {}              # running jobs by progress key
+    key_of: dict[cf.Future, int] = {}
+    counter = itertools.count()
     try:
         exhausted = False
         while True:
@@ -63,15 +126,22 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child):
                 job = next(jobs, _END)
                 if job is _END:
                     exhausted = True
-                else:
+                elif queue is None:
                     pending[pool.submit(fn, job)] = job
+                else:
+                    key = next(counter)
+                    fut = pool.submit(_run_reporting, fn, key, job)
+                    pending[fut], keys[key], key_of[fut] = job, job, key
             if cancel is not None and cancel.cancelled:
                 raise JobCancelled("cancelled")
             if not pending:
                 return
             done, _ = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
+            if queue is not None:
+                yield from _drain(queue, keys)
             for fut in done:
                 job = pending.pop(fut)
+                keys.pop(key_of.pop(fut, None), None)
                 try:
                     result = fut.result()
                 except Exception as exc:
@@ -79,6 +149,19 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child):
                 yield job, result
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+        if queue is not None:
+            queue.close()
+
+
+def _drain(queue, keys: dict):
+    """TaskProgress for every report waiting in the queue from a job still running."""
+    while True:
+        try:
+            key, done, total = queue.get_nowait()
+        except Empty:
+            return
+        if key in keys:
+            yield TaskProgress(keys[key], done, total)
 
 
 _END = object()

@@ -19,6 +19,8 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.registry import Registry
+
 BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 
 
@@ -190,17 +192,13 @@ def _colour_demosaicing(fn_name: str) -> Callable:
     return method
 
 
-DEMOSAIC_METHODS: dict[str, Callable] = {
-    "bilinear": demosaic_bilinear,
-    "malvar2004": _colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"),
-    "menon2007": _colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"),
-}
+DEMOSAIC_METHODS: Registry[Callable] = Registry("isp.demosaic", "demosaic method")
+DEMOSAIC_METHODS.register("bilinear")(demosaic_bilinear)
+DEMOSAIC_METHODS.register("malvar2004")(_colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"))
+DEMOSAIC_METHODS.register("menon2007")(_colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"))
 
 
 def demosaic(mosaic: np.ndarray, cfa_tile: np.ndarray, channel_names: list[str],
              method: str = "bilinear") -> tuple[np.ndarray, list[str]]:
     """Demosaic with a registered method; returns (H×W×K float32, notes)."""
-    key = method.strip().lower()
-    if key not in DEMOSAIC_METHODS:
-        raise ValueError(f"demosaic method '{method}' is unknown; allowed: {', '.join(DEMOSAIC_METHODS)}")
-    return DEMOSAIC_METHODS[key](mosaic, cfa_tile, len(channel_names), list(channel_names))
+    return DEMOSAIC_METHODS[method](mosaic, cfa_tile, len(channel_names), list(channel_names))

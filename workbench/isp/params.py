@@ -51,10 +51,7 @@ class ISPParams(Params):
     @classmethod
     def _known_demosaic(cls, value: str) -> str:
         from workbench.isp.demosaic import DEMOSAIC_METHODS
-        key = value.strip().lower()
-        if key not in DEMOSAIC_METHODS:
-            raise ValueError(f"demosaic '{value}' is unknown; allowed: {', '.join(DEMOSAIC_METHODS)}")
-        return key
+        return DEMOSAIC_METHODS.check(value.strip().lower())
 
     @field_validator("manual_gains")
     @classmethod

@@ -10,13 +10,16 @@ import math
 from pathlib import PurePosixPath
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
+
+from workbench.errors import ParameterError
 
 from workbench.params import Params
 
-OPTICS_MODEL_NAMES = ("pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto")
 OpticsModelName = Literal["pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace", "auto"]
 
+LENS_MODELS = ("psf_grid", "raytrace")
+"""Optics levels that trace a real lens and so need lens_file."""
 PAPER_SENSOR_WIDTH_MM = 640 * 3e-3
 PAPER_HFOV_DEG = 44.0
 
@@ -63,7 +66,8 @@ class OpticsParams(Params):
         level then uses the same first-order values.
     transmittance: lens transmittance T in the camera equation, 0–1.
     off_axis: 'cos4th' (ISETCam's fall-off) or 'none'.
-    lens_file: a prescription under resources/lenses/ (relative path), for psf_grid/raytrace.
+    lens_file: a lens library name (resources/lenses/, then the user's lens folder
+        workbench.optics.lens.io.user_lens_dir()), for psf_grid/raytrace.
     scale_lens_to_focal_length: scale the prescription so its focal length is focal_length_mm.
     focus_distance_m: object distance in focus; None = focused at the scene distance.
     distortion_k: radial distortion r_d = r·(1 + k1 r² + k2 r⁴ + k3 r⁶), r = image height /
@@ -109,8 +113,10 @@ class OpticsParams(Params):
             return v
         p = PurePosixPath(v.replace("\\", "/"))
         if not v or p.is_absolute() or ".." in p.parts:
-            raise ValueError(f"lens_file must be a relative path inside resources/lenses/ "
-                             f"(no '..', not absolute), got {v!r}")
+            raise ValueError(f"lens_file must be a lens library name (resources/lenses/ or the user's "
+                             f"lens folder; no '..', not absolute), got {v!r}")
+        from workbench.optics.lens.io import check_library_lens
+        check_library_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
         return str(p)
 
     @field_validator("distortion_k")
@@ -119,6 +125,13 @@ class OpticsParams(Params):
         if not all(math.isfinite(k) for k in v):
             raise ValueError(f"distortion_k must be finite numbers, got {v}")
         return v
+
+    @model_validator(mode="after")
+    def _lens_for_lens_models(self):
+        if self.model in LENS_MODELS and self.lens_file is None:
+            raise ParameterError("lens_file", None, f"optics model '{self.model}' needs a lens file (a prescription "
+                                                    "under resources/lenses/, e.g. 'dgauss.50mm')")
+        return self
 
     @property
     def focal_length_m(self) -> float:

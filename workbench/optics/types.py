@@ -6,6 +6,8 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.registry import Registry
+
 
 @dataclass
 class OpticalImage:
@@ -39,12 +41,6 @@ class OpticalImage:
         return self.shape[0] * self.sample_spacing_m
 
 
-OPTICS_MODELS: dict[str, Callable] = {}
-
-
-def register_optics(name: str):
-    """Decorator: register an optics model `fn(scene, params) -> OpticalImage` under `name`."""
-    def deco(fn):
-        OPTICS_MODELS[name] = fn
-        return fn
-    return deco
+OPTICS_MODELS: Registry[Callable] = Registry("optics.model", "optics model")
+"""The optics levels of detail: name → fn(scene, params) -> OpticalImage (filled by optics.formation)."""
+register_optics = OPTICS_MODELS.register

@@ -173,8 +173,8 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
 def sensor_matched_error(project, render: CityRender, shot_noise_ratio: float) -> float:
     """Relative render error that is `shot_noise_ratio` × the photon shot noise 1/√N_e, with N_e
     the mean electrons per pixel of the project's sensor at its exposure on this render."""
-    from workbench.sensor import pixel_signal_rate, resolve_exposure
-    rate = pixel_signal_rate(city_optical_image(render, project), project.sensor)
+    from workbench.sensor import irradiance_to_signal_rate, resolve_exposure
+    rate = irradiance_to_signal_rate(city_optical_image(render, project), project.sensor)
     exposure_s = float(np.mean(resolve_exposure(rate, project.sensor)))
     mean_e = float(np.mean(rate, dtype=np.float64)) * exposure_s
     if not mean_e > 0:

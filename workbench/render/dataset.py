@@ -2,12 +2,15 @@
 
 Frame i is a pure function of the project and i: its seeds (city arrangement, camera pose, render
 noise) come from numpy's SeedSequence([project.seed, DATASET_SEED_TAG, i]), so a set can be
-extended, resumed or re-rendered frame by frame and gives the same arrays.
+extended, resumed or re-rendered frame by frame and gives the same bytes, on any compute backend.
 
 Layout of out_dir:
   dataset_spec.json        what the frames were made from (project, storage); written first
-  frames/frame_000007.npz  one frame, written whole or not at all (temporary name + os.replace)
-  coco.json, manifest.json written (atomically) once every frame exists
+  frames/frame_000007.npz  one frame, written whole or not at all (temporary name + os.replace) by
+                           the driver process, whichever worker rendered it
+  coco.json, manifest.json written (atomically) once every frame exists; removed when a run starts
+                           with frames missing, so they never claim a frame that is not on disk
+  .workbench.lock          held (flock) by the run writing the folder; a second run is refused
 
 Irradiance storage: 'float16' keeps E / 2^k as float16 with the power of two 2^k chosen so that the
 frame's maximum lies in (2^14, 2^15]; decoding multiplies exactly, so the only error is float16
@@ -17,8 +20,11 @@ error ≤ 2^-25 · 2^k below that. 'float32' stores the array as rendered (no er
 from __future__ import annotations
 
 import hashlib
+import inspect
+import io
 import json
 import os
+import re
 import subprocess
 import time
 import zipfile
@@ -29,7 +35,9 @@ from typing import Callable, Generator
 
 import numpy as np
 
-from workbench.compute.local import run_jobs
+from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jobs
+from workbench.compute.folder_lock import hold_folder_lock
+from workbench.errors import InputFileError, OutputPathError, ParameterError
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, frame_seeds, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
@@ -40,6 +48,10 @@ FRAME_VERSION = 1
 IRRADIANCE_DTYPES = ("float16", "float32")
 FLOAT16_REL_ERROR = 2.0 ** -11
 FRAMES_DIR = "frames"
+FRAME_NAME = re.compile(r"frame_(\d{6,})\.npz")
+SPEC_NAME = "dataset_spec.json"
+MAX_FRAMES = 1_000_000
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)       # member date in frame files (zip's earliest): same frame, same bytes
 IRRADIANCE_NOTE = ("float16: E/2^k stored, 2^k puts the frame maximum in (2^14, 2^15]; relative error "
                    "<= 2^-11 above 2^-28 * max, absolute error <= 2^-25 * 2^k below; float32: exact")
 
@@ -67,9 +79,9 @@ def frame_path(out_dir: str | os.PathLike, index: int) -> Path:
     return Path(out_dir) / FRAMES_DIR / f"frame_{index:06d}.npz"
 
 
-def write_frame(path: str | os.PathLike, data: FrameData, header: dict, dtype: str) -> None:
-    """Write one frame atomically: compressed npz under a temporary name, fsync, os.replace."""
-    path = Path(path)
+def encode_frame(data: FrameData, header: dict, dtype: str) -> bytes:
+    """The bytes of a frame file: an .npz (deflated zip) with fixed member dates, so the same frame
+    gives the same bytes wherever and whenever it is made."""
     stored, scale = encode_irradiance(data.irradiance_photons, dtype)
     if stored.shape[:2] != data.labels.shape:
         raise ValueError(f"frame {header.get('index')}: irradiance is {stored.shape[:2]} but the labels "
@@ -78,17 +90,35 @@ def write_frame(path: str | os.PathLike, data: FrameData, header: dict, dtype: s
             "label_meta": data.labels.meta, "meta": data.meta}
     arrays = {"irradiance": stored, "wavelengths_nm": np.asarray(data.wavelengths_nm, np.float64),
               "header_json": np.asarray(json.dumps(head, default=str)), **data.labels.to_arrays()}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, arr in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=ZIP_DATE)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            with zf.open(info, "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, np.asanyarray(arr), allow_pickle=False)
+    return buf.getvalue()
+
+
+def write_bytes_atomic(path: str | os.PathLike, payload: bytes) -> None:
+    """Write payload to path whole or not at all: temporary name beside it, fsync, os.replace."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            fh.write(payload)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def write_frame(path: str | os.PathLike, data: FrameData, header: dict, dtype: str) -> None:
+    """Write one frame atomically (encode_frame, then write_bytes_atomic)."""
+    write_bytes_atomic(path, encode_frame(data, header, dtype))
 
 
 def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameData, dict]:
@@ -150,35 +180,55 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
 
 
 def atomic_write_json(path: Path, obj) -> None:
-    from workbench.project import atomic_write_text
+    from workbench.files import atomic_write_text
     atomic_write_text(path, json.dumps(obj, indent=1, default=str) + "\n")
 
 
 @dataclass(frozen=True)
 class FrameJob:
-    """Everything a worker needs to make and write one frame (picklable plain data)."""
+    """Everything a worker needs to make one frame (picklable plain data)."""
 
     index: int
     seeds: FrameSeeds
     project: object
-    path: str
     fingerprint: str
     irradiance_dtype: str
     renderer: Callable
 
     def __repr__(self) -> str:
-        return f"FrameJob(index={self.index}, path={self.path!r})"
+        return f"frame {self.index}"
 
 
-def run_frame_job(job: FrameJob) -> dict:
-    """Worker function: render frame job.index and write it atomically; return a small record."""
+@dataclass(frozen=True)
+class FramePayload:
+    """A rendered frame on its way to the driver: the frame file's bytes and a small record."""
+
+    index: int
+    payload: bytes
+    objects: int
+    seconds: float
+
+
+def render_frame_job(job: FrameJob) -> FramePayload:
+    """Worker function: render frame job.index and encode its file (the driver writes it). A
+    renderer that takes on_progress reports its samples per pixel to the driver as it goes."""
     t0 = time.perf_counter()
-    data = job.renderer(job.project, job.seeds)
+    if "on_progress" in inspect.signature(job.renderer).parameters:
+        data = job.renderer(job.project, job.seeds,
+                            on_progress=lambda step: report_progress(*_steps(step)))
+    else:
+        data = job.renderer(job.project, job.seeds)
     header = {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": job.index,
               "fingerprint": job.fingerprint, "seeds": asdict(job.seeds)}
-    write_frame(job.path, data, header, job.irradiance_dtype)
-    return {"index": job.index, "objects": len(data.labels.objects),
-            "seconds": time.perf_counter() - t0}
+    payload = encode_frame(data, header, job.irradiance_dtype)
+    return FramePayload(job.index, payload, len(data.labels.objects), time.perf_counter() - t0)
+
+
+def _steps(step) -> tuple[float, float]:
+    """(done, total) of a renderer's progress step (samples per pixel, or a generic Progress)."""
+    if hasattr(step, "spp_done"):
+        return step.spp_done, step.spp_total
+    return step.done, step.total
 
 
 @dataclass
@@ -193,61 +243,135 @@ class DatasetResult:
 
 def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: int = 1,
                 cancel: CancelToken | None = None, irradiance_dtype: str = "float16",
-                renderer: Callable | None = None,
-                max_tasks_per_child: int | None = 16) -> Generator[Progress, None, DatasetResult]:
+                renderer: Callable | None = None, max_tasks_per_child: int | None = 16,
+                compute: ComputeSpec | None = None) -> Generator[Progress, None, DatasetResult]:
     """Render frames 0…frames−1 of `project` into out_dir (a long job: yields Progress).
 
     A rerun resumes: complete frames that verify are kept, half-written temporary files are
     removed, missing or damaged frames are rendered. coco.json and manifest.json are written
-    when all frames exist. workers: processes (0 = in this process). renderer(project, seeds)
+    when all frames exist. Where frames render: `compute` (any backend), else `workers` local
+    processes (0 = in this process); whichever renders a frame, this process alone writes it
+    (atomically), under a lock on out_dir that a second run is refused. renderer(project, seeds)
     -> FrameData makes one frame (module-level, picklable; default render_city_frame); irradiance_dtype: 'float16' or
     'float32' (error bounds in the module docstring). out_dir must not hold a set made from a
-    different project or settings."""
-    if not isinstance(frames, int) or frames < 1:
-        raise ValueError(f"frames must be an integer ≥ 1, got {frames!r}")
+    different project or settings. Frames are planned lazily; at most MAX_FRAMES."""
+    if isinstance(frames, bool) or not isinstance(frames, int) or not 1 <= frames <= MAX_FRAMES:
+        raise ParameterError("frames", frames, f"an integer from 1 to {MAX_FRAMES:,}")
     if irradiance_dtype not in IRRADIANCE_DTYPES:
-        raise ValueError(f"irradiance_dtype '{irradiance_dtype}' not allowed; allowed: "
-                         f"{', '.join(IRRADIANCE_DTYPES)}")
+        raise ParameterError("irradiance_dtype", irradiance_dtype, f"one of {', '.join(IRRADIANCE_DTYPES)}")
+    compute = compute or ComputeSpec(workers=workers,
+                                     max_tasks_per_child=max_tasks_per_child if workers else None)
     renderer = renderer or render_city_frame
-    out = Path(out_dir)
-    (out / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+    out = prepare_out_dir(out_dir)
     fingerprint = dataset_fingerprint(project, irradiance_dtype, renderer)
-    spec_path = out / "dataset_spec.json"
-    if spec_path.exists():
-        old = json.loads(spec_path.read_text(encoding="utf-8")).get("fingerprint")
-        if old != fingerprint:
-            raise ValueError(f"{out} holds a data set made from a different project or settings "
-                             f"(fingerprint {str(old)[:12]}… ≠ {fingerprint[:12]}…); choose another "
-                             "output folder or delete that one")
-    else:
+    with hold_folder_lock(out, "workbench dataset"):
+        check_spec(out, fingerprint, project, irradiance_dtype)
+        for tmp in (out / FRAMES_DIR).glob(".*.tmp"):
+            tmp.unlink()                      # left by a run that was killed mid-write
+        found, odd = scan_frames(out, frames)
+        if odd or len(found) < frames:
+            remove_index(out)
+        if odd:
+            raise OutputPathError(odd[0], "is not a regular file but has a frame's name; remove it "
+                                          "and run again")
+        reused = []
+        for i in found:
+            if cancel is not None:
+                cancel.check()
+            if verify_frame(frame_path(out, i), fingerprint, i):
+                reused.append(i)
+            yield Progress(len(reused), frames, f"checked frame {i}")
+        if len(reused) < frames:
+            remove_index(out)
+        done = set(reused)
+        todo = (FrameJob(i, frame_seeds(project.seed, i), project, fingerprint, irradiance_dtype, renderer)
+                for i in range(frames) if i not in done)
+        rendered, running = [], {}
+        for item in run_jobs(render_frame_job, todo, compute, cancel, task_progress=True):
+            if isinstance(item, TaskProgress):          # a frame still rendering: overall + per frame
+                running[item.job.index] = item.fraction
+                yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
+                               "rendering " + ", ".join(f"frame {i} {100 * f:.0f} %" for i, f in sorted(running.items())))
+                continue
+            job, rec = item
+            write_bytes_atomic(frame_path(out, job.index), rec.payload)
+            rendered.append(job.index)
+            running.pop(job.index, None)
+            yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
+                           f"frame {job.index}: {rec.objects} objects, {rec.seconds:.1f} s")
+        result = yield from write_index(out, project, frames, fingerprint, irradiance_dtype, renderer)
+    return DatasetResult(out, frames, rendered, reused, *result)
+
+
+def prepare_out_dir(out_dir: str | os.PathLike) -> Path:
+    """out_dir as a Path, with its frames folder made; OutputPathError when it cannot be."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise OutputPathError(out, "is a file, not a folder; give a folder for the data set")
+    try:
+        (out / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputPathError(out / FRAMES_DIR, "exists and is not a folder") from None
+    except OSError as exc:
+        raise OutputPathError(out, f"cannot make the data-set folder ({exc.strerror or exc})") from None
+    return out
+
+
+def check_spec(out: Path, fingerprint: str, project, irradiance_dtype: str) -> None:
+    """Write dataset_spec.json, or check that the one there describes the same data set."""
+    spec_path = out / SPEC_NAME
+    if not spec_path.exists():
         atomic_write_json(spec_path, {"format": DATASET_FORMAT, "fingerprint": fingerprint,
                                       "project": json.loads(project.model_dump_json()),
                                       "irradiance_dtype": irradiance_dtype})
-    for tmp in (out / FRAMES_DIR).glob(".*.tmp"):
-        tmp.unlink()                      # left by a run that was killed mid-write
+        return
+    try:
+        spec = json.loads(spec_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise InputFileError(spec_path, f"cannot be read as JSON ({type(exc).__name__}); delete the "
+                                        "folder or choose another output folder") from None
+    if not isinstance(spec, dict):
+        raise InputFileError(spec_path, f"holds a JSON {type(spec).__name__}, not a data-set spec "
+                                        "(an object); delete the folder or choose another output folder")
+    old = spec.get("fingerprint")
+    if old != fingerprint:
+        raise OutputPathError(out, f"holds a data set made from a different project or settings "
+                                   f"(fingerprint {str(old)[:12]}… ≠ {fingerprint[:12]}…); choose another "
+                                   "output folder or delete that one")
 
-    reused, todo = [], []
-    for i in range(frames):
-        if cancel is not None:
-            cancel.check()
-        path = frame_path(out, i)
-        if path.exists() and verify_frame(path, fingerprint, i):
-            reused.append(i)
-        else:
-            todo.append(FrameJob(i, frame_seeds(project.seed, i), project, str(path), fingerprint,
-                                 irradiance_dtype, renderer))
-        yield Progress(len(reused), frames, f"checked frame {i}")
-    rendered = []
-    for job, rec in run_jobs(run_frame_job, todo, workers, cancel,
-                             max_tasks_per_child=max_tasks_per_child if workers else None):
-        rendered.append(job.index)
-        yield Progress(len(reused) + len(rendered), frames,
-                       f"frame {job.index}: {rec['objects']} objects, {rec['seconds']:.1f} s")
 
+def scan_frames(out: Path, frames: int) -> tuple[list[int], list[str]]:
+    """(sorted indices < frames with a regular frame file, paths with a frame's name that are not
+    regular files): one directory scan, not one look-up per planned frame."""
+    found, odd = [], []
+    with os.scandir(out / FRAMES_DIR) as it:
+        for entry in it:
+            m = FRAME_NAME.fullmatch(entry.name)
+            if m is None or int(m.group(1)) >= frames:
+                continue
+            if entry.is_file(follow_symlinks=False):
+                found.append(int(m.group(1)))
+            else:
+                odd.append(entry.path)
+    return sorted(found), sorted(odd)
+
+
+def remove_index(out: Path) -> None:
+    """Remove coco.json and manifest.json: they must never claim a frame that is not on disk."""
+    for name in ("coco.json", "manifest.json"):
+        (out / name).unlink(missing_ok=True)
+
+
+def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dtype: str, renderer):
+    """Write coco.json and manifest.json from the frames on disk (a job step: yields Progress)."""
     yield Progress(frames, frames, "writing coco.json and manifest.json")
     coco_frames, entries = [], []
     for i in range(frames):
-        data, head = read_frame(frame_path(out, i), irradiance=False)
+        path = frame_path(out, i)
+        if not path.is_file() or path.is_symlink():
+            raise OutputPathError(path, "frame missing or not a regular file (changed during the run); "
+                                        "run again to render it")
+        data, head = read_frame(path, irradiance=False)
         rel = frame_path(out, i).relative_to(out).as_posix()
         coco_frames.append((rel, data.labels))
         entries.append({"index": i, "file": rel, "seeds": head["seeds"],
@@ -269,4 +393,4 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         "coco": coco_path.name, "written_utc": datetime.now(timezone.utc).isoformat(),
     }
     atomic_write_json(manifest_path, manifest)
-    return DatasetResult(out, frames, rendered, reused, manifest_path, coco_path)
+    return manifest_path, coco_path

@@ -9,7 +9,11 @@ from __future__ import annotations
 import numpy as np
 
 from workbench import spectra
+from workbench.registry import Registry
 from workbench.scene.types import Scene
+
+CHARTS: Registry = Registry("scene.kind", "chart")
+"""The analytic charts: scene kind → fn(…, size, fov_deg, distance_m, wavelengths_nm) -> Scene."""
 
 
 def _illuminant_photons(illuminant: str, wavelengths_nm: np.ndarray, luminance_cd_m2: float) -> np.ndarray:
@@ -48,6 +52,7 @@ def _scale_to_mean_luminance(reflectance_map: np.ndarray, white_photons: np.ndar
     return radiance * np.float32(mean_luminance_cd_m2 / mean_lum)
 
 
+@CHARTS.register("uniform")
 def uniform_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
                   size: tuple[int, int] = (64, 64), fov_deg: float = 10.0, distance_m: float = 1.2,
                   wavelengths_nm: np.ndarray = spectra.DEFAULT_WAVELENGTHS_NM,
@@ -81,6 +86,7 @@ def macbeth_layout(size: tuple[int, int]) -> np.ndarray:
     return layout
 
 
+@CHARTS.register("macbeth")
 def macbeth_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
                   size: tuple[int, int] = (96, 144), fov_deg: float = 10.0, distance_m: float = 1.2,
                   wavelengths_nm: np.ndarray = spectra.DEFAULT_WAVELENGTHS_NM,
@@ -98,6 +104,7 @@ def macbeth_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
                  name=f"Macbeth {illuminant}", meta={"illuminant": illuminant, "layout": layout})
 
 
+@CHARTS.register("slanted_edge")
 def slanted_edge_scene(angle_deg: float = 5.0, contrast: float = 0.8, illuminant: str = "D65",
                        mean_luminance_cd_m2: float = 100.0, size: tuple[int, int] = (128, 128),
                        fov_deg: float = 5.0, distance_m: float = 10.0,
@@ -127,6 +134,7 @@ def slanted_edge_scene(angle_deg: float = 5.0, contrast: float = 0.8, illuminant
                  name="slanted edge", meta={"angle_deg": angle_deg, "contrast": contrast})
 
 
+@CHARTS.register("hdr_tunnel")
 def hdr_tunnel_scene(exit_luminance_cd_m2: float = 20000.0, tunnel_luminance_cd_m2: float = 0.05,
                      size: tuple[int, int] = (120, 160), fov_deg: float = 44.0,
                      distance_m: float = 30.0,
@@ -158,11 +166,3 @@ def hdr_tunnel_scene(exit_luminance_cd_m2: float = 20000.0, tunnel_luminance_cd_
     return Scene(radiance, wl, fov_deg, distance_m, depth_m=depth, name="HDR tunnel",
                  meta={"exit_mask": exit_mask,
                        "dynamic_range": exit_luminance_cd_m2 / (0.4 * tunnel_luminance_cd_m2)})
-
-
-CHARTS = {
-    "uniform": uniform_scene,
-    "macbeth": macbeth_scene,
-    "slanted_edge": slanted_edge_scene,
-    "hdr_tunnel": hdr_tunnel_scene,
-}

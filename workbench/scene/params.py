@@ -9,8 +9,6 @@ from pydantic import Field, field_validator, model_validator
 from workbench import spectra
 from workbench.params import Params
 
-SCENE_KINDS = ("uniform", "macbeth", "slanted_edge", "hdr_tunnel", "city")
-
 
 class WavelengthParams(Params):
     """Wavelength sampling (nm), both ends included. 400–700 nm in 10 nm steps by default."""

@@ -12,18 +12,13 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.registry import Registry
 from workbench.sensor.cfa import cfa_layout
 from workbench.sensor.params import SensorParams
 
-AUTO_EXPOSURE_METHODS: dict[str, Callable] = {}
-
-
-def register_auto_exposure(name: str):
-    """Decorator: register `fn(volts_per_s, params) -> exposure_s (float or tile array)`."""
-    def deco(fn):
-        AUTO_EXPOSURE_METHODS[name] = fn
-        return fn
-    return deco
+AUTO_EXPOSURE_METHODS: Registry[Callable] = Registry("sensor.auto_exposure_method", "auto-exposure method")
+"""name → fn(volts_per_s, params) -> exposure_s (a float, or an array of the CFA tile's shape)."""
+register_auto_exposure = AUTO_EXPOSURE_METHODS.register
 
 
 def _headroom_V(params: SensorParams, fraction: float) -> float:
@@ -77,17 +72,14 @@ def auto_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams, method:
     """Exposure (s) picked by `method` (default params.auto_exposure_method), times 2^ev_bias.
 
     Returns a float, or an array of the CFA tile's shape for the 'cfa' method."""
-    name = method or params.auto_exposure_method
-    if name not in AUTO_EXPOSURE_METHODS:
-        raise ValueError(f"unknown auto-exposure method '{name}'; allowed: {', '.join(AUTO_EXPOSURE_METHODS)}")
+    pick = AUTO_EXPOSURE_METHODS[method or params.auto_exposure_method]
     electrons_per_s = np.asarray(signal_rate_e_per_s, dtype=np.float32)
     if params.noise_flag == 2 and params.dark_current_e_per_s > 0:
         electrons_per_s = electrons_per_s + np.float32(params.dark_current_e_per_s)
     gain = params.analog_gain if params.noise_flag >= 0 else 1.0
     vps = electrons_per_s * np.float32(gain * params.conversion_gain_V_per_e)
-    t = AUTO_EXPOSURE_METHODS[name](vps, params)
-    return np.clip(np.asarray(t, dtype=np.float64) * 2.0 ** params.ev_bias, 0.0, params.max_exposure_s) \
-        if name == "cfa" else float(min(max(t * 2.0 ** params.ev_bias, 0.0), params.max_exposure_s))
+    t = np.clip(np.asarray(pick(vps, params), dtype=np.float64) * 2.0 ** params.ev_bias, 0.0, params.max_exposure_s)
+    return float(t) if t.ndim == 0 else t
 
 
 def resolve_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams):

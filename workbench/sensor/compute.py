@@ -5,20 +5,20 @@ import numpy as np
 
 from workbench.optics.types import OpticalImage
 from workbench.sensor.auto_exposure import resolve_exposure
-from workbench.sensor.expose import expose
+from workbench.sensor.expose import signal_rate_to_sensor_image
 from workbench.sensor.image import SensorImage
 from workbench.sensor.params import SensorParams
-from workbench.sensor.signal import pixel_signal_rate
+from workbench.sensor.signal import irradiance_to_signal_rate
 
 
-def sensor_compute(oi: OpticalImage, params: SensorParams, seed: int | None = None) -> SensorImage:
+def irradiance_to_sensor_image(oi: OpticalImage, params: SensorParams, seed: int | None = None) -> SensorImage:
     """Irradiance → mean e⁻/s per pixel → exposure (auto if params.exposure_s is None) → one frame.
 
     seed: temporal-noise seed (default params.seed); the fixed patterns always follow params.seed,
     so frames with different seeds are different captures by the same sensor."""
-    rate = pixel_signal_rate(oi, params)
+    rate = irradiance_to_signal_rate(oi, params)
     exposure_s = resolve_exposure(rate, params)
     rng = np.random.default_rng([params.seed if seed is None else seed, 2])
-    image = expose(rate, params, exposure_s, rng, wavelengths_nm=oi.wavelengths_nm)
+    image = signal_rate_to_sensor_image(rate, params, exposure_s, rng, wavelengths_nm=oi.wavelengths_nm)
     image.meta["mean_signal_rate_e_per_s"] = float(rate.mean(dtype=np.float64))
     return image

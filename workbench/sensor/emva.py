@@ -26,9 +26,9 @@ import numpy as np
 
 from workbench.optics.types import OpticalImage
 from workbench.sensor.cfa import cfa_layout, channel_index_map, channel_qe
-from workbench.sensor.expose import expose
+from workbench.sensor.expose import signal_rate_to_sensor_image
 from workbench.sensor.params import SensorParams
-from workbench.sensor.signal import pixel_signal_rate
+from workbench.sensor.signal import irradiance_to_signal_rate
 
 WAVELENGTH_NM = 550.0
 LINEAR_FIT_FRACTION = 0.7
@@ -69,7 +69,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     mask = channel_index_map(tile, cam.rows, cam.cols) == k
     unit_oi = OpticalImage(np.ones((cam.rows, cam.cols, 1), dtype=np.float32), wl,
                            cam.pixel_pitch_um * 1e-6, 1e-2, 4.0)
-    rate_per_irradiance = pixel_signal_rate(unit_oi, cam)          # e⁻/s per (photon/s/m²/nm)
+    rate_per_irradiance = irradiance_to_signal_rate(unit_oi, cam)          # e⁻/s per (photon/s/m²/nm)
     to_dn = 1.0 / cam.lsb_V if cam.bit_depth else 1.0              # analog: "DN" are volts
     sat_e = (cam.voltage_swing_V - cam.analog_offset_V) / (cam.conversion_gain_V_per_e * cam.analog_gain)
     e_sat = sat_e / (exposure_s * float(rate_per_irradiance[mask].mean()))
@@ -77,7 +77,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
                                        np.linspace(0.9, 1.3, n_levels - n_levels // 2)]))
 
     def frame(rate: np.ndarray, t: float) -> np.ndarray:
-        return expose(rate, cam, t, rng).dn
+        return signal_rate_to_sensor_image(rate, cam, t, rng).dn
 
     zero = np.zeros_like(rate_per_irradiance)
     dark_pairs = [_pair_stats(frame(zero, exposure_s), frame(zero, exposure_s), mask) for _ in range(4)]

@@ -124,8 +124,9 @@ def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, gen: np.random.
         np.clip(d, 0.0, np.float32(params.max_dn), out=d)
 
 
-def expose(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
-           rng: np.random.Generator | None = None, *, wavelengths_nm: np.ndarray | None = None) -> SensorImage:
+def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
+                                rng: np.random.Generator | None = None, *,
+                                wavelengths_nm: np.ndarray | None = None) -> SensorImage:
     """One exposure of a rows×cols mean electron-rate image (e⁻/s) → SensorImage.
 
     exposure_s: seconds, or an array of the CFA tile's shape (per-CFA exposure).

@@ -6,35 +6,20 @@ auto-exposure on), and `exposure_s=None` asks for auto-exposure.
 """
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from workbench.params import Params
-from workbench.spectra import RESOURCES
 
 MAX_PIXELS = 2 ** 25
 """Largest sensor simulated in memory (33.5 Mpx, e.g. 8192×4096): each full-frame stage keeps a
 few float32 copies, and the optical image upstream is H×W×Nλ."""
 
 CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO")
-AUTO_EXPOSURE_METHOD_NAMES = ("mean", "brightest", "percentile", "cfa")
 
 CfaPattern = Literal["RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO"]
 AutoExposureMethod = Literal["mean", "brightest", "percentile", "cfa"]
-
-
-def resolve_resource(name: str) -> Path:
-    """A data-file name relative to resources/ (or an absolute path) → its path."""
-    p = Path(name)
-    return p if p.is_absolute() else RESOURCES / p
-
-
-def csv_column_names(name: str) -> list[str]:
-    """Curve names in a spectrum CSV's header row (without the wavelength column)."""
-    with open(resolve_resource(name), encoding="utf-8") as fh:
-        return [c.strip() for c in fh.readline().strip().split(",")[1:]]
 
 
 class SensorParams(Params):
@@ -102,10 +87,10 @@ class SensorParams(Params):
 
     @field_validator("filter_file", "photodiode_qe_file", "ir_cut_file")
     @classmethod
-    def _file_exists(cls, v):
-        if v is not None and not resolve_resource(v).is_file():
-            raise ValueError(f"spectral data file '{v}' not found (names are relative to {RESOURCES})")
-        return v
+    def _valid_spectrum_file(cls, v):
+        """Confined to resources/, readable, finite, in [0, 1], wavelengths strictly increasing."""
+        from workbench.spectrum_csv import check_spectrum_file
+        return v if v is None else check_spectrum_file(v)
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -128,10 +113,11 @@ class SensorParams(Params):
         if needed:
             if self.filter_file is None:
                 raise ValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
-            have = csv_column_names(self.filter_file)
+            from workbench.spectrum_csv import read_spectrum
+            have = read_spectrum(self.filter_file).names
             missing = [c for c in needed if c not in have]
             if missing:
-                raise ValueError(f"filter_file '{self.filter_file}' has columns {have}, missing {missing} "
+                raise ValueError(f"filter_file '{self.filter_file}' has no curve {', '.join(missing)}, "
                                  f"needed by cfa_pattern {self.cfa_pattern}")
         return self
 
@@ -159,7 +145,7 @@ class SensorParams(Params):
 
     @property
     def lsb_V(self) -> float:
-        """Volts per code (swing / 2^bits); the swing itself for an analog read-out."""
+        """Volts per code (swing / 2^bits); 1.0 for an analog read-out, whose DN are its volts (unquantised)."""
         return self.voltage_swing_V / 2 ** self.bit_depth if self.bit_depth else 1.0
 
     @property

@@ -13,22 +13,24 @@ import numpy as np
 import scipy.sparse as sp
 
 from workbench.optics.types import OpticalImage
+from workbench.registry import Registry
 from workbench.sensor.cfa import cfa_layout, channel_qe
 from workbench.sensor.params import SensorParams
 from workbench.units import band_widths_nm
 
-REGRID_METHODS = ("area", "isetcam")
-"""'area': each pixel averages the (piecewise-constant) irradiance over its square — flux
-conserving for any ratio of sample spacing to pixel pitch. 'isetcam': ISETCam's regridOI2ISA —
-Gaussian pre-blur (kernel ceil(pitch/spacing) samples, σ = kernel/4) then bilinear interpolation
-at the pixel centres."""
+REGRID_METHODS: Registry = Registry("sensor.regrid_method", "regrid method")
+"""How the optical image is resampled onto the pixels: name → fn(n_src, src_spacing, n_dst,
+dst_spacing) -> sparse (n_dst × n_src) 1-D resampling matrix between centred grids."""
 
 
 def _edges(n: int, spacing: float) -> np.ndarray:
     return (np.arange(n + 1) - n / 2.0) * spacing
 
 
+@REGRID_METHODS.register("area")
 def _area_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
+    """Each pixel averages the (piecewise-constant) irradiance over its square: flux conserving
+    for any ratio of sample spacing to pixel pitch."""
     src_edges = _edges(n_src, s)
     lo = _edges(n_dst, p)[:-1]
     hi = lo + p
@@ -48,7 +50,10 @@ def _area_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
                         shape=(n_dst, n_src))
 
 
+@REGRID_METHODS.register("isetcam")
 def _isetcam_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
+    """ISETCam's regridOI2ISA: Gaussian pre-blur (kernel ceil(pitch/spacing) samples, σ = kernel/4),
+    then bilinear interpolation at the pixel centres."""
     kernel = int(np.ceil(p / s - 1e-9))
     if kernel > 1:
         half = kernel // 2
@@ -78,10 +83,7 @@ def _isetcam_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
 def resample_matrix(n_src: int, src_spacing_m: float, n_dst: int, dst_spacing_m: float,
                     method: str = "area") -> sp.csr_array:
     """Sparse (n_dst × n_src) 1-D resampling from a centred grid of samples to centred pixels."""
-    if method not in REGRID_METHODS:
-        raise ValueError(f"unknown regrid method '{method}'; allowed: {', '.join(REGRID_METHODS)}")
-    build = _area_matrix if method == "area" else _isetcam_matrix
-    m = build(n_src, src_spacing_m, n_dst, dst_spacing_m).astype(np.float32)
+    m = REGRID_METHODS[method](n_src, src_spacing_m, n_dst, dst_spacing_m).astype(np.float32)
     m.sum_duplicates()
     return m
 
@@ -127,7 +129,7 @@ def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> 
     return out
 
 
-def pixel_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
+def irradiance_to_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
     """Mean photo-electron rate (e⁻/s) of every pixel, rows×cols float32, before any noise.
 
     Fast path when the optical image is already on the pixel grid (same spacing; same size, or

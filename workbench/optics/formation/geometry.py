@@ -113,16 +113,22 @@ def radial_resample(plane: np.ndarray, spacing_m: float, scale: np.ndarray) -> n
 
 def distort_image(image: np.ndarray, spacing_m: float, image_distance: float,
                   k: tuple[float, ...]) -> np.ndarray:
-    """Resample an undistorted H×W×C image onto the distorted sensor grid (radial_resample).
+    """Irradiance of an undistorted H×W×C image on the distorted sensor grid.
 
-    Output sample at distorted height r_d takes the input at r_u; field outside the input is 0."""
+    The output sample at distorted height r_d takes the input at r_u (radial_resample) times the
+    area Jacobian dA_u/dA_d = (r_u/r_d)·(dr_u/dr_d): distortion moves the light a scene patch sends
+    through the pupil, it neither creates nor removes it, so total flux is kept (barrel
+    distortion brightens the corners it compresses). Field outside the input is 0."""
     if not k or not any(k):
         return image
     x, y = sample_positions_m(image.shape[:2], spacing_m)
     rd = np.hypot(x, y) / image_distance
     ru = undistort_radius(rd, k)
     scale = np.divide(ru, rd, out=np.ones_like(rd), where=rd > 0)
+    k1, k2, k3 = tuple(k) + (0.0,) * (3 - len(k))
+    r2 = ru * ru
+    jacobian = scale / (1.0 + 3.0 * k1 * r2 + 5.0 * k2 * r2 ** 2 + 7.0 * k3 * r2 ** 3)   # dr_d/dr_u > 0
     out = np.empty_like(image)
     for c in range(image.shape[2]):
-        out[..., c] = radial_resample(image[..., c], spacing_m, scale)
+        out[..., c] = radial_resample(image[..., c], spacing_m, scale) * jacobian
     return out

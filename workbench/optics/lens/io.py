@@ -1,15 +1,21 @@
 """Lens files: ISETCam JSON (read/write), PBRT .dat (read/write), Zemax .zmx subset (read).
 
-`load_lens(path)` also accepts a bare name of a file in resources/lenses/ ("dgauss.50mm").
+`load_lens(path)` also accepts the name of a lens in the lens library ("dgauss.50mm"): the lenses
+shipped in resources/lenses/, then the user's own lenses (saved by the lens editor) in
+`user_lens_dir()`. A project names its lens that way (optics.lens_file). Every
+problem with a file is an InputFileError naming it; messages never echo the file's lines, and
+every count or index read from a file is bounded before anything is allocated.
 """
 from __future__ import annotations
 
 import json
 import math
 import os
-import tempfile
-from pathlib import Path
+from functools import lru_cache
+from pathlib import Path, PurePosixPath
 
+from workbench.errors import InputFileError, OutputPathError
+from workbench.files import atomic_write_text, parse_json, read_text
 from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
 from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
@@ -17,42 +23,117 @@ from workbench.spectra import RESOURCES
 
 LENS_DIR = RESOURCES / "lenses"
 _FORMATS = (".json", ".dat", ".zmx")
+MAX_LENS_BYTES = 2 ** 20
+MAX_SURFACES = 256
+MAX_ASPHERE_TERMS = 16
+MAX_INDEX_TABLE = 4096
+
+
+USER_LENS_DIR_ENV = "WORKBENCH_LENS_DIR"
+
+
+def user_lens_dir() -> Path:
+    """The user's lens library: $WORKBENCH_LENS_DIR, else 'lenses' in the platform's user-data
+    folder of camera-workbench (e.g. ~/.local/share/camera-workbench/lenses)."""
+    env = os.environ.get(USER_LENS_DIR_ENV)
+    if env:
+        return Path(env)
+    import platformdirs
+    return Path(platformdirs.user_data_dir("camera-workbench")) / "lenses"
+
+
+def lens_library() -> tuple[Path, ...]:
+    """The folders lens names resolve in, in order: the shipped lenses, then the user's."""
+    return LENS_DIR, user_lens_dir()
 
 
 def available_lenses() -> list[str]:
-    """Names of the lenses shipped in resources/lenses/."""
-    return sorted(p.name[: -len(p.suffix)] for p in LENS_DIR.iterdir() if p.suffix in _FORMATS)
+    """Names of the lenses in the library (shipped ones first), without extension."""
+    names: list[str] = []
+    for folder in lens_library():
+        if folder.is_dir():
+            names += sorted(p.name[: -len(p.suffix)] for p in folder.iterdir()
+                            if p.suffix in _FORMATS and p.name[: -len(p.suffix)] not in names)
+    return names
 
 
 def resolve_lens_path(path_or_name) -> Path:
-    """A path to an existing lens file, or the shipped file with that name."""
+    """A path to an existing lens file, or the library lens with that name."""
     p = Path(path_or_name)
-    if p.is_file():
+    if os.path.lexists(p):
         return p
-    for ext in ("",) + _FORMATS:
-        q = LENS_DIR / f"{path_or_name}{ext}"
-        if q.is_file():
-            return q
-    raise FileNotFoundError(f"lens {str(path_or_name)!r}: no such file, and not a shipped lens "
-                            f"(available: {', '.join(available_lenses())})")
+    return library_lens_path(str(path_or_name))
+
+
+def library_lens_path(name: str) -> Path:
+    """The file of a library lens (name relative to a library folder, with or without extension);
+    InputFileError if there is none. Absolute names and '..' are refused."""
+    rel = PurePosixPath(name.replace("\\", "/"))
+    if not name or rel.is_absolute() or ".." in rel.parts:
+        raise InputFileError(name, "a lens name is relative to the lens library (resources/lenses/ or "
+                                   "the user's lens folder; no '..', not absolute)")
+    for folder in lens_library():
+        for ext in ("",) + _FORMATS:
+            q = folder / f"{rel}{ext}"
+            try:
+                if q.is_file():
+                    return q
+            except OSError:                 # a name too long for the file system, …: not a lens
+                break
+    raise InputFileError(name, f"no such lens file, and not a library lens (available: "
+                               f"{', '.join(available_lenses())})")
+
+
+def check_library_lens(name: str) -> None:
+    """Raise InputFileError unless `name` is a library lens that reads without error (cached per
+    file version), so that a project naming a missing or broken lens is refused when it loads."""
+    p = library_lens_path(name)
+    st = p.stat()
+    _checked_lens(str(p), st.st_mtime_ns, st.st_size)
+
+
+@lru_cache(maxsize=64)
+def _checked_lens(path: str, _mtime_ns: int, _size: int) -> None:
+    load_lens(path)
 
 
 def load_lens(path) -> Lens:
-    """Read a lens by file extension: .json (ISETCam), .dat (PBRT), .zmx (Zemax subset)."""
+    """Read a lens by file extension: .json (ISETCam), .dat (PBRT), .zmx (Zemax subset).
+    InputFileError (naming the file) if it cannot be read or is not a valid lens."""
     p = resolve_lens_path(path)
     ext = p.suffix.lower()
-    raw = p.read_bytes()
-    # Zemax often writes UTF-16 with a byte-order mark.
-    encoding = "utf-16" if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else "utf-8-sig"
-    text = raw.decode(encoding, errors="replace")
+    if ext not in _FORMATS:
+        raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(_FORMATS)}")
+    text = read_text(p, "lens file", MAX_LENS_BYTES)
     name = p.name[: -len(p.suffix)]
-    if ext == ".json":
-        return lens_from_json(json.loads(text), default_name=name)
-    if ext == ".dat":
-        return lens_from_dat(text, name=name)
-    if ext == ".zmx":
+    try:
+        if ext == ".json":
+            return lens_from_json(parse_json(text, p, "lens file"), default_name=name)
+        if ext == ".dat":
+            return lens_from_dat(text, name=name)
         return lens_from_zmx(text, name=name)
-    raise ValueError(f"lens file {str(p)!r}: unknown extension {ext!r}; allowed: {', '.join(_FORMATS)}")
+    except InputFileError:
+        raise
+    except (ValueError, TypeError, KeyError, IndexError, OverflowError, ZeroDivisionError) as exc:
+        raise InputFileError(p, f"not a valid lens: {exc}") from None
+
+
+def _material(spec, where: str):
+    try:
+        return material(spec)
+    except (ValueError, TypeError):
+        shown = repr(spec) if isinstance(spec, (str, int, float)) and len(str(spec)) <= 40 else "the material"
+        raise ValueError(f"{where}: {shown} is not a catalogue glass (resources/glass/), an index 'n' or "
+                         "'n/V', or a [[wavelengths nm], [n]] table") from None
+
+
+def _number(value, what: str, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"{where}: {what} must be a number")
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{where}: {what} must be a finite number, got {v}")
+    return v
 
 
 def save_lens(lens: Lens, path) -> Path:
@@ -60,16 +141,12 @@ def save_lens(lens: Lens, path) -> Path:
     p = Path(path)
     ext = p.suffix.lower()
     if ext == ".json":
-        text = json.dumps(lens_to_json(lens), indent=1)
+        text = json.dumps(lens_to_json(lens), indent=1, allow_nan=False)
     elif ext == ".dat":
         text = lens_to_dat(lens)
     else:
-        raise ValueError(f"save_lens: extension {ext!r} of {str(p)!r} not writable; allowed: .json, .dat")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=p.name, suffix=".tmp")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, p)
+        raise OutputPathError(p, f"a lens is saved as .json or .dat, not {ext!r}")
+    atomic_write_text(p, text)
     return p
 
 
@@ -80,42 +157,56 @@ def lens_from_json(data: dict, default_name: str = "") -> Lens:
     'is_stop', 'conic_constant', 'aspheric_coefficients' (r², r⁴ …), top-level 'image_distance_mm'."""
     if not isinstance(data, dict) or not isinstance(data.get("surfaces"), list):
         raise ValueError("lens JSON: expected an object with a 'surfaces' list")
+    if not 1 <= len(data["surfaces"]) <= MAX_SURFACES:
+        raise ValueError(f"lens JSON: {len(data['surfaces'])} surfaces; allowed 1–{MAX_SURFACES}")
     surfaces = []
     prev = AIR
     for i, s in enumerate(data["surfaces"]):
-        try:
-            radius = float(s["radius"])
-            thickness = float(s["thickness"])
-            sa = s["semi_aperture"]
-            sa = float(max(sa) if isinstance(sa, list) else sa)   # [x, y] semi-axes: circle of the larger
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"lens JSON surface {i}: needs numeric 'radius', 'thickness', "
-                             f"'semi_aperture' ({exc})") from None
+        where = f"lens JSON surface {i}"
+        if not isinstance(s, dict) or not all(k in s for k in ("radius", "thickness", "semi_aperture")):
+            raise ValueError(f"{where}: needs numeric 'radius', 'thickness', 'semi_aperture'")
+        radius = _number(s["radius"], "radius", where)
+        thickness = _number(s["thickness"], "thickness", where)
+        sa = s["semi_aperture"]
+        if isinstance(sa, list) and 1 <= len(sa) <= 2:      # [x, y] semi-axes: circle of the larger
+            sa = max(_number(v, "semi_aperture", where) for v in sa)
+        sa = _number(sa, "semi_aperture", where)
         ior = s.get("ior", 1.0)
-        is_stop = bool(s.get("is_stop", radius == 0 and ior == 0 and "glass" not in s))
+        is_stop = s.get("is_stop", radius == 0 and ior == 0 and "glass" not in s)
+        if not isinstance(is_stop, bool):
+            raise ValueError(f"{where}: 'is_stop' must be true or false")
         if "glass" in s:
-            med = material(s["glass"])
+            med = _material(s["glass"], where)
         elif is_stop or ior == 0:
             med = prev
         elif isinstance(ior, list):
-            if len(ior) != 2:
-                raise ValueError(f"lens JSON surface {i}: 'ior' table must be [[wavelengths nm], [n]]")
-            med = material({"wavelength_nm": ior[0], "n": ior[1]})
+            if len(ior) != 2 or not all(isinstance(v, list) and len(v) <= MAX_INDEX_TABLE for v in ior):
+                raise ValueError(f"{where}: 'ior' table must be [[wavelengths nm], [n]] of at most "
+                                 f"{MAX_INDEX_TABLE} entries")
+            med = _material({"wavelength_nm": ior[0], "n": ior[1]}, where)
         else:
-            med = material(ior)
+            med = _material(ior, where)
+        coeffs = s.get("aspheric_coefficients", ()) or ()
+        if not isinstance(coeffs, (list, tuple)) or len(coeffs) > MAX_ASPHERE_TERMS:
+            raise ValueError(f"{where}: 'aspheric_coefficients' must be a list of at most {MAX_ASPHERE_TERMS} "
+                             "numbers")
         try:
             surf = Surface.from_radius(radius, thickness, med, sa, is_stop=is_stop,
-                                       conic=float(s.get("conic_constant", 0.0)),
-                                       asphere_coeffs=tuple(s.get("aspheric_coefficients", ()) or ()))
+                                       conic=_number(s.get("conic_constant", 0.0), "conic_constant", where),
+                                       asphere_coeffs=tuple(_number(a, "aspheric coefficient", where)
+                                                            for a in coeffs))
         except ValueError as exc:
-            raise ValueError(f"lens JSON surface {i}: {exc}") from None
+            raise ValueError(f"{where}: {exc}") from None
         surfaces.append(surf)
         prev = med
     d = data.get("image_distance_mm")
+    meta = data.get("metadata", {})
+    if not isinstance(meta, dict):
+        raise ValueError("lens JSON: 'metadata' must be an object")
     return with_aperture_stop(Lens(tuple(surfaces), name=str(data.get("name", default_name)),
-                                   image_distance_mm=None if d is None else float(d),
-                                   description=str(data.get("description", "")),
-                                   meta=dict(data.get("metadata", {}))))
+                                   image_distance_mm=None if d is None else _number(d, "image_distance_mm",
+                                                                                     "lens JSON"),
+                                   description=str(data.get("description", "")), meta=dict(meta)))
 
 
 def lens_to_json(lens: Lens) -> dict:
@@ -154,13 +245,18 @@ def lens_from_dat(text: str, name: str = "") -> Lens:
         line = line.split("#", 1)[0].strip()
         if not line:
             continue
+        if len(surfaces) == MAX_SURFACES:
+            raise ValueError(f"PBRT lens: more than {MAX_SURFACES} surfaces")
+        fields = line.split()
         try:
-            r, t, n, diam = (float(v) for v in line.split())
+            r, t, n, diam = (float(v) for v in fields)
         except ValueError:
-            raise ValueError(f"PBRT lens line {lineno}: expected 4 numbers 'radius thickness n diameter', "
-                             f"got {line!r}") from None
+            raise ValueError(f"PBRT lens line {lineno}: expected 4 numbers 'radius thickness n diameter' "
+                             f"(found {len(fields)} field(s))") from None
+        if not all(math.isfinite(v) for v in (r, t, n, diam)):
+            raise ValueError(f"PBRT lens line {lineno}: every number must be finite")
         stop = r == 0
-        med = prev if stop or n == 0 else material(n)
+        med = prev if stop or n == 0 else _material(n, f"PBRT lens line {lineno}")
         try:
             surfaces.append(Surface.from_radius(r, t, med, diam / 2.0, is_stop=stop))
         except ValueError as exc:
@@ -208,6 +304,8 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
         if key == "UNIT" and len(tok) > 1:
             units = tok[1].upper()
         if key == "SURF":
+            if len(blocks) == MAX_SURFACES + 2:
+                raise ValueError(f"Zemax file: more than {MAX_SURFACES} surfaces")
             cur = {"type": "STANDARD", "curv": 0.0, "disz": 0.0, "glas": None, "diam": None,
                    "stop": False, "coni": 0.0, "parm": {}, "line": lineno}
             blocks.append(cur)
@@ -230,24 +328,34 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
             elif key == "CONI":
                 cur["coni"] = float(tok[1])
             elif key == "PARM":
-                cur["parm"][int(tok[1])] = float(tok[2])
+                index = int(tok[1])
+                if not 0 <= index <= MAX_ASPHERE_TERMS:
+                    raise ValueError(f"PARM index {index} outside 0–{MAX_ASPHERE_TERMS}")
+                cur["parm"][index] = float(tok[2])
             elif key == "MIRR":
                 raise ValueError("mirrors are not supported")
         except (IndexError, ValueError) as exc:
-            raise ValueError(f"Zemax file line {lineno}: cannot read {raw.strip()!r} ({exc})") from None
+            detail = str(exc) if str(exc).startswith(("PARM", "mirrors")) else "missing or non-numeric value"
+            raise ValueError(f"Zemax file line {lineno}: cannot read its {key} entry ({detail})") from None
+        for k in ("curv", "diam", "coni"):
+            if cur[k] is not None and not math.isfinite(cur[k]):
+                raise ValueError(f"Zemax file line {lineno}: {key} must be a finite number")
     if units != "MM":
-        raise ValueError(f"Zemax file: UNIT {units} not supported (only MM)")
+        raise ValueError("Zemax file: only UNIT MM is supported")
     if len(blocks) < 3:
         raise ValueError("Zemax file: needs an object surface, at least one lens surface and an image surface")
     surfaces = []
     for b in blocks[1:-1]:
         if b["type"] not in ("STANDARD", "EVENASPH"):
-            raise ValueError(f"Zemax surface at line {b['line']}: TYPE {b['type']} not supported "
-                             "(allowed: STANDARD, EVENASPH)")
+            shown = b["type"] if b["type"].isalnum() and len(b["type"]) <= 16 else "this surface TYPE"
+            raise ValueError(f"Zemax surface at line {b['line']}: {shown} not supported "
+                             "(allowed TYPEs: STANDARD, EVENASPH)")
         med = AIR if b["glas"] is None else _zmx_glass(b["glas"], b["line"])
         coeffs = ()
         if b["type"] == "EVENASPH" and b["parm"]:
             coeffs = tuple(b["parm"].get(i, 0.0) for i in range(1, max(b["parm"]) + 1))
+            if not all(math.isfinite(a) for a in coeffs):
+                raise ValueError(f"Zemax surface at line {b['line']}: PARM values must be finite")
         if b["diam"] is None or b["diam"] <= 0:
             raise ValueError(f"Zemax surface at line {b['line']}: needs DIAM (semi-diameter) > 0")
         if not math.isfinite(b["disz"]):
@@ -261,11 +369,11 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
 def _zmx_glass(fields: list[str], lineno: int):
     try:
         return material(fields[0])
-    except ValueError:
+    except (ValueError, IndexError):
         pass
     try:  # GLAS NAME code? ? nd vd ...
         nd, vd = float(fields[3]), float(fields[4])
-        return material(f"{nd}/{vd}" if vd > 0 else f"{nd}")
     except (IndexError, ValueError):
-        raise ValueError(f"Zemax file line {lineno}: glass {fields[0]!r} is not in the catalogue and the "
-                         "GLAS line carries no n_d, V_d") from None
+        raise ValueError(f"Zemax file line {lineno}: the glass is not in the catalogue (resources/glass/) and "
+                         "the GLAS line carries no n_d, V_d") from None
+    return _material(f"{nd}/{vd}" if vd > 0 else f"{nd}", f"Zemax file line {lineno}")

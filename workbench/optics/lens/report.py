@@ -100,11 +100,10 @@ def format_summary(s: dict) -> str:
 
 
 # ------------------------------------------------------------------ figures
-def _fig():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+# Each draw_* function draws one chart of a lens on a matplotlib Figure (no pyplot, so the GUI can
+# build figures on a worker thread and the command line can save them); write_plots saves them all.
+WAVELENGTH_LINES = ((LINE_F_NM, "tab:blue"), (LINE_D_NM, "tab:green"), (LINE_C_NM, "tab:red"))
+PSF_WAVELENGTH_NM = 550.0
 
 
 def plot_layout(lens: Lens, ax, fields_deg) -> None:
@@ -150,29 +149,21 @@ def plot_layout(lens: Lens, ax, fields_deg) -> None:
     ax.set_title(f"{lens.name}: layout and ray fans")
 
 
-def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Path]:
-    """layout.png, spots.png, ray_fans.png, mtf.png, distortion.png, relative_illumination.png."""
-    plt = _fig()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+def field_angles(lens: Lens, max_field: float | None = None) -> list[float]:
+    """The fields the charts use: FIELD_FRACTIONS of max_field (default the largest traceable)."""
     mf = max_field_deg(lens) if max_field is None else float(max_field)
-    fields = [f * mf for f in FIELD_FRACTIONS]
-    written = []
+    return [f * mf for f in FIELD_FRACTIONS]
 
-    def save(fig, name):
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=110)
-        plt.close(fig)
-        written.append(out / name)
 
-    fig, ax = plt.subplots(figsize=(9, 5))
-    plot_layout(lens, ax, fields[::-1][:3])
-    save(fig, "layout.png")
+def draw_layout(fig, lens: Lens, fields: list[float]) -> None:
+    plot_layout(lens, fig.add_subplot(), fields[::-1][:3])
 
-    wls = ((LINE_F_NM, "tab:blue"), (LINE_D_NM, "tab:green"), (LINE_C_NM, "tab:red"))
-    fig, axes = plt.subplots(1, len(fields), figsize=(3.2 * len(fields), 3.4))
+
+def draw_spots(fig, lens: Lens, fields: list[float]) -> None:
+    """Spot diagrams at each field for the F, d and C lines."""
+    axes = fig.subplots(1, len(fields), squeeze=False)[0]
     for ax, f in zip(axes, fields):
-        for wl, col in wls:
+        for wl, col in WAVELENGTH_LINES:
             try:
                 sd = spot_diagram(lens, f, wl, n_side=24)
             except ValueError:
@@ -183,11 +174,13 @@ def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Pat
         ax.set_aspect("equal")
         ax.set_xlabel("x (µm)")
     axes[0].set_ylabel("y (µm)")
-    save(fig, "spots.png")
 
-    fig, axes = plt.subplots(2, len(fields), figsize=(3.2 * len(fields), 5), sharex=True)
+
+def draw_ray_fans(fig, lens: Lens, fields: list[float]) -> None:
+    """Tangential and sagittal ray-fan errors at each field for the F, d and C lines."""
+    axes = fig.subplots(2, len(fields), sharex=True, squeeze=False)
     for k, f in enumerate(fields):
-        for wl, col in wls:
+        for wl, col in WAVELENGTH_LINES:
             try:
                 fan = ray_fan(lens, f, wl)
             except ValueError:
@@ -199,24 +192,54 @@ def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Pat
         axes[1, k].set_xlabel("pupil (mm)")
     axes[0, 0].set_ylabel("εy (µm)")
     axes[1, 0].set_ylabel("εx (µm)")
-    save(fig, "ray_fans.png")
 
+
+def field_psf(lens: Lens, field_deg: float, wavelength_nm: float = PSF_WAVELENGTH_NM):
+    """(PSF, grid spacing µm) at a field angle for an object at infinity, or None if untraceable."""
+    lam = wavelength_nm
+    try:
+        h = chief_ray_on_sensor(lens, field_deg, lam)[1]
+        rms = spot_diagram(lens, field_deg, lam, n_side=24).rms_um
+    except ValueError:
+        return None
+    spacing = max(lam * 1e-3 * paraxial(lens).f_number / 4, 10 * rms / 256)
+    size = int(np.clip(2 ** math.ceil(math.log2(max(10 * rms / spacing, 64))), 64, 256))
+    try:
+        return psf_diffraction(lens, h, lam, math.inf, spacing, size), spacing
+    except ValueError:
+        return None
+
+
+def draw_psf(fig, lens: Lens, fields: list[float]) -> None:
+    """Diffraction PSF (550 nm, log scale) at each field."""
+    axes = fig.subplots(1, len(fields), squeeze=False)[0]
+    for ax, f in zip(axes, fields):
+        got = field_psf(lens, f)
+        ax.set_title(f"{f:.1f}°", fontsize=9)
+        if got is None:
+            ax.text(0.5, 0.5, "not traceable", ha="center", va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            continue
+        psf, spacing = got
+        half = psf.shape[0] * spacing / 2
+        ax.imshow(np.log10(psf / psf.max() + 1e-4), extent=(-half, half, -half, half), cmap="magma",
+                  origin="lower")
+        ax.set_xlabel("x (µm)")
+    axes[0].set_ylabel("y (µm)")
+    fig.suptitle(f"PSF at {PSF_WAVELENGTH_NM:g} nm (log10, 4 decades)", fontsize=9)
+
+
+def draw_mtf(fig, lens: Lens, fields: list[float]) -> None:
+    """Tangential and sagittal MTF from the diffraction PSF at each field, with the diffraction limit."""
+    ax = fig.add_subplot()
+    lam = PSF_WAVELENGTH_NM
     p = paraxial(lens)
-    lam = 550.0
-    fig, ax = plt.subplots(figsize=(6, 4))
     nu_c = 1.0 / (lam * 1e-6 * p.f_number)
     for f, col in zip(fields, ("k", "tab:blue", "tab:green", "tab:red")):
-        try:
-            h = chief_ray_on_sensor(lens, f, lam)[1]
-            rms = spot_diagram(lens, f, lam, n_side=24).rms_um
-        except ValueError:
+        got = field_psf(lens, f, lam)
+        if got is None:
             continue
-        spacing = max(lam * 1e-3 * p.f_number / 4, 10 * rms / 256)
-        size = int(np.clip(2 ** math.ceil(math.log2(max(10 * rms / spacing, 64))), 64, 256))
-        try:
-            psf = psf_diffraction(lens, h, lam, math.inf, spacing, size)
-        except ValueError:
-            continue
+        psf, spacing = got
         for axis, ls in (("y", "-"), ("x", "--")):
             fr, m = mtf_from_psf(psf, spacing, axis)
             keep = fr <= nu_c
@@ -224,26 +247,54 @@ def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Pat
     fr = np.linspace(0, nu_c, 200)
     ax.plot(fr, diffraction_mtf(fr, lam, p.f_number), ":", color="0.4", label="diffraction limit")
     ax.set_xlabel("cycles/mm")
-    ax.set_ylabel("MTF (550 nm)")
+    ax.set_ylabel(f"MTF ({lam:g} nm)")
     ax.legend(fontsize=7)
-    save(fig, "mtf.png")
 
-    angles = np.linspace(0, mf, 25)
-    d = distortion(lens, angles)
-    fig, ax = plt.subplots(figsize=(5, 4))
+
+def _distortion_curve(lens: Lens, fields: list[float]):
+    angles = np.linspace(0, max(fields), 25)
+    return angles, distortion(lens, angles)
+
+
+def draw_distortion(fig, lens: Lens, fields: list[float]) -> None:
+    """Distortion (%) against field angle up to the largest field."""
+    angles, d = _distortion_curve(lens, fields)
+    ax = fig.add_subplot()
     ax.plot(d.distortion_percent[d.valid], angles[d.valid])
     ax.set_xlabel("distortion (%)")
     ax.set_ylabel("field (deg)")
-    save(fig, "distortion.png")
 
+
+def draw_relative_illumination(fig, lens: Lens, fields: list[float]) -> None:
+    """Traced relative illumination against image height, with cos⁴θ for comparison."""
+    angles, d = _distortion_curve(lens, fields)
     h = d.real_height_mm[d.valid]
     ri = relative_illumination(lens, h, n_side=64)
-    fig, ax = plt.subplots(figsize=(5, 4))
+    ax = fig.add_subplot()
     ax.plot(h, ri, label="traced")
     ax.plot(h, np.cos(np.radians(angles[d.valid])) ** 4, "--", label="cos⁴θ")
     ax.set_xlabel("image height (mm)")
     ax.set_ylabel("relative illumination")
     ax.legend()
-    save(fig, "relative_illumination.png")
-    return written
 
+
+CHARTS = {"layout": (draw_layout, (9, 5)), "spots": (draw_spots, (12.8, 3.4)),
+          "ray_fans": (draw_ray_fans, (12.8, 5)), "psf": (draw_psf, (12.8, 3.4)),
+          "mtf": (draw_mtf, (6, 4)), "distortion": (draw_distortion, (5, 4)),
+          "relative_illumination": (draw_relative_illumination, (5, 4))}
+"""Chart name → (draw function, figure size in inches)."""
+
+
+def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Path]:
+    """One PNG per chart of CHARTS (layout.png, spots.png, …, relative_illumination.png)."""
+    from matplotlib.figure import Figure
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fields = field_angles(lens, max_field)
+    written = []
+    for name, (draw, size) in CHARTS.items():
+        fig = Figure(figsize=size, layout="tight")
+        draw(fig, lens, fields)
+        fig.savefig(out / f"{name}.png", dpi=110)
+        written.append(out / f"{name}.png")
+    return written

@@ -2,15 +2,14 @@
 (our bilinear against colour-demosaicing's; ΔE2000 of a Macbeth chart through the pipeline)."""
 from __future__ import annotations
 
-
 import numpy as np
 
-from workbench.bench.timing import median_times_ms
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.timing import median_times_ms
 from workbench.isp.color import fit_sensor_to_xyz, macbeth_responses, srgb_encode
 from workbench.isp.demosaic import DEMOSAIC_METHODS, demosaic_bilinear
 from workbench.isp.params import ISPParams
-from workbench.isp.pipeline import isp_compute, linear_to_xyz
+from workbench.isp.process import sensor_image_to_srgb, linear_to_xyz
 from workbench.sensor.image import SensorImage
 from workbench.spectra import DEFAULT_WAVELENGTHS_NM
 
@@ -36,7 +35,7 @@ def _macbeth_delta_e(qe: np.ndarray, wl: np.ndarray, patch_px: int = 16) -> tupl
     import colour
     S, s_white, X, x_white = macbeth_responses(qe, wl)
     img = (S / s_white.max()).reshape(4, 6, 3).repeat(patch_px, 0).repeat(patch_px, 1)
-    res = isp_compute(_sensor_image(img, qe, wl, max_dn=4095.0), ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(_sensor_image(img, qe, wl, max_dn=4095.0), ISPParams(illuminant_correction="none"))
     m = patch_px // 4
     means = np.array([res.srgb[r * patch_px + m:(r + 1) * patch_px - m,
                                c * patch_px + m:(c + 1) * patch_px - m].reshape(-1, 3).mean(0)
@@ -81,7 +80,7 @@ def bench_isp(args) -> BenchResult:
     row("sRGB encode", lambda: srgb_encode(linear))
     for correction in ("none", "gray_world"):
         params = ISPParams(illuminant_correction=correction)
-        row(f"isp_compute bilinear + matrix + {correction} + sRGB", lambda p=params: isp_compute(image, p))
+        row(f"sensor_image_to_srgb bilinear + matrix + {correction} + sRGB", lambda p=params: sensor_image_to_srgb(image, p))
     de_mean, de_max = _macbeth_delta_e(qe, wl)
     notes = [f"Macbeth chart under D65, Gaussian RGB QE, full pipeline: ΔE2000 mean {de_mean:.2f}, "
              f"max {de_max:.2f} (colour fit condition {fit.condition:.3g})",

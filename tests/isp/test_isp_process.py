@@ -8,7 +8,7 @@ from pydantic import ValidationError
 from isp_synthetic import (
     BAYER_TILES, WL, camera_like_qe, cie_like_qe, macbeth_chart, patch_means, sensor_image,
 )
-from workbench.isp import ISPParams, isp_compute
+from workbench.isp import ISPParams, sensor_image_to_srgb
 from workbench.isp.color import macbeth_responses
 
 D65_XY = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
@@ -35,7 +35,7 @@ def test_macbeth_delta_e(qe_fn, mean_bound, max_bound, pattern):
     """Macbeth chart under D65 through a synthetic sensor → ΔE2000 of the 24 patches."""
     qe = qe_fn()
     img, xyz_ref = macbeth_chart(qe)
-    res = isp_compute(sensor_image(img, BAYER_TILES[pattern], "RGB", qe), ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES[pattern], "RGB", qe), ISPParams(illuminant_correction="none"))
     _check_outputs(res, img.shape[:2], 3)
     de_xyz = delta_e_2000(patch_means(res.xyz), xyz_ref)
     de_srgb = delta_e_2000(colour.sRGB_to_XYZ(patch_means(res.srgb)), xyz_ref)   # full pipeline
@@ -55,13 +55,13 @@ def test_illuminant_correction_makes_grey_neutral(method):
     qe = camera_like_qe()
     grey = _uniform_under(qe, "A", NEUTRAL_5)
     si = sensor_image(grey, BAYER_TILES["RGGB"], "RGB", qe)
-    plain = isp_compute(si, ISPParams(illuminant_correction="none")).srgb.reshape(-1, 3).mean(axis=0)
+    plain = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none")).srgb.reshape(-1, 3).mean(axis=0)
     assert plain[0] - plain[2] > 0.1                      # tungsten light renders orange
-    res = isp_compute(si, ISPParams(illuminant_correction=method))
+    res = sensor_image_to_srgb(si, ISPParams(illuminant_correction=method))
     rgb = res.srgb.reshape(-1, 3).mean(axis=0)
     np.testing.assert_allclose(rgb, rgb[1], atol=2e-3)
     assert res.gains[1] == 1.0                            # the correction keeps Y (exposure)
-    np.testing.assert_allclose(res.xyz[..., 1], isp_compute(si, ISPParams(illuminant_correction="none")).xyz[..., 1], rtol=1e-6)
+    np.testing.assert_allclose(res.xyz[..., 1], sensor_image_to_srgb(si, ISPParams(illuminant_correction="none")).xyz[..., 1], rtol=1e-6)
 
 
 def test_white_world_uses_the_bright_pixels():
@@ -72,7 +72,7 @@ def test_white_world_uses_the_bright_pixels():
     white = _uniform_under(qe, "A", 18, level=0.9, shape=(16, 32))      # 'white 9.5'
     red = _uniform_under(qe, "A", 14, level=0.3, shape=(16, 32))        # 'red'
     si = sensor_image(np.concatenate([white, red], axis=1), BAYER_TILES["RGGB"], "RGB", qe)
-    rgb = {m: isp_compute(si, ISPParams(illuminant_correction=m)).srgb[4:-4, 2:20].reshape(-1, 3).mean(axis=0)
+    rgb = {m: sensor_image_to_srgb(si, ISPParams(illuminant_correction=m)).srgb[4:-4, 2:20].reshape(-1, 3).mean(axis=0)
            for m in ("white_world", "gray_world")}
     np.testing.assert_allclose(rgb["white_world"], rgb["white_world"][1], atol=6e-3)
     assert np.ptp(rgb["gray_world"]) > 0.1
@@ -82,8 +82,8 @@ def test_manual_gains_are_applied_in_xyz():
     qe = cie_like_qe()
     img, _ = macbeth_chart(qe)
     si = sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe)
-    base = isp_compute(si, ISPParams(illuminant_correction="none"))
-    res = isp_compute(si, ISPParams(illuminant_correction="manual", manual_gains=(0.5, 1.0, 2.0)))
+    base = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(si, ISPParams(illuminant_correction="manual", manual_gains=(0.5, 1.0, 2.0)))
     np.testing.assert_allclose(res.xyz, base.xyz * np.array([0.5, 1.0, 2.0], np.float32), rtol=1e-5, atol=1e-7)
 
 
@@ -91,8 +91,8 @@ def test_normalize_max_cancels_exposure_and_swing_keeps_it():
     qe = camera_like_qe()
     img, _ = macbeth_chart(qe, white_level=0.5)
     images = [sensor_image(img * s, BAYER_TILES["RGGB"], "RGB", qe, max_dn=1.0) for s in (0.25, 1.0)]
-    swing = [isp_compute(si, ISPParams(normalize="swing")).srgb for si in images]
-    peak = [isp_compute(si, ISPParams(normalize="max")).srgb for si in images]
+    swing = [sensor_image_to_srgb(si, ISPParams(normalize="swing")).srgb for si in images]
+    peak = [sensor_image_to_srgb(si, ISPParams(normalize="max")).srgb for si in images]
     assert swing[1].mean() - swing[0].mean() > 0.15
     np.testing.assert_allclose(peak[0], peak[1], atol=1e-4)
     assert peak[1].max() == pytest.approx(1.0)
@@ -107,7 +107,7 @@ def test_colourless_sensors_give_grey_with_note(tile, names, pattern):
     k = len(names)
     qe = np.stack([np.full(WL.size, 0.5)] * k, axis=1)
     img = rng.random((12, 14, k))
-    res = isp_compute(sensor_image(img, tile, names, qe, pattern=pattern),
+    res = sensor_image_to_srgb(sensor_image(img, tile, names, qe, pattern=pattern),
                       ISPParams(illuminant_correction="gray_world"))
     _check_outputs(res, (12, 14), k)
     assert res.xyz is None and res.colour_fit is None
@@ -123,7 +123,7 @@ def test_rccb_and_rgbw_get_colour():
     for names, tile, qe in [(["R", "C", "B"], [[0, 1], [1, 2]], np.column_stack([rgb[:, 0], rgb.sum(1), rgb[:, 2]])),
                             (["R", "G", "B", "W"], [[0, 1], [3, 2]], np.column_stack([rgb, 0.8 * rgb.sum(1) + 0.05]))]:
         img, xyz_ref = macbeth_chart(qe)
-        res = isp_compute(sensor_image(img, tile, names, qe), ISPParams(illuminant_correction="none"))
+        res = sensor_image_to_srgb(sensor_image(img, tile, names, qe), ISPParams(illuminant_correction="none"))
         _check_outputs(res, img.shape[:2], len(names))
         de = delta_e_2000(patch_means(res.xyz), xyz_ref)
         print(f"\n{''.join(names)}: ΔE2000 mean {de.mean():.2f} max {de.max():.2f}; notes {res.notes}")
@@ -134,7 +134,7 @@ def test_identical_rgb_channels_fall_back_to_grey_with_note():
     qe = cie_like_qe()
     qe[:, 2] = qe[:, 1]
     img, _ = macbeth_chart(qe)
-    res = isp_compute(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe), ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe), ISPParams(illuminant_correction="none"))
     _check_outputs(res, img.shape[:2], 3)
     assert res.xyz is None and any("independent" in n for n in res.notes)
 
@@ -142,7 +142,7 @@ def test_identical_rgb_channels_fall_back_to_grey_with_note():
 def test_colour_transform_none_shows_sensor_rgb():
     qe = camera_like_qe()
     img = np.broadcast_to(np.array([0.2, 0.4, 0.6]), (8, 8, 3))
-    res = isp_compute(sensor_image(img, BAYER_TILES["BGGR"], "RGB", qe, max_dn=4095.0),
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["BGGR"], "RGB", qe, max_dn=4095.0),
                       ISPParams(colour_transform="none", illuminant_correction="none"))
     assert res.xyz is None
     np.testing.assert_allclose(res.srgb, colour.cctf_encoding(img), atol=1e-5)
@@ -154,7 +154,7 @@ def test_colour_transform_none_shows_sensor_rgb():
 def test_zero_and_saturated_images_are_finite(level, correction, normalize):
     qe = camera_like_qe()
     img = np.full((10, 12, 3), level)
-    res = isp_compute(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe),
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe),
                       ISPParams(illuminant_correction=correction, normalize=normalize))
     _check_outputs(res, (10, 12), 3)
     assert np.all(np.isfinite(res.xyz))
@@ -176,10 +176,10 @@ def test_bad_input_is_refused():
     si = sensor_image(np.zeros((6, 6, 3)), BAYER_TILES["RGGB"], "RGB", qe)
     si.dn[2, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
-        isp_compute(si)
+        sensor_image_to_srgb(si)
     si = sensor_image(np.zeros((6, 6, 3)), BAYER_TILES["RGGB"], "RGB", qe[:, :2])
     with pytest.raises(ValueError, match="qe"):
-        isp_compute(si)
+        sensor_image_to_srgb(si)
     with pytest.raises(ValidationError, match="demosaic"):
         ISPParams(demosaic="nearest")
     with pytest.raises(ValidationError, match="manual_gains"):
@@ -191,7 +191,7 @@ def test_bad_input_is_refused():
 def test_menon_on_bayer_runs_through_pipeline():
     qe = cie_like_qe()
     img, xyz_ref = macbeth_chart(qe)
-    res = isp_compute(sensor_image(img, BAYER_TILES["GRBG"], "RGB", qe), ISPParams(demosaic="menon2007", illuminant_correction="none"))
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["GRBG"], "RGB", qe), ISPParams(demosaic="menon2007", illuminant_correction="none"))
     _check_outputs(res, img.shape[:2], 3)
     assert delta_e_2000(patch_means(res.xyz), xyz_ref).mean() < 1.0
 
@@ -203,18 +203,18 @@ def test_black_level_is_subtracted_from_linear_not_raw():
     si = sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe, max_dn=max_dn)
     si.dn = (si.dn * (max_dn - black_dn) / max_dn + black_dn).astype(np.float32)   # offset recorded
     si.meta["black_level_dn"] = black_dn
-    res = isp_compute(si, ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none"))
     np.testing.assert_allclose(res.linear, img, atol=1e-5)
     assert res.raw.min() == pytest.approx((0.2 * (max_dn - black_dn) + black_dn) / max_dn, abs=1e-6)
     si.meta["black_level_dn"] = max_dn
     with pytest.raises(ValueError, match="black_level_dn"):
-        isp_compute(si)
+        sensor_image_to_srgb(si)
 
 
 def test_missing_qe_falls_back_to_sensor_rgb_with_note():
     img = np.broadcast_to(np.array([0.2, 0.4, 0.6]), (8, 8, 3))
     si = sensor_image(img, BAYER_TILES["RGGB"], "RGB", np.zeros((0, 3)), wl=np.zeros(0))
-    res = isp_compute(si, ISPParams(illuminant_correction="none"))
+    res = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none"))
     assert res.xyz is None and any("no QE" in n for n in res.notes)
     np.testing.assert_allclose(res.srgb, colour.cctf_encoding(img), atol=1e-5)
 
@@ -223,7 +223,7 @@ def test_gray_world_cost_on_the_macbeth_chart():
     """Gray world assumes the scene averages to grey; the Macbeth chart nearly does (report ΔE)."""
     qe = cie_like_qe()
     img, xyz_ref = macbeth_chart(qe)
-    res = isp_compute(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe), ISPParams())
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe), ISPParams())
     de = delta_e_2000(patch_means(res.xyz), xyz_ref)
     print(f"\ngray world on the Macbeth chart under D65: gains {np.round(res.gains, 3)}, "
           f"ΔE2000 mean {de.mean():.2f} max {de.max():.2f}")
@@ -250,7 +250,7 @@ def test_any_input_gives_finite_bounded_outputs(pattern, h, w, seed, scale, corr
     qe = qe_fn(camera_like_qe())
     img = np.random.default_rng(seed).random((h, w, len(names))) * scale    # > 1 saturates
     si = sensor_image(np.clip(img, 0, 1), tile, names, qe, pattern=pattern, max_dn=1023.0)
-    res = isp_compute(si, ISPParams(illuminant_correction=correction, demosaic=demosaic, normalize=normalize,
+    res = sensor_image_to_srgb(si, ISPParams(illuminant_correction=correction, demosaic=demosaic, normalize=normalize,
                                     manual_gains=(0.8, 1.0, 1.3)))
     _check_outputs(res, (h, w), len(names))
     if res.xyz is not None:
@@ -263,7 +263,7 @@ def test_representations_as_uint8(pattern, expect_order):
     from workbench.isp import REPRESENTATIONS, representation_to_uint8
     tile, names, qe_fn = PATTERNS[pattern]
     img = np.random.default_rng(5).random((6, 8, len(names)))
-    res = isp_compute(sensor_image(img, tile, names, qe_fn(camera_like_qe()), pattern=pattern))
+    res = sensor_image_to_srgb(sensor_image(img, tile, names, qe_fn(camera_like_qe()), pattern=pattern))
     out = {r: representation_to_uint8(res, r) for r in REPRESENTATIONS}
     for arr in out.values():
         assert arr.shape == (6, 8, 3) and arr.dtype == np.uint8

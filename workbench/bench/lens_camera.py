@@ -3,25 +3,11 @@ built-in perspective camera, and its on-axis irradiance against the numpy estima
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
 from workbench.bench import BenchResult, register_bench
-
-
-def _best_times(renders: dict, repeats: int) -> dict[str, float]:
-    """Best wall time of each render, the renders interleaved so that load from other processes
-    hits them alike (a first call each pays the JIT compilation)."""
-    for fn in renders.values():
-        fn()
-    best = dict.fromkeys(renders, math.inf)
-    for _ in range(repeats):
-        for kind, fn in renders.items():
-            t0 = time.perf_counter()
-            fn()
-            best[kind] = min(best[kind], time.perf_counter() - t0)
-    return best
+from workbench.bench.timing import best_wall_ms, timed
 
 
 @register_bench("lens-camera", help="Mitsuba lens camera vs perspective: time per camera ray")
@@ -50,9 +36,8 @@ def bench_lens_camera(args) -> BenchResult:
         setup_s = {}
         for name, lens in lenses.items():
             width_mm = 2 * paraxial(lens).efl_mm * math.tan(math.radians(fov / 2))
-            t0 = time.perf_counter()
-            sensors[name] = lens_sensor_dict(lens, film, cam, width_mm, sampler=sampler)
-            setup_s[name] = time.perf_counter() - t0
+            sensors[name], setup = timed(lambda: lens_sensor_dict(lens, film, cam, width_mm, sampler=sampler))
+            setup_s[name] = setup.wall_ms * 1e-3
             if is_dispersive(lens):    # also once at the d line for all four wavelengths
                 sensors[f"{name} (d line)"] = lens_sensor_dict(lens, film, cam, width_mm, sampler=sampler,
                                                                dispersion=False)
@@ -63,7 +48,7 @@ def bench_lens_camera(args) -> BenchResult:
             def render(scene=scene, kind=kind, images=images):
                 images[kind] = np.array(mi.render(scene))[..., 0]
             renders[kind] = render
-        times = _best_times(renders, repeats)
+        times = {kind: ms * 1e-3 for kind, ms in best_wall_ms(renders, repeats).items()}
         for name, lens in lenses.items():
             row = {"lens": name, "scene": scene_name, "variant": mi.variant(), "film": f"{w}x{h}", "spp": spp,
                    "pupil_setup_s": setup_s[name], "perspective_s": times["perspective"], "lens_s": times[name],

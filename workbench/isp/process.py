@@ -175,7 +175,7 @@ def _tiny_safe_raw_to_linear(raw, cfa_tile, names, method, black):
     return np.ascontiguousarray(linear[:h, :w]), notes
 
 
-def isp_compute(image: SensorImage, params: ISPParams | None = None) -> ISPResult:
+def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) -> ISPResult:
     """Run the ISP on one SensorImage (see module docstring and ISPParams)."""
     params = ISPParams() if params is None else params
     black_dn = _validate(image)

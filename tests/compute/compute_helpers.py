@@ -1,0 +1,63 @@
+"""Frame renderers for the compute tests (module-level, so spawned and Ray workers import them).
+
+Attempts are counted with marker files in the folder named by $WB_TEST_MARKERS, which the tests
+set before workers start."""
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "labels"))
+
+from labels_helpers import tiny_renderer  # noqa: E402
+
+from workbench.errors import ParameterError  # noqa: E402
+
+MARKERS_ENV = "WB_TEST_MARKERS"
+
+
+def count_attempt(tag: str) -> int:
+    """Record one attempt of `tag`; return how many were recorded before this one."""
+    folder = Path(os.environ[MARKERS_ENV])
+    before = len(list(folder.glob(f"{tag}.*")))
+    (folder / f"{tag}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    return before
+
+
+def crash_once_renderer(project, seeds):
+    """tiny_renderer, except that the first attempt at frame 1 kills its own worker (SIGKILL) half-way."""
+    if seeds.index == 1 and count_attempt(f"crash-{project.seed}-1") == 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return tiny_renderer(project, seeds)
+
+
+def bad_project_renderer(project, seeds):
+    """Refuses every project (a deterministic error), counting attempts."""
+    count_attempt(f"bad-{project.seed}-{seeds.index}")
+    raise ParameterError("render.band_count", project.render.band_count, "≤ 0 in this test (always refused)")
+
+
+def slow_renderer(project, seeds):
+    """tiny_renderer after a pause, so a run can be killed while frames are in flight."""
+    time.sleep(float(os.environ.get("WB_TEST_SLEEP_S", "1")))
+    return tiny_renderer(project, seeds)
+
+
+def thread_budget(_job):
+    """(Dr.Jit threads after the variant is chosen, OMP_NUM_THREADS, torch threads a training run
+    would use) as a worker sees them."""
+    from workbench.detect.train import choose_threads
+    from workbench.render.variants import select_variant
+    select_variant("llvm_ad_spectral")
+    import drjit as dr
+    return dr.thread_count(), os.environ.get("OMP_NUM_THREADS"), choose_threads(None)
+
+
+def progress_renderer(project, seeds, on_progress=None):
+    """tiny_renderer that first reports 4 steps of progress, a little apart."""
+    from types import SimpleNamespace
+    for k in range(1, 5):
+        time.sleep(0.3)
+        on_progress(SimpleNamespace(spp_done=k, spp_total=4))
+    return tiny_renderer(project, seeds)

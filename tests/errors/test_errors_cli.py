@@ -1,0 +1,115 @@
+"""The command line: every error a user can act on is one line `workbench CMD: error: …` and a
+non-zero exit, never a traceback; bad --out folders are refused before any work is done."""
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from workbench.cli import main
+from workbench.project import load_project, save_project
+
+AS_ROOT = hasattr(os, "geteuid") and os.geteuid() == 0
+
+
+@pytest.fixture
+def tiny_project(tmp_path):
+    p = load_project("paper_camera")
+    p = p.updated(sensor=p.sensor.updated(rows=12, cols=16, pixel_pitch_um=80.0))
+    return save_project(p, tmp_path / "tiny.json")
+
+
+def _one_error_line(capsys, command: str) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert lines[0].startswith(f"workbench {command}: error: "), lines[0]
+    assert "Traceback" not in captured.err + captured.out
+    return lines[0]
+
+
+@pytest.mark.parametrize("command", ["simulate", "characterize"])
+def test_out_that_is_not_a_writable_folder(tmp_path, tiny_project, capsys, command):
+    existing = tmp_path / "existing.txt"
+    existing.write_text("keep me")
+    for out, problem in ((existing, "not a folder"), ("/dev/null", "not a folder"),
+                         (existing / "below", "a folder in the path is a file")):
+        assert main([command, str(tiny_project), "--out", str(out)]) == 2
+        line = _one_error_line(capsys, command)
+        assert str(out) in line and problem in line
+    assert existing.read_text() == "keep me"
+
+
+@pytest.mark.skipif(AS_ROOT, reason="root may write into a read-only folder")
+@pytest.mark.parametrize("command", ["simulate", "characterize"])
+def test_out_in_a_read_only_folder(tmp_path, tiny_project, capsys, command):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        assert main([command, str(tiny_project), "--out", str(ro)]) == 2
+        assert "cannot write in the folder" in _one_error_line(capsys, command)
+    finally:
+        ro.chmod(0o700)
+
+
+def test_read_only_folder_is_refused_even_as_root(tmp_path, monkeypatch):
+    """The write probe is what refuses a read-only folder; simulate the kernel's answer under root."""
+    from workbench import files
+    from workbench.errors import OutputPathError
+    real_open = os.open
+
+    def refuse(path, flags, mode=0o777, **kw):
+        if Path(path).parent == tmp_path and flags & os.O_CREAT:
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, flags, mode, **kw)
+    monkeypatch.setattr(files.os, "open", refuse)
+    with pytest.raises(OutputPathError, match="cannot write in the folder"):
+        files.prepare_output_folder(tmp_path)
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["simulate", "{dir}", "--out", "{out}"], "is a folder"),
+    (["simulate", "{dir}/missing.json", "--out", "{out}"], "no such project file"),
+    (["simulate", "{bad_json}", "--out", "{out}"], "not valid JSON at line 1"),
+    (["simulate", "{deep_json}", "--out", "{out}"], "nested too deeply"),
+    (["simulate", "{nan_field}", "--out", "{out}"], "sensor.read_noise_V"),
+    (["lens", "info", "dgauss.50mm", "--sensor-mm", "nan", "nan"], "--sensor-mm"),
+    (["lens", "info", "dgauss.50mm", "--sensor-mm", "inf", "24"], "--sensor-mm"),
+    (["lens", "info", "dgauss.50mm", "--focus-m", "nan"], "--focus-m"),
+    (["lens", "info", "{truncated_lens}"], "truncated.json: not valid JSON"),
+    (["lens", "info", "{deep_lens}"], "nested too deeply"),
+    (["lens", "plot", "dgauss.50mm", "--out", "/dev/null"], "not a folder"),
+])
+def test_each_error_is_one_line(tmp_path, capsys, argv, needle):
+    (tmp_path / "bad.json").write_text('{"format": "camera-')
+    (tmp_path / "deep.json").write_text("[" * 5000 + "]" * 5000)
+    data = json.loads(load_project("paper_camera").model_dump_json())
+    data["sensor"]["read_noise_V"] = float("nan")
+    (tmp_path / "nan.json").write_text(json.dumps(data))
+    (tmp_path / "truncated.json").write_text((Path(__file__).parents[2] / "resources/lenses/dgauss.50mm.json")
+                                             .read_text()[:300])
+    (tmp_path / "deeplens.json").write_text('{"surfaces": ' + "[" * 6000)
+    subs = {"{dir}": str(tmp_path), "{out}": str(tmp_path / "out"), "{bad_json}": str(tmp_path / "bad.json"),
+            "{deep_json}": str(tmp_path / "deep.json"), "{nan_field}": str(tmp_path / "nan.json"),
+            "{truncated_lens}": str(tmp_path / "truncated.json"), "{deep_lens}": str(tmp_path / "deeplens.json")}
+    args = []
+    for a in argv:
+        for key, value in subs.items():
+            a = a.replace(key, value)
+        args.append(a)
+    assert main(args) == 2
+    command = " ".join(argv[:2]) if argv[0] == "lens" else argv[0]
+    assert needle in _one_error_line(capsys, command)
+
+
+def test_stale_outputs_of_an_earlier_run_are_removed(tmp_path, tiny_project, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "labels.png").write_bytes(b"from an earlier city run")
+    (out / "notes.txt").write_text("the user's own file")
+    assert main(["simulate", str(tiny_project), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert not (out / "labels.png").exists() and (out / "notes.txt").exists()
+    assert "removed" in printed and "labels.png" in printed
+    assert json.loads((out / "report.json").read_text())["removed_stale"] == ["labels.png"]

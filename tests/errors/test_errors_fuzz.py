@@ -1,0 +1,77 @@
+"""Fuzzing: generated project documents and lens files either load (and a project simulates at
+16×12 px with finite outputs and survives save → load) or are refused with a WorkbenchError naming
+the field or file — never another exception, never NaN in an output.
+
+The fast subset runs in the normal tests; the big run (≥ 1,000 documents) is marked slow:
+    WORKBENCH_FUZZ_REPORT=fuzz.json pytest tests/errors/test_errors_fuzz.py -m slow
+writes the counts to the named file."""
+import json
+import os
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import torch
+from errors_fuzz import CHART_SAMPLES, check_document, check_lens_file, lens_files, project_texts
+from hypothesis import HealthCheck, given, settings
+
+FAST = settings(max_examples=60, deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@FAST
+@given(case=project_texts(samples=CHART_SAMPLES))
+def test_fuzzed_chart_projects_load_and_simulate_or_name_the_field(case):
+    _name, text, _applied = case
+    with tempfile.TemporaryDirectory() as folder:
+        check_document(text, Path(folder))
+
+
+@settings(FAST, max_examples=40)
+@given(case=lens_files())
+def test_fuzzed_lens_files_load_or_are_refused_naming_the_file(case):
+    suffix, data, _applied = case
+    with tempfile.TemporaryDirectory() as folder:
+        check_lens_file(suffix, data, Path(folder))
+
+
+def _big_run(strategy, check, n: int) -> tuple[Counter, list]:
+    """Draw n cases from `strategy`, run `check` on each; count outcomes and collect failures."""
+    from hypothesis import find  # noqa: F401  (hypothesis drives the draws below)
+    counts: Counter = Counter()
+    failures = []
+
+    @settings(max_examples=n, deadline=None, derandomize=True, database=None,
+              suppress_health_check=list(HealthCheck))
+    @given(case=strategy)
+    def run(case):
+        with tempfile.TemporaryDirectory() as folder:
+            try:
+                counts[check(case, Path(folder))] += 1
+            except Exception as exc:           # recorded and reported, the run goes on
+                counts["traceback"] += 1
+                failures.append((case[0], case[-1], f"{type(exc).__name__}: {exc}"[:300]))
+    run()
+    return counts, failures
+
+
+@pytest.mark.slow
+def test_big_fuzz_run():
+    docs, doc_failures = _big_run(project_texts(), lambda c, f: check_document(c[1], f), 1200)
+    lenses, lens_failures = _big_run(lens_files(), lambda c, f: check_lens_file(c[0], c[1], f), 600)
+    report = {"project_documents": {"tried": sum(docs.values()), **docs},
+              "lens_files": {"tried": sum(lenses.values()), **lenses},
+              "failures": doc_failures[:50] + lens_failures[:50]}
+    if os.environ.get("WORKBENCH_FUZZ_REPORT"):
+        Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1))
+    assert docs["traceback"] == 0 and lenses["traceback"] == 0, report["failures"][:5]
+    assert sum(docs.values()) >= 1000

@@ -1,0 +1,143 @@
+"""Lens files (.json/.dat/.zmx): every bad file is an InputFileError naming it, never echoing its
+lines, and nothing read from a file sizes an allocation without a bound."""
+import json
+import time
+from pathlib import Path
+
+import pytest
+
+from workbench.cli import main
+from workbench.errors import InputFileError, ParameterError
+from workbench.optics.lens.io import LENS_DIR, load_lens, save_lens
+from workbench.project import PROJECTS_DIR, project_from_dict
+
+DGAUSS = json.loads((LENS_DIR / "dgauss.50mm.json").read_text())
+ZMX = """VERS 190513 80 123457 L123457
+UNIT MM X W X CM MR CPMM
+SURF 0
+  TYPE STANDARD
+  DISZ INFINITY
+SURF 1
+  TYPE STANDARD
+  CURV 0.02
+  DISZ 5
+  GLAS N-BK7 1 0 1.5168 64.17 0 0 0 0 0 0
+  DIAM 10
+SURF 2
+  STOP
+  TYPE STANDARD
+  DISZ 2
+  DIAM 8
+SURF 3
+  TYPE EVENASPH
+  CURV -0.01
+  PARM 2 1e-5
+  DISZ 80
+  DIAM 10
+SURF 4
+  TYPE STANDARD
+"""
+DAT = "# r t n d\n40 5 1.5168 20\n0 2 0 16\n-40 80 1 20\n"
+
+
+def _dgauss(**surface0) -> str:
+    data = json.loads(json.dumps(DGAUSS))
+    data["surfaces"][0].update(surface0)
+    return json.dumps(data)
+
+
+@pytest.mark.parametrize("suffix,text,problem", [
+    (".json", json.dumps(DGAUSS)[:200], "not valid JSON"),
+    (".json", "[" * 5000 + "]" * 5000, "nested too deeply"),
+    (".json", '{"surfaces": [], "surfaces": []}', "key 'surfaces' twice"),
+    (".json", _dgauss(thickness=-3.0), "thickness"),
+    (".json", _dgauss(radius=float("nan")), "finite"),
+    (".json", _dgauss(semi_aperture="wide"), "semi_aperture"),
+    (".json", _dgauss(glass="UNOBTAINIUM-7"), "not a catalogue glass"),
+    (".json", _dgauss(aspheric_coefficients=[0.0] * 100000), "at most 16"),
+    (".json", json.dumps({"surfaces": [DGAUSS["surfaces"][0]] * 1000}), "allowed 1–256"),
+    (".dat", DAT[:-4], "expected 4 numbers"),
+    (".dat", DAT.replace("0 2 0 16", "0 -2 0 16"), "thickness"),
+    (".dat", DAT.replace("1.5168", "nan"), "finite"),
+    (".dat", DAT.replace("1.5168", "0.5"), "not a catalogue glass"),
+    (".dat", "40 5 1.5 20\n" * 1000, "more than 256 surfaces"),
+    (".zmx", ZMX.replace("PARM 2 1e-5", "PARM 100000000 1e-5"), "PARM index 100000000 outside 0–16"),
+    (".zmx", ZMX.replace("DISZ 5", "DISZ -5"), "thickness"),
+    (".zmx", ZMX.replace("GLAS N-BK7 1 0 1.5168 64.17 0 0 0 0 0 0", "GLAS UNOBTAINIUM"), "not in the catalogue"),
+    (".zmx", ZMX.replace("CURV 0.02", "CURV nan"), "finite"),
+    (".zmx", ZMX[:80], "needs an object surface"),
+    (".zmx", ZMX.replace("DIAM 10", "DIAM 0"), "DIAM"),
+    (".zmx", "SURF 0\n" * 1000, "more than 256 surfaces"),
+    (".json", "x" * (2 ** 20 + 1), "a lens file is at most 1,048,576 bytes"),
+])
+def test_bad_lens_file_names_the_file(tmp_path, suffix, text, problem):
+    path = tmp_path / f"lens{suffix}"
+    path.write_text(text)
+    t0 = time.perf_counter()
+    with pytest.raises(InputFileError) as info:
+        load_lens(path)
+    assert time.perf_counter() - t0 < 10
+    msg = str(info.value)
+    assert msg.startswith(str(path)) and problem in msg, msg
+    assert "\n" not in msg
+
+
+@pytest.mark.parametrize("suffix", [".json", ".dat", ".zmx"])
+def test_binary_and_empty_lens_files(tmp_path, suffix):
+    path = tmp_path / f"b{suffix}"
+    path.write_bytes(bytes(range(256)) * 8)
+    with pytest.raises(InputFileError, match="not UTF-8 text|binary"):
+        load_lens(path)
+    path.write_bytes(b"")
+    with pytest.raises(InputFileError, match=str(path)):
+        load_lens(path)
+
+
+def test_lens_errors_never_echo_the_file(tmp_path):
+    secret = "TOKEN-hunter2"
+    for suffix, text in ((".dat", f"40 5 1.5 20\n{secret} 1 1 1\n"),
+                         (".zmx", ZMX.replace("CURV 0.02", f"CURV {secret}")),
+                         (".json", _dgauss(radius=secret))):
+        path = tmp_path / f"l{suffix}"
+        path.write_text(text)
+        with pytest.raises(InputFileError) as info:
+            load_lens(path)
+        assert secret not in str(info.value)
+
+
+def test_zero_radii_load_or_are_refused_cleanly(tmp_path, capsys):
+    """A lens of flat faces only has no power: `lens info` says so in one line (no traceback)."""
+    path = tmp_path / "flat.dat"
+    path.write_text("0 2 0 16\n1e9 5 1.5 20\n")
+    code = main(["lens", "info", str(path)])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert code == 0 or (code == 2 and len(err.strip().splitlines()) == 1 and str(path) in err), err
+
+
+def test_good_files_still_round_trip(tmp_path):
+    for suffix, text in ((".dat", DAT), (".zmx", ZMX)):
+        path = tmp_path / f"ok{suffix}"
+        path.write_text(text)
+        lens = load_lens(path)
+        assert len(lens.surfaces) >= 2
+    lens = load_lens("dgauss.50mm")
+    again = load_lens(save_lens(lens, tmp_path / "d.json"))
+    assert [s.radius_mm for s in again.surfaces] == pytest.approx([s.radius_mm for s in lens.surfaces])
+
+
+def test_project_with_missing_or_broken_lens_is_refused_when_it_loads(tmp_path, monkeypatch):
+    from workbench.optics.lens import io
+    data = json.loads((PROJECTS_DIR / "paper_camera.json").read_text())
+    for missing in ("no_such.lens", "é" * 300):          # the second is too long for a file name
+        data["optics"]["lens_file"] = missing
+        with pytest.raises(ParameterError) as info:
+            project_from_dict(data)
+        assert info.value.field == "optics.lens_file" and "no such lens" in str(info.value)
+    (tmp_path / "broken.json").write_text(json.dumps(DGAUSS)[:100])
+    monkeypatch.setattr(io, "LENS_DIR", tmp_path)
+    data["optics"]["lens_file"] = "broken.json"
+    with pytest.raises(ParameterError) as info:
+        project_from_dict(data)
+    assert info.value.field == "optics.lens_file" and "not valid JSON" in str(info.value)
+    assert str(Path(tmp_path) / "broken.json") in str(info.value)

@@ -1,0 +1,84 @@
+"""Result-folder schema: the reader accepts a well-formed results.json and refuses others by name;
+both charts draw from the summary alone."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from workbench.errors import InputFileError
+from workbench.experiments.results import draw_results, read_results, result_folders
+
+
+def make_doc(kind: str, nets=("mobile",), seeds=3) -> dict:
+    summary = []
+    rng = np.random.default_rng(1)
+    for net in nets:
+        if kind == "isp":
+            for rep, m in (("raw", 0.5), ("linear", 0.55), ("srgb", 0.6)):
+                summary.append({"net": net, "representation": rep, "condition": "ev0_trained", "test_ev": 0.0,
+                                "n": seeds, "mean_map": m, "sd": 0.02, "ci95_low": m - 0.05, "ci95_high": m + 0.05})
+        else:
+            for cond in ("ev0_trained", "ev_mix", "per_ev"):
+                for ev in (-4.0, -2.0, 0.0, 2.0, 4.0):
+                    m = float(0.6 - 0.03 * abs(ev) + 0.02 * rng.random())
+                    summary.append({"net": net, "representation": "srgb", "condition": cond, "test_ev": ev,
+                                    "n": seeds, "mean_map": m, "sd": 0.02, "ci95_low": m - 0.04,
+                                    "ci95_high": m + 0.04})
+    return {"format": "camera-workbench-experiment", "schema_version": 1, "kind": kind, "project": "test",
+            "profile": "quick", "complete": True, "settings": {"seeds": seeds}, "runs": [], "summary": summary}
+
+
+def write(folder, doc):
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "results.json").write_text(json.dumps(doc))
+    return folder
+
+
+def test_read_and_draw_isp_bars(tmp_path):
+    doc = read_results(write(tmp_path / "isp", make_doc("isp", nets=("mobile", "resnet18"))))
+    fig = Figure()
+    draw_results(fig, doc)
+    ax = fig.axes[0]
+    heights = sorted(round(p.get_height(), 3) for p in ax.patches)
+    assert heights == [0.5, 0.5, 0.55, 0.55, 0.6, 0.6]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["mobile", "resnet18"]
+    assert len(ax.lines) > 0                               # error bars
+
+
+def test_read_and_draw_exposure_curves(tmp_path):
+    doc = read_results(write(tmp_path / "exp", make_doc("exposure", nets=("mobile", "resnet18"))))
+    fig = Figure()
+    draw_results(fig, doc)
+    assert len(fig.axes) == 2
+    curves = [l for l in fig.axes[0].lines if len(l.get_xdata()) == 5]
+    assert len(curves) == 3 and list(curves[0].get_xdata()) == [-4, -2, 0, 2, 4]
+
+
+def test_result_folders_finds_nested(tmp_path):
+    write(tmp_path / "a", make_doc("isp"))
+    write(tmp_path / "b" / "c", make_doc("exposure"))
+    assert result_folders(tmp_path) == [tmp_path / "a", tmp_path / "b" / "c"]
+
+
+@pytest.mark.parametrize("change, fragment", [
+    ({"format": "other"}, "format"),
+    ({"schema_version": 9}, "schema_version"),
+    ({"kind": "speed"}, "kind"),
+    ({"summary": [{"net": "x"}]}, "summary"),
+])
+def test_bad_results_refused_with_the_file_named(tmp_path, change, fragment):
+    folder = write(tmp_path / "bad", make_doc("isp") | change)
+    with pytest.raises(InputFileError, match=fragment) as info:
+        read_results(folder)
+    assert str(folder / "results.json") in str(info.value)
+
+
+def test_missing_and_malformed(tmp_path):
+    with pytest.raises(InputFileError, match="results.json"):
+        read_results(tmp_path)
+    (tmp_path / "results.json").write_text("{not json")
+    with pytest.raises(InputFileError, match="JSON"):
+        read_results(tmp_path)

@@ -1,0 +1,214 @@
+"""Detection accuracy: AP@0.5 per class and mAP (the paper's metric), with a pycocotools cross-check.
+
+    result = evaluate_map(detections, ground_truth, class_names)            # VOC all-point AP@0.5
+    result.ap["car"], result.mean_ap, result.curves["car"]                  # recall, precision arrays
+    coco = pycocotools_ap50(detections, ground_truth, class_names)          # the same data through COCO
+
+detections: one dict per image with boxes N×4 (x1, y1, x2, y2 in pixels), scores N, classes N
+(ints indexing class_names); ground_truth: one dict per image with boxes and classes.
+
+Matching (one rule for both methods, COCO's): per image and class, detections in descending score
+(ties keep their given order) each take the still-unmatched ground-truth box of highest IoU ≥ the
+threshold (equal IoUs: the later box); the VOC devkit differs only in counting a detection whose
+best box is already taken as false even when another box ≥ 0.5 is free. Over the data set the
+detections are ranked by score (ties: image order, then rank in the image) into a
+precision–recall curve, integrated by `method`:
+    'voc'      all-point interpolation (VOC 2010+): Σ (r_i − r_{i−1}) · max_{j ≥ i} p_j over
+               every recall step — the area under the monotone precision envelope;
+    'coco101'  COCO's: the envelope sampled at the 101 recalls 0, 0.01, …, 1 (first rank whose
+               recall reaches each), averaged; 0 beyond the highest recall.
+The two differ by design (sampling), so the cross-check compares like with like: 'coco101' with
+max_detections = M equals pycocotools' AP@0.5 with maxDets M to 1e-9 (tests), and 'voc' is held
+against closed-form cases.
+
+A class without ground-truth boxes has AP NaN and is left out of the mean (as COCO does); a class
+with ground truth and no detections has AP 0. mean_ap is NaN when no class has ground truth.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from workbench.errors import ParameterError
+
+METHODS = ("voc", "coco101")
+COCO_RECALLS = np.linspace(0.0, 1.0, 101)
+
+
+@dataclass
+class MapResult:
+    """AP per class name (NaN: no ground truth), their mean over classes with ground truth, the
+    number of ground-truth boxes per class, and each class's raw precision–recall curve (recall,
+    precision per rank, before the envelope)."""
+
+    ap: dict[str, float]
+    mean_ap: float
+    n_ground_truth: dict[str, int]
+    curves: dict[str, tuple[np.ndarray, np.ndarray]]
+    method: str
+    iou_threshold: float
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-ready (NaN → None; curves as lists)."""
+        def num(v: float):
+            return None if math.isnan(v) else float(v)
+        return {"method": self.method, "iou_threshold": self.iou_threshold, "mean_ap": num(self.mean_ap),
+                "ap": {k: num(v) for k, v in self.ap.items()}, "n_ground_truth": self.n_ground_truth,
+                "curves": {k: {"recall": r.tolist(), "precision": p.tolist()} for k, (r, p) in self.curves.items()},
+                "notes": self.notes}
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """N×M IoU of xyxy boxes (float64; 0 where boxes do not overlap or have no area)."""
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 4)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
+    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
+    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
+    inter = np.where((w > 0) & (h > 0), w * h, 0.0)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    union = area_a[:, None] + area_b[None, :] - inter
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(union > 0, inter / union, 0.0)
+
+
+def _match_image(det_boxes: np.ndarray, gt_boxes: np.ndarray, iou_threshold: float) -> np.ndarray:
+    """True-positive flag of each detection (already in rank order) under the module's matching rule."""
+    tp = np.zeros(len(det_boxes), dtype=bool)
+    if len(gt_boxes) == 0 or len(det_boxes) == 0:
+        return tp
+    ious = box_iou(det_boxes, gt_boxes)
+    taken = np.zeros(len(gt_boxes), dtype=bool)
+    for d in range(len(det_boxes)):
+        best, match = min(iou_threshold, 1 - 1e-10), -1
+        for g in range(len(gt_boxes)):
+            if not taken[g] and ious[d, g] >= best:
+                best, match = ious[d, g], g
+        if match >= 0:
+            taken[match], tp[d] = True, True
+    return tp
+
+
+def _class_arrays(item: dict, cls: int, need_scores: bool):
+    classes = np.asarray(item.get("classes", []), dtype=np.int64).reshape(-1)
+    boxes = np.asarray(item.get("boxes", np.zeros((0, 4))), dtype=np.float64).reshape(-1, 4)
+    if len(boxes) != len(classes):
+        raise ParameterError("boxes", len(boxes), f"one box per class label ({len(classes)} labels)")
+    on = classes == cls
+    if not need_scores:
+        return boxes[on], None
+    scores = np.asarray(item.get("scores", []), dtype=np.float64).reshape(-1)
+    if len(scores) != len(classes):
+        raise ParameterError("scores", len(scores), f"one score per detection ({len(classes)} detections)")
+    return boxes[on], scores[on]
+
+
+def precision_recall(detections: list[dict], ground_truth: list[dict], cls: int, iou_threshold: float = 0.5,
+                     max_detections: int | None = None) -> tuple[np.ndarray, np.ndarray, int]:
+    """(recall, precision) at every rank of class `cls`'s detections over the data set, and the
+    number of ground-truth boxes; max_detections keeps each image's best M of this class (COCO's maxDets)."""
+    scores_all, tp_all, n_gt = [], [], 0
+    for det, gt in zip(detections, ground_truth):
+        gt_boxes, _ = _class_arrays(gt, cls, need_scores=False)
+        boxes, scores = _class_arrays(det, cls, need_scores=True)
+        order = np.argsort(-scores, kind="mergesort")[:max_detections]
+        scores_all.append(scores[order])
+        tp_all.append(_match_image(boxes[order], gt_boxes, iou_threshold))
+        n_gt += len(gt_boxes)
+    scores = np.concatenate(scores_all) if scores_all else np.zeros(0)
+    tp = np.concatenate(tp_all) if tp_all else np.zeros(0, dtype=bool)
+    tp = tp[np.argsort(-scores, kind="mergesort")]
+    tp_sum = np.cumsum(tp, dtype=np.float64)
+    fp_sum = np.cumsum(~tp, dtype=np.float64)
+    recall = tp_sum / n_gt if n_gt else np.zeros_like(tp_sum)
+    precision = tp_sum / np.maximum(tp_sum + fp_sum, 1.0)
+    return recall, precision, n_gt
+
+
+def _envelope(precision: np.ndarray) -> np.ndarray:
+    """max_{j ≥ i} precision_j."""
+    return np.maximum.accumulate(precision[::-1])[::-1]
+
+
+def ap_voc_all_point(recall: np.ndarray, precision: np.ndarray) -> float:
+    """VOC all-point AP: area under the precision envelope, summed over the recall steps."""
+    if recall.size == 0:
+        return 0.0
+    steps = np.diff(np.concatenate([[0.0], recall]))
+    return float(np.sum(steps * _envelope(precision)))
+
+
+def ap_coco_101(recall: np.ndarray, precision: np.ndarray) -> float:
+    """COCO AP: mean of the precision envelope at the 101 recalls 0…1 (0 past the highest recall)."""
+    if recall.size == 0:
+        return 0.0
+    idx = np.searchsorted(recall, COCO_RECALLS, side="left")
+    env = np.concatenate([_envelope(precision), [0.0]])
+    return float(np.mean(env[np.minimum(idx, recall.size)]))
+
+
+def evaluate_map(detections: list[dict], ground_truth: list[dict], class_names: list[str],
+                 iou: float = 0.5, method: str = "voc", max_detections: int | None = None) -> MapResult:
+    """AP per class and mAP over a data set (module docstring for the rules)."""
+    if method not in METHODS:
+        raise ParameterError("method", method, f"one of {', '.join(METHODS)}")
+    if len(detections) != len(ground_truth):
+        raise ParameterError("detections", len(detections), f"one entry per image ({len(ground_truth)} images)")
+    if not 0.0 < iou < 1.0:
+        raise ParameterError("iou", iou, "a threshold in (0, 1)")
+    integrate = ap_voc_all_point if method == "voc" else ap_coco_101
+    ap, n_gt, curves = {}, {}, {}
+    for k, name in enumerate(class_names):
+        recall, precision, n = precision_recall(detections, ground_truth, k, iou, max_detections)
+        ap[name] = integrate(recall, precision) if n else math.nan
+        n_gt[name], curves[name] = n, (recall, precision)
+    with_gt = [v for v in ap.values() if not math.isnan(v)]
+    notes = [f"no ground truth for {name}: left out of the mean" for name, v in ap.items() if math.isnan(v)]
+    return MapResult(ap, float(np.mean(with_gt)) if with_gt else math.nan, n_gt, curves, method, iou, notes)
+
+
+def pycocotools_ap50(detections: list[dict], ground_truth: list[dict], class_names: list[str],
+                     max_detections: int = 100) -> dict:
+    """AP@0.5 per class and their mean from pycocotools' COCOeval (area range 'all', maxDets
+    max_detections) on the same data: {"ap": {name: AP or NaN}, "mean_ap": …}.
+
+    When no image has any detection, pycocotools cannot load the empty result list; every class
+    with ground truth then has AP 0, which is what COCOeval gives for a class without detections."""
+    from pycocotools.coco import COCO
+    from pycocotools.cocoeval import COCOeval
+
+    images, annotations, results = [], [], []
+    for i, (det, gt) in enumerate(zip(detections, ground_truth)):
+        images.append({"id": i})
+        for box, cls in zip(np.asarray(gt["boxes"], dtype=float).reshape(-1, 4), np.asarray(gt["classes"]).reshape(-1)):
+            w, h = box[2] - box[0], box[3] - box[1]
+            annotations.append({"id": len(annotations) + 1, "image_id": i, "category_id": int(cls),
+                                "bbox": [box[0], box[1], w, h], "area": w * h, "iscrowd": 0})
+        for box, cls, score in zip(np.asarray(det["boxes"], dtype=float).reshape(-1, 4),
+                                   np.asarray(det["classes"]).reshape(-1), np.asarray(det["scores"]).reshape(-1)):
+            results.append({"image_id": i, "category_id": int(cls), "score": float(score),
+                            "bbox": [box[0], box[1], box[2] - box[0], box[3] - box[1]]})
+    has_gt = {int(a["category_id"]) for a in annotations}
+    ap = {name: (0.0 if k in has_gt else math.nan) for k, name in enumerate(class_names)}
+    if results:
+        with contextlib.redirect_stdout(io.StringIO()):
+            coco_gt = COCO()
+            coco_gt.dataset = {"images": images, "annotations": annotations,
+                               "categories": [{"id": k, "name": n} for k, n in enumerate(class_names)]}
+            coco_gt.createIndex()
+            evaluator = COCOeval(coco_gt, coco_gt.loadRes(results), "bbox")
+            evaluator.params.iouThrs = np.array([0.5])
+            evaluator.params.maxDets = [1, 10, int(max_detections)]
+            evaluator.evaluate()
+            evaluator.accumulate()
+        precision = evaluator.eval["precision"][0, :, :, 0, -1]      # recall × class, area 'all', last maxDets
+        for k, name in enumerate(class_names):
+            column = precision[:, evaluator.params.catIds.index(k)]
+            ap[name] = float(column.mean()) if np.all(column > -1) else math.nan
+    with_gt = [v for v in ap.values() if not math.isnan(v)]
+    return {"ap": ap, "mean_ap": float(np.mean(with_gt)) if with_gt else math.nan}
