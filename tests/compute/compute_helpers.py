@@ -45,11 +45,13 @@ def slow_renderer(project, seeds):
 
 
 def thread_budget(_job):
-    """(Dr.Jit threads after the variant is chosen, OMP_NUM_THREADS) as a worker sees them."""
+    """(Dr.Jit threads after the variant is chosen, OMP_NUM_THREADS, torch threads a training run
+    would use) as a worker sees them."""
+    from workbench.detect.train import choose_threads
     from workbench.render.variants import select_variant
     select_variant("llvm_ad_spectral")
     import drjit as dr
-    return dr.thread_count(), os.environ.get("OMP_NUM_THREADS")
+    return dr.thread_count(), os.environ.get("OMP_NUM_THREADS"), choose_threads(None)
 
 
 def progress_renderer(project, seeds, on_progress=None):

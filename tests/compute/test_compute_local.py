@@ -9,8 +9,8 @@ from workbench.errors import ParameterError
 
 
 def test_every_worker_gets_its_thread_budget():
-    (_, (drjit_threads, omp)), = run_jobs(thread_budget, [0], ComputeSpec(workers=1, cpus_per_task=1))
-    assert drjit_threads == 1 and omp == "1"
+    (_, budget), = run_jobs(thread_budget, [0], ComputeSpec(workers=1, cpus_per_task=1))
+    assert budget == (1, "1", 1)
 
 
 def test_local_spec_runs_jobs_and_bad_specs_name_the_field():

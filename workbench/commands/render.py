@@ -111,7 +111,7 @@ def cmd_dataset(args) -> int:
 
     try:
         project = load_project(args.project)
-        job = run_dataset(project, args.frames, args.out, compute=compute_spec(args),
+        job = run_dataset(project, args.frames, args.out, compute=compute_spec(args, max_tasks_per_child=16),
                           irradiance_dtype="float32" if args.float32 else "float16")
         steps = iter(())
         try:

@@ -61,7 +61,7 @@ def connect(spec) -> bool:
     if ray.is_initialized():
         return False
     if spec.address is None:
-        ray.init(num_cpus=spec.workers, num_gpus=None, log_to_driver=False)
+        ray.init(num_cpus=spec.workers, include_dashboard=False, log_to_driver=False)
     else:
         ray.init(address=spec.address, log_to_driver=False)
     return True
@@ -95,7 +95,8 @@ def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None 
     jobs = iter(jobs)
     try:
         if spec.gpus_per_task and not ray.cluster_resources().get("GPU"):
-            raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU")
+            raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU "
+                            "(--gpus-per-task 0 runs the tasks on CPUs)")
         window = QUEUE_PER_SLOT * task_slots(spec)
         board = ray.remote(num_cpus=0)(_ProgressBoard).remote() if task_progress else None
         exhausted = False

@@ -75,8 +75,11 @@ def library_lens_path(name: str) -> Path:
     for folder in lens_library():
         for ext in ("",) + _FORMATS:
             q = folder / f"{rel}{ext}"
-            if q.is_file():
-                return q
+            try:
+                if q.is_file():
+                    return q
+            except OSError:                 # a name too long for the file system, …: not a lens
+                break
     raise InputFileError(name, f"no such lens file, and not a library lens (available: "
                                f"{', '.join(available_lenses())})")
 
