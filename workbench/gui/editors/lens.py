@@ -411,6 +411,9 @@ class LensEditor(QWidget):
             half_diagonal = paraxial(lens).fov_deg(self._sensor_mm()[2]) / 2 if self._project else 30.0
         except LENS_ERRORS:
             half_diagonal = 30.0
+        if name not in self._drawn:              # nothing shown yet: say that it is coming
+            self.canvases[name].redraw(lambda fig: fig.text(
+                0.5, 0.5, f"computing the {name.replace('_', ' ')} chart…", ha="center", color="0.4"))
         self._chart_job = (name, self._chart_generation)
         self._chart_worker = create_worker(build_chart, name, lens, half_diagonal, _start_thread=False,
                                            _ignore_errors=True)
