@@ -10,7 +10,7 @@ import sys
 from workbench.errors import WorkbenchError
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment")
+COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "gui")
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -64,6 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command. Errors a user can act on (WorkbenchError, a path the system refuses, a
     value refused by the core) print one line `workbench CMD: error: …` and return 2."""
     from workbench.logs import setup_logging
+    if not (sys.argv[1:] if argv is None else argv):    # bare `workbench`: the window, given a display
+        from workbench.commands.gui import has_display_for_gui
+        if has_display_for_gui():
+            argv = ["gui"]
     args = build_parser().parse_args(argv)
     setup_logging()
     logging.getLogger("workbench.cli").info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))

@@ -163,8 +163,11 @@ def resolve_project_path(path: str | os.PathLike) -> Path:
         return p
     if p.name == str(path):
         for cand in (PROJECTS_DIR / p.name, PROJECTS_DIR / f"{p.name}.json"):
-            if cand.is_file():
-                return cand
+            try:
+                if cand.is_file():
+                    return cand
+            except OSError:                 # a name too long for the file system, …: no sample
+                break
     samples = ", ".join(sorted(q.stem for q in PROJECTS_DIR.glob("*.json")))
     raise InputFileError(p, f"no such project file (sample projects: {samples})")
 

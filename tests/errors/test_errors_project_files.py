@@ -46,6 +46,8 @@ def test_folder_and_missing_file_are_named(tmp_path):
         load_project(tmp_path)
     with pytest.raises(InputFileError, match="no such project file"):
         load_project(tmp_path / "nope.json")
+    with pytest.raises(InputFileError, match="no such project file"):
+        load_project("x" * 5000)
     with pytest.raises(InputFileError, match="not a regular file"):
         load_project("/dev/null")
 

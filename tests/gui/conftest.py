@@ -86,6 +86,7 @@ def qapp_args():
 @pytest.fixture(scope="session")
 def qapp(xserver, gui_home, qapp_args):
     """pytest-qt's QApplication, created only once the X server is up (xcb platform)."""
+    import workbench.gui  # noqa: F401  (guards the PySide6 6.12 refcount bug before Qt is used)
     from PySide6.QtWidgets import QApplication
     app = QApplication.instance() or QApplication(qapp_args)
     if app.platformName() != "xcb":

@@ -5,6 +5,8 @@ import json
 import logging
 import sys
 
+from workbench.commands.compute_options import add_compute_options, compute_spec
+
 
 def register(sub) -> None:
     p = sub.add_parser("experiment", help="train and test detectors: ISP stage or exposure bias (resumable)")
@@ -15,7 +17,10 @@ def register(sub) -> None:
                    help="quick: 320x240, mobile net, 1 thread (CPU); paper: 640x480, both nets (GPU)")
     p.add_argument("--seeds", type=int, default=None, help="seeds per configuration (default: the profile's, 3)")
     p.add_argument("--out", default=None, help="output folder (default experiment-KIND-PROFILE); a rerun resumes")
-    p.add_argument("--workers", type=int, default=0, help="runs in parallel processes (0 = in this process)")
+    p.add_argument("--workers", type=int, default=0,
+                   help="runs in parallel local processes (0 = in this process); with --backend ray and "
+                        "no --address, the CPUs of the local Ray cluster started for the run")
+    add_compute_options(p)
     p.set_defaults(func=cmd_experiment)
 
 
@@ -35,8 +40,9 @@ def cmd_experiment(args) -> int:
     project = load_project(args.project)
     out = args.out or f"experiment-{args.kind}-{args.profile}"
     cancel = CancelToken()
+    compute = compute_spec(args, gpus_per_task=1.0 if args.profile == "paper" else 0.0)
     job = run_experiment(args.kind, project, args.data, out, profile=args.profile, seeds=args.seeds,
-                         workers=args.workers, cancel=cancel)
+                         cancel=cancel, compute=compute)
     bar = None
     try:
         while True:

@@ -23,8 +23,11 @@ truth, and a detection that overlaps one (IoU ≥ 0.5, same class) while matchin
 dropped before scoring (VOC's 'difficult' rule, `drop_ignored_detections`).
 
 Augmentation (training views): the scene is mirrored before the sensor (the irradiance is flipped,
-then sampled by the same CFA, so the mosaic stays physically right) and a window of crop_hw is cut
-at even row/column offsets (the CFA phase is kept); the exposure still comes from the whole frame.
+then sampled by the same CFA, so the mosaic stays physically right: exact where flipping the
+packed mosaic would shift colours by a pixel) and a crop_hw window is cut from the signal rate at
+even row/column offsets (the CFA phase is kept), placed to hold the centre of a kept box drawn at
+random; the exposure still comes from the whole frame. Crops cut before the sensor make sensor +
+ISP cost only the window.
 """
 from __future__ import annotations
 
@@ -225,12 +228,16 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
 
 
 class RateCache:
-    """Least-recently-used cache of per-frame signal rates, bounded in MB."""
+    """Least-recently-used cache of per-frame signal rates, bounded in MB (RATES: the one cache
+    of a process, shared by every view and run in it)."""
 
     def __init__(self, limit_mb: float):
         self.limit_bytes = int(limit_mb * 2 ** 20)
         self._items: OrderedDict = OrderedDict()
         self._bytes = 0
+
+    def set_limit(self, limit_mb: float) -> None:
+        self.limit_bytes = int(limit_mb * 2 ** 20)
 
     def get(self, key, make):
         if key in self._items:
@@ -245,6 +252,9 @@ class RateCache:
                 _, old = self._items.popitem(last=False)
                 self._bytes -= sum(a.nbytes for a in old)
         return value
+
+
+RATES = RateCache(1024.0)
 
 
 def experiment_sensor(project):
@@ -269,6 +279,20 @@ def _crop_boxes(boxes: np.ndarray, classes: np.ndarray, r0: int, c0: int, h: int
     return out[ok], classes[ok]
 
 
+def _crop_corner(boxes: np.ndarray, h: int, w: int, ch: int, cw: int, rng: np.random.Generator) -> tuple[int, int]:
+    """Even (row, col) corner of a ch×cw window: uniform among the windows that hold the centre
+    of one kept box drawn at random (uniform over the frame when there is none)."""
+    lo_r, hi_r, lo_c, hi_c = 0, h - ch, 0, w - cw
+    if len(boxes):
+        x0, y0, x1, y1 = boxes[int(rng.integers(len(boxes)))]
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        lo_r, hi_r = max(0, int(np.ceil(cy - ch + 1))), min(h - ch, int(cy))
+        lo_c, hi_c = max(0, int(np.ceil(cx - cw + 1))), min(w - cw, int(cx))
+    r0 = 2 * int(rng.integers((lo_r + 1) // 2, hi_r // 2 + 1)) if hi_r >= lo_r + 1 else 2 * (hi_r // 2)
+    c0 = 2 * int(rng.integers((lo_c + 1) // 2, hi_c // 2 + 1)) if hi_c >= lo_c + 1 else 2 * (hi_c // 2)
+    return r0, c0
+
+
 class DetectionView:
     """A torch-style Dataset (len, getitem) of network inputs and box targets.
 
@@ -276,7 +300,7 @@ class DetectionView:
     'linear' or 'srgb'; evs: one EV bias, or several for an EV mix (every epoch each EV is given
     to an equal share of the frames, by a seeded permutation); seed: noise and augmentation seed;
     augment: mirror the scene with probability ½ and cut crop_hw windows (training);
-    cache_mb: memory for cached signal rates. A key is an item number (in the epoch set by
+    cache_mb: the limit of the process's signal-rate cache (RATES). A key is an item number (in the epoch set by
     set_epoch) or an (item, epoch) pair, so loader worker processes need no epoch state.
     Item: (input C×h×w float32 tensor, target dict with boxes_xyxy, classes, ignored_xyxy,
     ignored_classes, frame index, ev, exposure_s, sensor_isp_s). `timing` sums seconds spent
@@ -300,7 +324,8 @@ class DetectionView:
         self.augment, self.crop_hw = augment, crop_hw
         self.sensor = experiment_sensor(dataset.project)
         self._sensors = {(h, w): self.sensor}
-        self._cache = RateCache(cache_mb)
+        RATES.set_limit(cache_mb)
+        self._rate_key = (str(dataset.folder), dataset.fingerprint, self.sensor.model_dump_json())
         self._exposure: dict[int, float] = {}
         self.epoch = 0
         self._ev_by_epoch: dict[int, np.ndarray] = {}
@@ -342,7 +367,8 @@ class DetectionView:
         rec = self.frame_record(item)
         ev = self._ev_of(item, epoch)
         t0 = time.perf_counter()
-        rates = self._cache.get(rec.index, lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
+        rates = RATES.get((*self._rate_key, rec.index),
+                          lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
         t1 = time.perf_counter()
         if rec.index not in self._exposure:
             self._exposure[rec.index] = float(auto_exposure(rates[0], self.sensor))
@@ -357,8 +383,7 @@ class DetectionView:
             boxes, ignored = _mirror_boxes(boxes, w), _mirror_boxes(ignored, w)
         if self.crop_hw is not None:
             ch, cw = self.crop_hw
-            r0 = 2 * int(rng.integers(0, (h - ch) // 2 + 1))
-            c0 = 2 * int(rng.integers(0, (w - cw) // 2 + 1))
+            r0, c0 = _crop_corner(boxes, h, w, ch, cw, rng)
             rate = rate[r0:r0 + ch, c0:c0 + cw]
             boxes, classes = _crop_boxes(boxes, classes, r0, c0, ch, cw)
             ignored, ignored_cls = _crop_boxes(ignored, ignored_cls, r0, c0, ch, cw)

@@ -1,0 +1,53 @@
+"""The application: `workbench gui [PROJECT]` and the `workbench-gui` script call main(argv)."""
+from __future__ import annotations
+
+import os
+
+# Cap OpenMP/BLAS pools before numpy/torch load them: on a 2-core machine a background run must
+# leave a core to the GUI thread (the live worker also caps torch and Dr.Jit, see live.py).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+
+DEFAULT_PROJECT = "paper_camera"
+
+
+def has_display() -> bool:
+    """True where a window can open (an X or Wayland display, or a non-Linux desktop)."""
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
+def create_window(project_path: str | None = None, with_city_view: bool = True):
+    """The main window on a project file or sample name (default: the paper's camera)."""
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    from workbench.project import load_project, resolve_project_path
+    path = resolve_project_path(project_path or DEFAULT_PROJECT)
+    from workbench.project import PROJECTS_DIR
+    sample = path.resolve().parent == PROJECTS_DIR.resolve()
+    doc = Document(load_project(path), None if sample else path)
+    return MainWindow(doc, with_city_view=with_city_view)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="workbench-gui", description="the Camera Workbench window")
+    parser.add_argument("project", nargs="?", default=None,
+                        help=f"project file or sample name (default: {DEFAULT_PROJECT})")
+    args = parser.parse_args(argv)
+    os.environ.pop("PYVISTA_OFF_SCREEN", None)    # the embedded 3-D view must draw on screen
+    from PySide6.QtWidgets import QApplication
+    app = QApplication.instance() or QApplication([sys.argv[0]])
+    app.setApplicationName("Camera Workbench")
+    app.setOrganizationName("camera-workbench")
+    window = create_window(args.project)
+    window.show()
+    window.offer_recovery()
+    return app.exec()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
