@@ -50,6 +50,7 @@ class PreviewPane(QWidget):
         if name == "irradiance":
             self.band = QComboBox()
             self.band.setToolTip("inspect the irradiance summed over all bands or at one band")
+            self.band.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
             top.addWidget(self.band)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(2, 2, 2, 2)

@@ -8,14 +8,17 @@ from pydantic import Field, model_validator
 from workbench.params import Params
 
 class DaylightParams(Params):
-    """Sun (directional) + uniform sky, both spectral over 300–1100 nm (NIR included).
+    """Sun (directional) + sky, both spectral over 300–1100 nm (NIR included).
 
     The sun's position comes from `sun_elevation_deg`/`sun_azimuth_deg` (compass azimuth:
     0 = north = +Y, 90 = east = +X), or, when `time_of_day_h` is set, from local solar time,
     latitude and day of year (the angles are then ignored). `turbidity` is the Linke/Preetham
     turbidity (2 = very clear, 3 = clear, 6+ = hazy); it sets the Ångström aerosol coefficient.
     `sun_visible`: composite the solar disc (0.53° wide) onto pinhole renders where camera rays
-    reach the sky (render/sun_disc.py); the directional sun lights the scene either way."""
+    reach the sky (render/sun_disc.py); the directional sun lights the scene either way.
+    `sky_model` (render/sky.py): 'uniform' (SPCTRAL2 diffuse spread evenly), 'perez' (clear sky
+    brightening toward the sun and the horizon, same horizontal irradiance) or 'overcast' (CIE
+    overcast sky, no direct sun; `overcast_transmittance` × the clear-sky global irradiance)."""
 
     sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0)
     sun_azimuth_deg: float = Field(135.0, ge=0.0, lt=360.0)
@@ -26,6 +29,8 @@ class DaylightParams(Params):
     sun_scale: float = Field(1.0, ge=0.0, le=1e3)
     sky_scale: float = Field(1.0, ge=0.0, le=1e3)
     sun_visible: bool = True
+    sky_model: Literal["uniform", "perez", "overcast"] = "uniform"
+    overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0)
 
 
 class RenderParams(Params):
