@@ -129,3 +129,21 @@ def test_dock_layout_is_remembered(window, qtbot):
     qtbot.addWidget(again)
     assert again.saveState() == window.saveState()
     again.live.shutdown()
+
+
+@pytest.mark.parametrize("editor, section, changes, recomputed", [
+    ("ISP", "isp", {"demosaic": "malvar2004"}, ["isp"]),
+    ("Sensor", "sensor", {"analog_gain": 2.0}, ["sensor", "isp"]),
+    ("Sensor", "sensor", {"fill_factor": 0.5}, ["signal", "sensor", "isp"]),
+    ("Lens", "optics", {"f_number": 5.6}, ["optics", "signal", "sensor", "isp"]),
+])
+def test_each_editors_edit_recomputes_only_downstream_stages(window, qtbot, editor, section, changes, recomputed):
+    """An editor's edited signal → one undoable edit → the stages after it run, the rest are cached."""
+    if editor not in window.editors:
+        pytest.skip(f"the {editor} editor is not in this build")
+    shown = window.previews.frames_shown
+    window.editors[editor].edited.emit(section, changes)
+    wait_frame(qtbot, window, shown)
+    assert window.previews.frame.recomputed == recomputed
+    assert window.document.undo_stack.count() == 1
+    assert getattr(window.document.project, section).model_dump(include=set(changes)) == changes

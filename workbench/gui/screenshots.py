@@ -9,12 +9,9 @@ from pathlib import Path
 
 
 def _wait(app, predicate, timeout_s: float) -> None:
-    deadline = time.perf_counter() + timeout_s
-    while not predicate():
-        if time.perf_counter() > deadline:
-            raise TimeoutError("the window did not get there in time")
-        app.processEvents()
-        time.sleep(0.005)
+    from workbench.gui.bench import _wait as wait_in_loop
+    if not wait_in_loop(app, predicate, timeout_s):
+        raise TimeoutError("the window did not get there in time")
 
 
 def _settle(app, seconds: float) -> None:
