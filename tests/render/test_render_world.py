@@ -1,7 +1,7 @@
 """Night lamps, fog and glass (render/lamps.py, fog.py, scene_builder): physical checks.
 
 - Lamps: a white Lambertian plane under a lamp, seen with a V(λ)-weighted film: E_v = π L_v
-  must be Φ/(4π d²) at 1 m and 10 m within 2 % (rated flux, inverse square).
+  must be Φ/(2π d²) (full cut-off) at 1 m and 10 m within 2 % (rated flux, inverse square).
 - Fog: an emitter behind d metres of absorbing fog reads L e^{−σd}, σ = 3.912/V, within 4
   standard errors of the binary (transmitted or absorbed) estimator.
 - Glass: the pane's reflectance and transmittance against the Fresnel equations.
@@ -59,7 +59,7 @@ def test_lamp_illuminance_follows_flux_and_inverse_square(mi, kind):
         img = np.array(mi.render(scene, spp=spp, seed=7), dtype=np.float64)[..., 0]
         e_v = np.pi * 683.0 * img                               # white Lambertian: E = π L
         sem = e_v.std() / np.sqrt(e_v.size)
-        want = RATED_FLUX_LM[kind] / (4 * np.pi * d ** 2)
+        want = RATED_FLUX_LM[kind] / (2 * np.pi * d ** 2)        # full cut-off: Φ over 2π sr
         assert 4 * sem < 0.01 * want, f"{kind} {d} m: the test is too noisy ({sem / want:.2%})"
         assert e_v.mean() == pytest.approx(want, rel=0.02), kind
 
