@@ -162,3 +162,15 @@ def test_a_project_that_renders_other_frames_is_refused(synthetic_dir):
     DetectionDataset(synthetic_dir, project=project.updated(sensor=project.sensor.updated(read_noise_V=0.01)))
     with pytest.raises(ParameterError, match="pose"):
         DetectionDataset(synthetic_dir, project=project.updated(pose=project.pose.updated(height_m=2.0)))
+
+
+def test_crop_windows_hold_the_centre_of_a_kept_box():
+    from workbench.detect.data import _crop_corner
+    rng = np.random.default_rng(0)
+    boxes = np.array([[290.0, 200.0, 318.0, 238.0]], np.float32)       # near the bottom-right corner
+    for _ in range(200):
+        r0, c0 = _crop_corner(boxes, 240, 320, 128, 160, rng)
+        assert r0 % 2 == 0 and c0 % 2 == 0 and 0 <= r0 <= 112 and 0 <= c0 <= 160
+        assert c0 <= 304 < c0 + 160 and r0 <= 219 < r0 + 128
+    corners = {_crop_corner(np.zeros((0, 4), np.float32), 240, 320, 128, 160, rng) for _ in range(200)}
+    assert len(corners) > 50

@@ -106,3 +106,15 @@ def test_a_wall_clock_budget_stops_training(synthetic_dir, tmp_path):
     ds = DetectionDataset(synthetic_dir)
     _, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": None, "minutes": 0.02}), tmp_path / "t.pt")
     assert result.seconds >= 1.2 and result.seconds < 10
+
+
+def test_a_run_can_start_from_another_runs_weights(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    base, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "base.pt")
+    config = TrainConfig(**{**TINY, "epochs": 1, "lr": 1e-12, "warmup_fraction": 0.0, "init": "base"})
+    tuned, _ = train_detector(ds, config, tmp_path / "tuned.pt", init_checkpoint=tmp_path / "base.pt")
+    for (name, a), b in zip(base.state_dict().items(), tuned.state_dict().values()):
+        if a.dtype.is_floating_point and "running" not in name:
+            assert torch.allclose(a, b, atol=1e-6), name                # lr ≈ 0: the start is kept
+    with pytest.raises(InputFileError, match="missing.pt"):
+        train_detector(ds, config, tmp_path / "other.pt", init_checkpoint=tmp_path / "missing.pt")

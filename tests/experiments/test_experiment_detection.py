@@ -16,7 +16,7 @@ import pytest
 from workbench.experiments.detection import PROFILES, run_experiment, summarise, t_interval
 from workbench.jobs import CancelToken, JobCancelled
 
-TINY = replace(PROFILES["quick"], name="tiny", image_hw=(48, 64), epochs={"isp": 1, "exposure": 1},
+TINY = replace(PROFILES["quick"], name="tiny", image_hw=(48, 64), epochs={"isp": 1, "exposure_base": 1, "exposure": 1},
                crop_hw=None, batch_size=4)
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -68,10 +68,13 @@ def test_cancelled_exposure_experiment_resumes_without_retraining(synthetic_dir,
                               cancel=cancel), cancel, cancel_after=2)
     first = json.loads((tmp_path / "results.json").read_text())
     assert len(first["runs"]) == 2 and not first["complete"]
+    assert first["runs"][0]["role"]["condition"] == "start"              # the starting network comes first
     result = _drive(run_experiment("exposure", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=TINY))
-    assert len(result.reused) == 2 and len(result.trained) == 2          # ev0, mix, EV−1, EV+1
-    doc = _check_outputs(tmp_path, "exposure", 4)
+    assert len(result.reused) == 2 and len(result.trained) == 3          # start, ev0 | mix, EV−1, EV+1
+    doc = _check_outputs(tmp_path, "exposure", 5)
     assert doc["runs"][:2] == first["runs"]                              # finished runs kept as they were
+    start = doc["runs"][0]["key"]
+    assert all(r["config"]["init"] == start for r in doc["runs"][1:])   # every condition is fine-tuned from it
     per_ev = sorted(s["test_ev"] for s in doc["summary"] if s["condition"] == "per_ev")
     assert per_ev == [-1.0, 0.0, 1.0]                                    # EV 0 comes from the EV-0 run
 
@@ -81,7 +84,7 @@ def test_killed_experiment_resumes_without_duplicates(synthetic_dir, tmp_path):
             "from workbench.experiments.detection import PROFILES, run_experiment\n"
             "from workbench.detect.synthetic import synthetic_project\n"
             "p = synthetic_project(); p = p.updated(experiment=p.experiment.updated(ev_biases=[-1.0, 0.0, 1.0]))\n"
-            "prof = replace(PROFILES['quick'], name='tiny', image_hw=(48, 64), epochs={'isp': 1, 'exposure': 1},"
+            "prof = replace(PROFILES['quick'], name='tiny', image_hw=(48, 64), epochs={'isp': 1, 'exposure_base': 1, 'exposure': 1},"
             " crop_hw=None, batch_size=4)\n"
             f"for _ in run_experiment('isp', p, {str(synthetic_dir)!r}, {str(tmp_path)!r}, seeds=1,"
             " profile_override=prof): pass\n")

@@ -23,8 +23,11 @@ truth, and a detection that overlaps one (IoU ≥ 0.5, same class) while matchin
 dropped before scoring (VOC's 'difficult' rule, `drop_ignored_detections`).
 
 Augmentation (training views): the scene is mirrored before the sensor (the irradiance is flipped,
-then sampled by the same CFA, so the mosaic stays physically right) and a window of crop_hw is cut
-at even row/column offsets (the CFA phase is kept); the exposure still comes from the whole frame.
+then sampled by the same CFA, so the mosaic stays physically right: exact where flipping the
+packed mosaic would shift colours by a pixel) and a crop_hw window is cut from the signal rate at
+even row/column offsets (the CFA phase is kept), placed to hold the centre of a kept box drawn at
+random; the exposure still comes from the whole frame. Crops cut before the sensor make sensor +
+ISP cost only the window.
 """
 from __future__ import annotations
 
@@ -276,6 +279,20 @@ def _crop_boxes(boxes: np.ndarray, classes: np.ndarray, r0: int, c0: int, h: int
     return out[ok], classes[ok]
 
 
+def _crop_corner(boxes: np.ndarray, h: int, w: int, ch: int, cw: int, rng: np.random.Generator) -> tuple[int, int]:
+    """Even (row, col) corner of a ch×cw window: uniform among the windows that hold the centre
+    of one kept box drawn at random (uniform over the frame when there is none)."""
+    lo_r, hi_r, lo_c, hi_c = 0, h - ch, 0, w - cw
+    if len(boxes):
+        x0, y0, x1, y1 = boxes[int(rng.integers(len(boxes)))]
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        lo_r, hi_r = max(0, int(np.ceil(cy - ch + 1))), min(h - ch, int(cy))
+        lo_c, hi_c = max(0, int(np.ceil(cx - cw + 1))), min(w - cw, int(cx))
+    r0 = 2 * int(rng.integers((lo_r + 1) // 2, hi_r // 2 + 1)) if hi_r >= lo_r + 1 else 2 * (hi_r // 2)
+    c0 = 2 * int(rng.integers((lo_c + 1) // 2, hi_c // 2 + 1)) if hi_c >= lo_c + 1 else 2 * (hi_c // 2)
+    return r0, c0
+
+
 class DetectionView:
     """A torch-style Dataset (len, getitem) of network inputs and box targets.
 
@@ -366,8 +383,7 @@ class DetectionView:
             boxes, ignored = _mirror_boxes(boxes, w), _mirror_boxes(ignored, w)
         if self.crop_hw is not None:
             ch, cw = self.crop_hw
-            r0 = 2 * int(rng.integers(0, (h - ch) // 2 + 1))
-            c0 = 2 * int(rng.integers(0, (w - cw) // 2 + 1))
+            r0, c0 = _crop_corner(boxes, h, w, ch, cw, rng)
             rate = rate[r0:r0 + ch, c0:c0 + cw]
             boxes, classes = _crop_boxes(boxes, classes, r0, c0, ch, cw)
             ignored, ignored_cls = _crop_boxes(ignored, ignored_cls, r0, c0, ch, cw)

@@ -60,7 +60,9 @@ def pick_device(device: str) -> str:
 class TrainConfig:
     """One training run. epochs or minutes (exactly one) is the budget; lr is AdamW's peak
     learning rate, reached after warmup_fraction of the budget; crop_hw: training windows (even
-    offsets) or None for whole frames; threads None = choose_threads()."""
+    offsets) or None for whole frames; threads None = choose_threads(); init: the name of the run
+    whose finished weights start this one ('' = random initialisation; the file is given to
+    train_detector)."""
 
     net: str = "mobile"
     representation: str = "srgb"
@@ -80,6 +82,7 @@ class TrainConfig:
     loader_workers: int = 0
     cache_mb: float = 1024.0
     eval_batch_size: int = 8
+    init: str = ""
 
     def __post_init__(self):
         if (self.epochs is None) == (self.minutes is None):
@@ -181,12 +184,14 @@ class TrainResult:
     history: list = field(default_factory=list)
 
 
-def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, cancel=None):
+def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, cancel=None,
+                   init_checkpoint: str | Path | None = None):
     """Train config.net on the dataset's training frames; returns (model in eval mode, TrainResult).
 
     Resumes from checkpoint_path when it holds an unfinished run of the same configuration (a
-    checkpoint of another configuration is refused, naming the file). cancel: a CancelToken,
-    checked after every epoch (the checkpoint is written first)."""
+    checkpoint of another configuration is refused, naming the file). A new run starts from the
+    weights of init_checkpoint (a finished run's checkpoint, config.init names it) when given.
+    cancel: a CancelToken, checked after every epoch (the checkpoint is written first)."""
     import torch
 
     from workbench.detect.centernet import centernet_loss
@@ -220,6 +225,12 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
         epoch, step, elapsed_s = int(state["epoch"]), int(state["step"]), float(state["elapsed_s"])
         history, images, step_s = list(state["history"]), int(state["images"]), float(state["step_s"])
         log.info("resumed %s at epoch %d from %s", config.net, epoch, checkpoint_path)
+    elif config.init:
+        base = load_checkpoint(init_checkpoint) if init_checkpoint else None
+        if base is None or not base.get("done"):
+            raise InputFileError(init_checkpoint or "(none)", f"the finished weights of run '{config.init}' that "
+                                                               "this run starts from are missing or unfinished")
+        model.load_state_dict(base["model"])
     done = bool(state and state.get("done"))
     use_amp = config.amp and device == "cuda"
     model.train()
@@ -338,7 +349,8 @@ def _thin(values: list, points: int = 50) -> list:
 @dataclass(frozen=True)
 class DetectionJob:
     """One run as plain data: train `config` on the data set, then test on its test frames at
-    each of test_evs (the training representation). checkpoint: the run's checkpoint file."""
+    each of test_evs (the training representation; none for a run that only makes starting
+    weights). checkpoint: the run's checkpoint file; init_checkpoint: the file of config.init."""
 
     key: str
     dataset_dir: str
@@ -346,6 +358,7 @@ class DetectionJob:
     test_evs: tuple[float, ...]
     checkpoint: str
     with_curves: bool = False
+    init_checkpoint: str | None = None
 
     def __repr__(self) -> str:
         return f"DetectionJob({self.key})"
@@ -357,7 +370,7 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     from workbench.detect.data import DetectionDataset, DetectionView
 
     dataset = DetectionDataset(job.dataset_dir)
-    model, tr = train_detector(dataset, job.config, job.checkpoint, cancel)
+    model, tr = train_detector(dataset, job.config, job.checkpoint, cancel, job.init_checkpoint)
     device = pick_device(job.config.device)
     tests = []
     for ev in job.test_evs:

@@ -5,7 +5,11 @@ ISP stage ('isp'): each network is trained and tested on raw, linear and sRGB ca
 Exposure bias ('exposure'): for every EV in the project's experiment.ev_biases, (a) the EV-0-trained
 network tested at every EV, (b) a network trained on an EV mix (each EV an equal share of every
 epoch, same number of training images) tested at every EV, (c) a network trained and tested at each
-EV (the upper bound; at EV 0 it is run (a)): the paper's Fig. 7, on sRGB.
+EV (the upper bound; at EV 0 it is run (a)): the paper's Fig. 7, on sRGB. As in the paper, where
+every network was fine-tuned from COCO-trained weights (well-exposed sRGB photographs), each
+condition fine-tunes one starting network per (net, seed) for the same number of epochs; here the
+start is trained at EV 0 on sRGB on the training frames (epochs['exposure_base']), since no
+COCO weights are used. The ISP experiment trains from random weights (the raw stem differs).
 
 Seeds vary network initialisation, batch order, augmentation and training-capture noise; the
 split and the test captures are the same for every run. Summaries: mean mAP over seeds with a
@@ -43,7 +47,8 @@ CONDITIONS = ("ev0_trained", "ev_mix", "per_ev")
 
 @dataclass(frozen=True)
 class Profile:
-    """How big an experiment is. epochs: per experiment kind; crop_hw: training windows."""
+    """How big an experiment is. epochs: 'isp' per run; 'exposure_base' for the starting network
+    and 'exposure' for each fine-tuned condition; crop_hw: training windows."""
 
     name: str
     image_hw: tuple[int, int]
@@ -62,13 +67,14 @@ class Profile:
 
 PROFILES = {
     "quick": Profile(
-        name="quick", image_hw=(240, 320), nets=("mobile",), seeds=3, epochs={"isp": 12, "exposure": 3},
+        name="quick", image_hw=(240, 320), nets=("mobile",), seeds=3,
+        epochs={"isp": 12, "exposure_base": 8, "exposure": 2},
         batch_size=8, crop_hw=(128, 160), lr=3e-3, threads=1, device="cpu", loader_workers=0, cache_mb=1024.0,
         note="quick profile: 320×240 frames, the 'mobile' net, 1 thread, training on 160×128 windows; "
              "designed to finish each experiment in ≤ 20 min on one uncontended CPU core (≤ 30 min on a "
              "shared 2-core machine) from an already rendered data set of ~400 frames"),
     "paper": Profile(
-        name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=3, epochs={"isp": 40, "exposure": 40},
+        name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=3, epochs={"isp": 60, "exposure_base": 40, "exposure": 20},
         batch_size=16, crop_hw=None, lr=2e-3, threads=None, device="auto", loader_workers=12, cache_mb=4096.0,
         note="paper profile: 640×480 frames (~2,200 train / ~800 test), both nets, ≥ 3 seeds: meant for a "
              "GPU (CUDA with bf16 autocast when present); on a CPU it takes days"),
@@ -92,29 +98,34 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, out_dir: Path):
     base = TrainConfig(epochs=profile.epochs[kind], batch_size=profile.batch_size, lr=profile.lr,
                        crop_hw=profile.crop_hw, threads=profile.threads, device=profile.device,
                        loader_workers=profile.loader_workers, cache_mb=profile.cache_mb)
-    specs = []       # (role dict, config, test evs)
+    jobs = []
+
+    def add(role: dict, config, test_evs: tuple, tag: str = "") -> str:
+        ev_tag = "mix" if len(config.train_evs) > 1 else f"ev{config.train_evs[0]:+g}"
+        key = (f"{config.net}-{config.representation}-{tag}{ev_tag}-s{config.seed}-"
+               f"{_digest(config.to_json(), test_evs, dataset.fingerprint)}")
+        jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
+                                        with_curves=kind == "isp",
+                                        init_checkpoint=str(checkpoints / f"{config.init}.pt") if config.init else None)))
+        return key
+
+    checkpoints = out_dir / "checkpoints"
     for net in profile.nets:
         for seed in range(seeds):
+            role = {"net": net, "seed": seed}
             if kind == "isp":
                 for rep in REPRESENTATION_ORDER:
-                    specs.append(({"net": net, "representation": rep, "condition": "ev0_trained", "seed": seed},
-                                  replace(base, net=net, representation=rep, seed=seed), (0.0,)))
-            else:
-                specs.append(({"net": net, "representation": "srgb", "condition": "ev0_trained", "seed": seed},
-                              replace(base, net=net, seed=seed), evs))
-                specs.append(({"net": net, "representation": "srgb", "condition": "ev_mix", "seed": seed},
-                              replace(base, net=net, seed=seed, train_evs=evs), evs))
-                for ev in evs:
-                    if ev != 0.0:
-                        specs.append(({"net": net, "representation": "srgb", "condition": "per_ev", "seed": seed},
-                                      replace(base, net=net, seed=seed, train_evs=(ev,)), (ev,)))
-    jobs = []
-    for role, config, test_evs in specs:
-        ev_tag = "mix" if len(config.train_evs) > 1 else f"ev{config.train_evs[0]:+g}"
-        key = (f"{config.net}-{config.representation}-{ev_tag}-s{config.seed}-"
-               f"{_digest(config.to_json(), test_evs, dataset.fingerprint)}")
-        jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs,
-                                        str(out_dir / "checkpoints" / f"{key}.pt"), with_curves=kind == "isp")))
+                    add({**role, "representation": rep, "condition": "ev0_trained"},
+                        replace(base, net=net, representation=rep, seed=seed), (0.0,))
+                continue
+            start = add({**role, "representation": "srgb", "condition": "start"},
+                        replace(base, net=net, seed=seed, epochs=profile.epochs["exposure_base"]), (), "start-")
+            tuned = replace(base, net=net, seed=seed, init=start)
+            add({**role, "representation": "srgb", "condition": "ev0_trained"}, tuned, evs)
+            add({**role, "representation": "srgb", "condition": "ev_mix"}, replace(tuned, train_evs=evs), evs)
+            for ev in evs:
+                if ev != 0.0:
+                    add({**role, "representation": "srgb", "condition": "per_ev"}, replace(tuned, train_evs=(ev,)), (ev,))
     return jobs
 
 
@@ -270,13 +281,15 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     in_process = compute.backend == "local" and compute.workers == 0
     fn = partial(run_detection_job, cancel=cancel) if in_process else run_detection_job
     trained = []
-    for job, result in run_jobs(fn, [job for _, job in todo], compute, cancel):
+    phases = [[job for _, job in todo if not job.config.init], [job for _, job in todo if job.config.init]]
+    for job, result in (pair for phase in phases for pair in run_jobs(fn, phase, compute, cancel)):
         result["role"] = role_of[job.key]
         runs = [r for r in runs if r["key"] != job.key] + [result]
         trained.append(job.key)
         doc.update(runs=runs, summary=summarise(kind, runs), complete=len(trained) == len(todo),
                    written_utc=datetime.now(timezone.utc).isoformat())
         write_outputs(doc, out)
-        maps = ", ".join(f"EV{t['ev']:+g} {t['map']:.3f}" for t in result["tests"])
+        maps = ", ".join(f"EV{t['ev']:+g} {t['map']:.3f}" if t["map"] is not None else f"EV{t['ev']:+g} -"
+                         for t in result["tests"]) or "starting weights"
         yield Progress(len(reused) + len(trained), len(jobs), f"{job.key}: mAP {maps}")
     return ExperimentResult(out, out / "results.json", trained, reused, doc["summary"])
