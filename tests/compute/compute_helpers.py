@@ -61,3 +61,8 @@ def progress_renderer(project, seeds, on_progress=None):
         time.sleep(0.3)
         on_progress(SimpleNamespace(spp_done=k, spp_total=4))
     return tiny_renderer(project, seeds)
+
+
+def die(_job):
+    """A job whose worker always dies (SIGKILL)."""
+    os.kill(os.getpid(), signal.SIGKILL)

@@ -123,3 +123,20 @@ def test_optics_form_and_the_selector_runs_for_auto(qtbot, user_lenses):
     level = sig.args[0]["level"]
     assert level in ("pinhole", "diffraction_limited", "thin_lens")
     assert f"auto → '{level}'" in editor.selector_text.text() and "budget" in editor.selector_text.text()
+
+
+def test_insert_and_delete_surfaces(qtbot, user_lenses):
+    editor, emitted = make_editor(qtbot, with_lens())
+    before = editor.used_lens()
+    n = editor.table.rowCount()
+    editor.table.setCurrentCell(2, 0)
+    assert editor.insert_surface()
+    assert editor.table.rowCount() == n + 1 and editor.save_button.isEnabled()
+    p0, p1 = paraxial(before), paraxial(editor.used_lens())
+    assert p1.efl_mm == pytest.approx(p0.efl_mm, rel=1e-9)          # the new surface is neutral
+    assert p1.bfl_mm == pytest.approx(p0.bfl_mm, rel=1e-9)
+    assert editor.delete_surface() is True and editor.table.rowCount() == n   # the new one again
+    stop = next(i for i in range(n) if editor.table.item(i, 4).text() == "stop")
+    editor.table.setCurrentCell(stop, 0)
+    assert not editor.delete_surface() and "stop" in editor.table_status.text()
+    assert emitted == []

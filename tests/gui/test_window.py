@@ -49,6 +49,9 @@ def test_window_opens_and_all_four_panes_draw_real_pixels(window, grab):
         assert pixels.std() > 5.0, f"pane {name} looks uniform"
     assert window.optics_label.text() == "optics: pinhole"
     assert "isp" in window.times_label.text()
+    from PySide6.QtWidgets import QTabBar
+    bars = [b for b in window.findChildren(QTabBar) if b.parent() is window and b.isVisible()]
+    assert sorted(b.count() for b in bars) == [2, 3]     # Lens/Sensor/ISP and Sweep/Experiments, no stale copy
 
 
 def test_isp_edit_recomputes_isp_only_and_sensor_edit_sensor_and_isp(window, qtbot):
@@ -129,3 +132,21 @@ def test_dock_layout_is_remembered(window, qtbot):
     qtbot.addWidget(again)
     assert again.saveState() == window.saveState()
     again.live.shutdown()
+
+
+@pytest.mark.parametrize("editor, section, changes, recomputed", [
+    ("ISP", "isp", {"demosaic": "malvar2004"}, ["isp"]),
+    ("Sensor", "sensor", {"analog_gain": 2.0}, ["sensor", "isp"]),
+    ("Sensor", "sensor", {"fill_factor": 0.5}, ["signal", "sensor", "isp"]),
+    ("Lens", "optics", {"f_number": 5.6}, ["optics", "signal", "sensor", "isp"]),
+])
+def test_each_editors_edit_recomputes_only_downstream_stages(window, qtbot, editor, section, changes, recomputed):
+    """An editor's edited signal → one undoable edit → the stages after it run, the rest are cached."""
+    if editor not in window.editors:
+        pytest.skip(f"the {editor} editor is not in this build")
+    shown = window.previews.frames_shown
+    window.editors[editor].edited.emit(section, changes)
+    wait_frame(qtbot, window, shown)
+    assert window.previews.frame.recomputed == recomputed
+    assert window.document.undo_stack.count() == 1
+    assert getattr(window.document.project, section).model_dump(include=set(changes)) == changes

@@ -90,7 +90,7 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], spec: ComputeSpec | None =
     """Run fn(job) for every job where `spec` says; yield (job, result) in completion order.
 
     A job that raises stops the run with JobFailed naming the job (pending jobs are dropped); a
-    job whose worker died is retried up to spec.max_retries times (Ray), then JobFailed. cancel
+    job whose worker died is retried up to spec.max_retries times, then JobFailed. cancel
     is checked between jobs (JobCancelled). task_progress=True also yields TaskProgress(job, done,
     total) items as running jobs call compute.progress.report_progress (process pool and Ray)."""
     spec = spec or ComputeSpec()
@@ -100,4 +100,4 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], spec: ComputeSpec | None =
     from workbench.compute.local import run_jobs as run_local
     return run_local(fn, jobs, spec.workers, cancel, max_tasks_per_child=spec.max_tasks_per_child,
                      threads_per_worker=spec.threads_per_task if spec.workers else None,
-                     task_progress=task_progress)
+                     task_progress=task_progress, max_retries=spec.max_retries)

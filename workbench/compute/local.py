@@ -14,6 +14,7 @@ import multiprocessing
 import os
 import signal
 import sys
+from concurrent.futures.process import BrokenProcessPool
 from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
@@ -75,8 +76,8 @@ def _run_reporting(fn, key: int, job):
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
              cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
-             threads_per_worker: int | None = None, task_progress: bool = False
-             ) -> Generator[tuple[J, R] | TaskProgress, None, None]:
+             threads_per_worker: int | None = None, task_progress: bool = False,
+             max_retries: int = 3) -> Generator[tuple[J, R] | TaskProgress, None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
@@ -87,8 +88,9 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
     native libraries); threads_per_worker is each worker's thread budget (OpenMP, torch, Dr.Jit).
     cancel is checked between jobs: once set, no further job starts, jobs already running are
     waited for (their results are not yielded) and JobCancelled is raised.
-    A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
-    task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
+    A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job. When
+    a worker process dies, the jobs in flight are re-run in a fresh pool, each at most max_retries
+    times, then JobFailed names the job and the last error. task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
     compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
@@ -106,32 +108,41 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
             yield job, result
         return
     yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker,
-                         task_progress)
+                         task_progress, max_retries)
 
 
-def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_progress):
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_progress, max_retries):
     context = multiprocessing.get_context("spawn")
     queue = context.Queue() if task_progress else None
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                  max_tasks_per_child=max_tasks_per_child,
-                                  initializer=_worker_init, initargs=(os.getpid(), threads, queue))
-    pending: dict[cf.Future, object] = {}
-    keys: dict[int, object] = {}              # running jobs by progress key
-    key_of: dict[cf.Future, int] = {}
+
+    def new_pool():
+        return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                      max_tasks_per_child=max_tasks_per_child,
+                                      initializer=_worker_init, initargs=(os.getpid(), threads, queue))
+    pool = new_pool()
+    pending: dict[cf.Future, int] = {}        # future → key of the job it runs
+    keys: dict[int, object] = {}              # running (or to be re-run) jobs by key
+    deaths: dict[int, int] = {}               # key → how often a worker died running it
+    retry: list[int] = []
     counter = itertools.count()
+
+    def submit(key):
+        call = (_run_reporting, fn, key, keys[key]) if queue is not None else (fn, keys[key])
+        pending[pool.submit(*call)] = key
     try:
         exhausted = False
         while True:
-            while not exhausted and len(pending) < 2 * workers and not (cancel and cancel.cancelled):
+            while (retry or not exhausted) and len(pending) < 2 * workers and not (cancel and cancel.cancelled):
+                if retry:
+                    submit(retry.pop(0))
+                    continue
                 job = next(jobs, _END)
                 if job is _END:
                     exhausted = True
-                elif queue is None:
-                    pending[pool.submit(fn, job)] = job
                 else:
                     key = next(counter)
-                    fut = pool.submit(_run_reporting, fn, key, job)
-                    pending[fut], keys[key], key_of[fut] = job, job, key
+                    keys[key] = job
+                    submit(key)
             if cancel is not None and cancel.cancelled:
                 raise JobCancelled("cancelled")
             if not pending:
@@ -139,14 +150,29 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_prog
             done, _ = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
             if queue is not None:
                 yield from _drain(queue, keys)
+            broken = None
             for fut in done:
-                job = pending.pop(fut)
-                keys.pop(key_of.pop(fut, None), None)
+                key = pending.pop(fut)
                 try:
                     result = fut.result()
+                except BrokenProcessPool as exc:      # a worker died (killed, out of memory, crash)
+                    broken = exc
+                    retry.append(key)
+                    continue
                 except Exception as exc:
-                    raise JobFailed(f"job {job!r} failed: {exc}") from exc
-                yield job, result
+                    raise JobFailed(f"job {keys[key]!r} failed: {exc}") from exc
+                yield keys.pop(key), result
+            if broken is not None:
+                # Every job in flight went down with the pool: each counts one death, then a fresh pool.
+                retry += list(pending.values())
+                pending.clear()
+                for key in retry:
+                    deaths[key] = deaths.get(key, 0) + 1
+                    if deaths[key] > max_retries:
+                        raise JobFailed(f"job {keys[key]!r} failed after {max_retries} retries; last error: "
+                                        f"its worker process died ({broken})") from broken
+                pool.shutdown(wait=True, cancel_futures=True)
+                pool = new_pool()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
         if queue is not None:

@@ -3,9 +3,10 @@
 Each task reserves spec.cpus_per_task CPUs (also its thread budget), memory and GPUs. A task whose
 worker process dies (killed, out of memory, node lost) is re-run by Ray up to spec.max_retries
 times; an error the job raises itself (a bad project) is never retried and stops the run at once.
-A result travels once, worker → object store → caller (Ray keeps large buffers out of the pickle
-stream); the caller writes files. Without an address a local cluster is started for the run and
-shut down after it; with 'auto' or 'ray://…' an existing cluster is joined and left running.
+A result travels once, worker → object store → caller, and the caller writes files. Without an
+address a private local cluster (no dashboard) is started for the run and shut down after it; with
+'auto' or 'ray://…' an existing cluster is joined and left running; a process already connected
+to Ray (ray.init was called) keeps its connection.
 """
 from __future__ import annotations
 

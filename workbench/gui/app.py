@@ -14,13 +14,6 @@ import sys  # noqa: E402
 DEFAULT_PROJECT = "paper_camera"
 
 
-def has_display() -> bool:
-    """True where a window can open (an X or Wayland display, or a non-Linux desktop)."""
-    if sys.platform.startswith("linux"):
-        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    return True
-
-
 def create_window(project_path: str | None = None, with_city_view: bool = True):
     """The main window on a project file or sample name (default: the paper's camera)."""
     from workbench.gui.document import Document

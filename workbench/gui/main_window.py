@@ -7,10 +7,10 @@ import importlib
 from pathlib import Path
 
 from pydantic import ValidationError
-from PySide6.QtCore import QSettings, Qt
+from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
-                               QProgressBar, QPushButton)
+                               QProgressBar, QPushButton, QScrollArea, QTabBar)
 
 from workbench.gui.document import LOAD_ERRORS, Document, find_recoverable, sample_projects
 from workbench.gui.live import LiveRunner
@@ -26,6 +26,8 @@ EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
            ("ISP", "workbench.gui.editors.isp", "ISPEditor"),
            ("Exposure sweep", "workbench.gui.panels.sweep", "SweepPanel"),
            ("Experiments", "workbench.gui.panels.experiments", "ExperimentsPanel"))
+# Docks that share one place as tabs.
+DOCK_TABS = (("Lens", "Sensor", "ISP"), ("Exposure sweep", "Experiments"))
 
 
 def _load_editor(module: str, cls: str):
@@ -72,9 +74,11 @@ class MainWindow(QMainWindow):
             self.editors[title] = editor
             area = Qt.DockWidgetArea.BottomDockWidgetArea if title in ("Exposure sweep", "Experiments") \
                 else Qt.DockWidgetArea.RightDockWidgetArea
-            self._add_dock(title, editor, area)
-        self._tabify(("Lens", "Sensor", "ISP"))
-        self._tabify(("Exposure sweep", "Experiments"))
+            self._add_dock(title, editor, area, scroll=True)
+        for group in DOCK_TABS:
+            present = [self.docks[t] for t in group if t in self.docks]
+            if present:
+                present[0].raise_()
         self._build_status_bar()
         self._build_menus()
         self.document.projectChanged.connect(self._project_changed)
@@ -93,23 +97,28 @@ class MainWindow(QMainWindow):
         self._update_title()
 
     # -- layout ----------------------------------------------------------------------------
-    def _add_dock(self, title: str, widget, area) -> QDockWidget:
+    def _add_dock(self, title: str, widget, area, scroll: bool = False) -> QDockWidget:
+        """A movable, floatable dock; scroll=True lets a tall panel shrink below its own minimum."""
         dock = QDockWidget(title, self)
         dock.setObjectName(f"dock-{title}")
+        if scroll:
+            holder = QScrollArea()
+            holder.setWidgetResizable(True)
+            holder.setFrameShape(QScrollArea.Shape.NoFrame)
+            holder.setWidget(widget)
+            widget = holder
         dock.setWidget(widget)
         dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
                          | QDockWidget.DockWidgetFeature.DockWidgetFloatable
                          | QDockWidget.DockWidgetFeature.DockWidgetClosable)
-        self.addDockWidget(area, dock)
+        group = next((g for g in DOCK_TABS if title in g), ())
+        first = next((self.docks[t] for t in group if t in self.docks), None)
+        if first is not None:
+            self.tabifyDockWidget(first, dock)     # straight into its tab group (no split first)
+        else:
+            self.addDockWidget(area, dock)
         self.docks[title] = dock
         return dock
-
-    def _tabify(self, titles) -> None:
-        present = [self.docks[t] for t in titles if t in self.docks]
-        for a, b in zip(present, present[1:]):
-            self.tabifyDockWidget(a, b)
-        if present:
-            present[0].raise_()
 
     def _restore_layout(self) -> None:
         geometry = self.settings.value("window/geometry")
@@ -118,6 +127,31 @@ class MainWindow(QMainWindow):
             self.restoreGeometry(geometry)
         if state is not None:
             self.restoreState(state)
+        else:                      # sizes apply once the window is laid out
+            QTimer.singleShot(0, self._default_layout)
+
+    def hide_stale_tab_bars(self) -> None:
+        """Qt 6.12 leaves an earlier tab bar of a tabbed dock group visible over other docks when
+        several groups are built; hide every main-window tab bar not sitting under a shown dock."""
+        live = [d.geometry() for d in self.docks.values() if d.isVisible() and not d.isFloating()]
+        for bar in self.findChildren(QTabBar):
+            if bar.parent() is self and bar.isVisible():
+                g = bar.geometry()
+                if not any(abs(g.top() - (d.bottom() + 1)) <= 2 and g.left() >= d.left() - 2
+                           and g.right() <= d.right() + 2 for d in live):
+                    bar.hide()
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        QTimer.singleShot(0, self.hide_stale_tab_bars)
+
+    def _default_layout(self) -> None:
+        """First run: the previews get most of the room; docks start at useful sizes."""
+        side = [self.docks[t] for t in ("3-D city", "Lens") if t in self.docks]
+        self.resizeDocks(side, [470, 430][:len(side)], Qt.Orientation.Horizontal)
+        bottom = [self.docks[t] for t in ("Exposure sweep",) if t in self.docks]
+        self.resizeDocks(bottom, [300] * len(bottom), Qt.Orientation.Vertical)
+        QTimer.singleShot(0, self.hide_stale_tab_bars)
 
     def save_layout(self) -> None:
         self.settings.setValue("window/geometry", self.saveGeometry())

@@ -10,7 +10,7 @@ Physics (facts from the literature, coded here):
 - Sky: SPCTRAL2's diffuse Rayleigh + aerosol terms (single-scattering albedo 0.945·exp(−0.095
   ln²(λ/0.4)), asymmetry 0.65), spread as a uniform sky radiance L = E_diffuse / π.
 - Not modelled: ozone, O₂ (760 nm) and water-vapour (940 nm) absorption, ground-reflected
-  sky light, sky brightness gradients, twilight (the sun must be above the horizon).
+  sky light, twilight (sky brightness gradients and overcast: sky.py) (the sun must be above the horizon).
 Spectra are energy units: irradiance W/m²/nm, radiance W/m²/sr/nm.
 """
 from __future__ import annotations
@@ -110,18 +110,20 @@ def sky_radiance(wavelengths_nm: np.ndarray, elevation_deg: float, turbidity: fl
 
 
 def daylight_emitters(daylight: DaylightParams) -> dict:
-    """Mitsuba emitter dicts {'sun': directional, 'sky': constant}, spectra over 300–1100 nm.
+    """Mitsuba emitters {'sun': directional dict, 'sky': sky.sky_emitter}, spectra over 300–1100 nm.
 
-    An emitter whose scale is 0 is left out (Mitsuba refuses an all-zero spectrum)."""
+    An emitter whose scale is 0 is left out (Mitsuba refuses an all-zero spectrum); an overcast
+    sky has no sun."""
+    from workbench.render.sky import sky_emitter
+
     el, az = sun_angles(daylight)
     wl = DAYLIGHT_WAVELENGTHS_NM
     out = {}
-    if daylight.sun_scale > 0:
+    if daylight.sun_scale > 0 and daylight.sky_model != "overcast":
         sun = daylight.sun_scale * sun_irradiance(wl, el, daylight.turbidity)
         out["sun"] = {"type": "directional", "direction": (-sun_direction(el, az)).tolist(),
                       "irradiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sun.tolist()))}}
-    if daylight.sky_scale > 0:
-        sky = daylight.sky_scale * sky_radiance(wl, el, daylight.turbidity)
-        out["sky"] = {"type": "constant",
-                      "radiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sky.tolist()))}}
+    sky = sky_emitter(daylight)
+    if sky is not None:
+        out["sky"] = sky
     return out

@@ -197,8 +197,8 @@ class SunDisc:
 def sun_disc(film: FilmSRFs, pose: CameraPose, fov_deg: float, width: int, height: int,
              daylight: DaylightParams, *, mi_scene=None, sky_mask: np.ndarray | None = None) -> SunDisc:
     """The sun disc of a pinhole view (sun_disc_coverage, sun_film_radiance); coverage 0 when
-    daylight.sun_visible is False or sun_scale is 0."""
-    if not daylight.sun_visible or daylight.sun_scale == 0:
+    daylight.sun_visible is False, sun_scale is 0 or the sky is overcast."""
+    if not daylight.sun_visible or daylight.sun_scale == 0 or daylight.sky_model == "overcast":
         return SunDisc(np.zeros((height, width)), np.zeros(film.output_wavelengths_nm.size),
                        {"status": "off"})
     coverage = sun_disc_coverage(pose, fov_deg, width, height, daylight, mi_scene=mi_scene, sky_mask=sky_mask)

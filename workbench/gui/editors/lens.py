@@ -113,6 +113,11 @@ class LensEditor(QWidget):
         self.table.cellChanged.connect(self._cell_changed)
         self.table_status = QLabel(self)
         self.table_status.setWordWrap(True)
+        self.insert_button = QPushButton("Insert surface", self)
+        self.insert_button.setToolTip("a flat surface after the selected one, with no optical effect until edited")
+        self.insert_button.clicked.connect(self.insert_surface)
+        self.delete_button = QPushButton("Delete surface", self)
+        self.delete_button.clicked.connect(self.delete_surface)
         self.save_name = QLineEdit(self)
         self.save_name.setPlaceholderText("name of the edited lens")
         self.save_button = QPushButton("Save edited lens and use it", self)
@@ -135,6 +140,11 @@ class LensEditor(QWidget):
         lv = QVBoxLayout(left)
         lv.addLayout(top)
         lv.addWidget(self.table, 1)
+        rows = QHBoxLayout()
+        rows.addWidget(self.insert_button)
+        rows.addWidget(self.delete_button)
+        rows.addStretch(1)
+        lv.addLayout(rows)
         lv.addWidget(self.table_status)
         lv.addLayout(save_row)
         lv.addWidget(self.readouts)
@@ -222,6 +232,14 @@ class LensEditor(QWidget):
         self._lens = lens
         self._edited = False
         self._lens_doc = lens_to_json(lens) if lens is not None else None
+        self._fill_table()
+        self.table_status.setText("" if lens is not None else "no lens: the optics use the first-order "
+                                                               "focal length and f-number below")
+        self.save_name.setText(f"{lens.name}-edited" if lens is not None else "")
+        self.save_button.setEnabled(False)
+        self._lens_changed()
+
+    def _fill_table(self) -> None:
         self.table.blockSignals(True)
         surfaces = self._lens_doc["surfaces"] if self._lens_doc else []
         self.table.setRowCount(len(surfaces))
@@ -235,36 +253,77 @@ class LensEditor(QWidget):
                 self.table.setItem(i, j, item)
         self.table.resizeColumnsToContents()
         self.table.blockSignals(False)
-        self.table_status.setText("" if lens is not None else "no lens: the optics use the first-order "
-                                                               "focal length and f-number below")
-        self.save_name.setText(f"{lens.name}-edited" if lens is not None else "")
-        self.save_button.setEnabled(False)
-        self._lens_changed()
+        for b in (self.insert_button, self.delete_button):
+            b.setEnabled(bool(surfaces))
 
-    def _cell_changed(self, row: int, col: int) -> None:
-        doc = json.loads(json.dumps(self._lens_doc))
-        entry = doc["surfaces"][row]
-        text = self.table.item(row, col).text()
-        item = self.table.item(row, col)
+    def _try_doc(self, doc: dict, where: str) -> bool:
+        """Use an edited lens document if it makes a valid lens; else say why (in `where`)."""
         try:
-            if col == 2:
-                if entry.get("is_stop") and "glass" not in entry:
-                    raise ValueError("the stop's material is the medium before it; edit that surface")
-                entry["glass"] = _material_value(text)
-            else:
-                entry[("radius", "thickness", None, "semi_aperture")[col]] = float(text)
             lens = lens_from_json(doc, default_name=self._lens.name)
             paraxial(lens)
         except LENS_ERRORS as exc:
-            item.setBackground(QColor("#ffd6d6"))
-            self.table_status.setText(f"surface {row}, {COLUMNS[col]}: {exc}")
+            self.table_status.setText(f"{where}: {exc}")
             self.save_button.setEnabled(False)
-            return
-        item.setBackground(QColor(0, 0, 0, 0))
+            return False
         self._lens_doc, self._lens, self._edited = doc, lens, True
         self.table_status.setText("edited: save the lens to use it in the simulation")
         self.save_button.setEnabled(True)
         self._lens_changed()
+        return True
+
+    def _cell_changed(self, row: int, col: int) -> None:
+        doc = json.loads(json.dumps(self._lens_doc))
+        entry = doc["surfaces"][row]
+        item = self.table.item(row, col)
+        where = f"surface {row}, {COLUMNS[col]}"
+        try:
+            if col == 2:
+                if entry.get("is_stop") and "glass" not in entry:
+                    raise ValueError("the stop's material is the medium before it; edit that surface")
+                entry["glass"] = _material_value(item.text())
+            else:
+                entry[("radius", "thickness", None, "semi_aperture")[col]] = float(item.text())
+        except ValueError as exc:
+            ok = False
+            self.table_status.setText(f"{where}: {exc}")
+        else:
+            ok = self._try_doc(doc, where)
+        item.setBackground(QColor(0, 0, 0, 0) if ok else QColor("#ffd6d6"))
+
+    def insert_surface(self) -> bool:
+        """Insert a flat, optically neutral surface after the selected one (at the next vertex, in
+        the same medium); edit it into what you need."""
+        row = max(self.table.currentRow(), 0)
+        doc = json.loads(json.dumps(self._lens_doc))
+        here = doc["surfaces"][row]
+        after = doc["surfaces"][min(row + 1, len(doc["surfaces"]) - 1)]
+        medium = self._lens.surfaces[row].material.to_json()
+        doc["surfaces"].insert(row + 1, {"radius": 0.0, "thickness": 0.0, "ior": 1.0, "glass": medium,
+                                         "semi_aperture": max(here["semi_aperture"], after["semi_aperture"]),
+                                         "is_stop": False})
+        if self._try_doc(doc, f"insert after surface {row}"):
+            self._fill_table()
+            self.table.setCurrentCell(row + 1, 0)
+            return True
+        return False
+
+    def delete_surface(self) -> bool:
+        """Delete the selected surface (not the stop); its thickness is added to the one before."""
+        row = self.table.currentRow()
+        doc = json.loads(json.dumps(self._lens_doc))
+        if row < 0 or row >= len(doc["surfaces"]):
+            return False
+        entry = doc["surfaces"][row]
+        if entry.get("is_stop") and "glass" not in entry:
+            self.table_status.setText("the aperture stop cannot be deleted")
+            return False
+        if row > 0:
+            doc["surfaces"][row - 1]["thickness"] += entry["thickness"]
+        del doc["surfaces"][row]
+        if self._try_doc(doc, f"delete surface {row}"):
+            self._fill_table()
+            return True
+        return False
 
     def save_edited_lens(self) -> bool:
         """Save the edited prescription in the user's lens library and set optics.lens_file to it."""
@@ -352,6 +411,9 @@ class LensEditor(QWidget):
             half_diagonal = paraxial(lens).fov_deg(self._sensor_mm()[2]) / 2 if self._project else 30.0
         except LENS_ERRORS:
             half_diagonal = 30.0
+        if name not in self._drawn:              # nothing shown yet: say that it is coming
+            self.canvases[name].redraw(lambda fig: fig.text(
+                0.5, 0.5, f"computing the {name.replace('_', ' ')} chart…", ha="center", color="0.4"))
         self._chart_job = (name, self._chart_generation)
         self._chart_worker = create_worker(build_chart, name, lens, half_diagonal, _start_thread=False,
                                            _ignore_errors=True)
