@@ -29,7 +29,7 @@ from workbench.scene.params import SceneParams
 from workbench.sensor.params import AutoExposureMethod, SensorParams
 
 FORMAT_TAG = "camera-workbench-project"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 PROJECTS_DIR = RESOURCES / "projects"
 
 EvBias = Annotated[float, Field(ge=-16.0, le=16.0)]
@@ -126,8 +126,15 @@ def _drop_mean_illuminance_lux(data: dict) -> dict:
     return data | {"schema_version": 2}
 
 
+def _add_scene_world(data: dict) -> dict:
+    """2 → 3: render.world (day/night, fog, glass) and render.daylight.sky_model are new; their
+    defaults (day, clear air, diffuse glass, uniform sky) are what version 2 rendered, so a
+    version-2 file keeps every result. (The version marks files an older workbench cannot read.)"""
+    return data | {"schema_version": 3}
+
+
 # Migrations from schema version N to N+1 (decoded document → decoded document).
-MIGRATIONS: dict[int, Callable[[dict], dict]] = {1: _drop_mean_illuminance_lux}
+MIGRATIONS: dict[int, Callable[[dict], dict]] = {1: _drop_mean_illuminance_lux, 2: _add_scene_world}
 
 
 def project_from_dict(data: object, source: str | None = None) -> Project:

@@ -5,7 +5,7 @@
 from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.project import PROJECTS_DIR, ExperimentParams, Project, save_project
-from workbench.render.params import RenderParams
+from workbench.render.params import FogParams, RenderParams, WorldParams
 from workbench.scene.city import CityRecipe, PoseParams
 from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
@@ -56,6 +56,37 @@ def main() -> None:
             description="The city frame through the automotive 2.4 mm lens (44 deg on the paper's sensor) at f/2.8, "
                         "traced inside Mitsuba for every camera ray (the full model).",
             optics=OpticsParams(model="raytrace", lens_file="automotive.2.4mm.json", f_number=2.8)),
+    ]
+    day = city.render.daylight
+    samples += [
+        city.updated(
+            name="city_day_clear_sky",
+            description="The city under a clear Perez/Preetham sky (brighter toward the sun and the horizon, "
+                        "spectral to 1100 nm) with see-through, Fresnel-reflecting window glass.",
+            render=RenderParams(daylight=day.updated(sky_model="perez"), world=WorldParams(glass="dielectric"))),
+        city.updated(
+            name="city_low_sun",
+            description="The city with the sun 5 deg above the horizon in the east: "
+                        "a long shadow, reddened sun (air mass ~10) and a Perez sky bright around the sun.",
+            render=RenderParams(daylight=day.updated(sun_elevation_deg=5.0, sun_azimuth_deg=90.0,
+                                                     sky_model="perez"))),
+        city.updated(
+            name="city_overcast",
+            description="The city under a CIE overcast sky (no direct sun; 30 % of the clear-sky global irradiance).",
+            render=RenderParams(daylight=day.updated(sky_model="overcast"))),
+        city.updated(
+            name="city_night",
+            description="The city at night: high-pressure sodium street lamps (15,000 lm), LED head-lights and red "
+                        "tail-lights on every car, a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
+                        "the sodium 819 nm line.",
+            sensor=SENSOR_PRESETS["auto_rccc"],
+            render=RenderParams(world=WorldParams(lighting="night"))),
+        city.updated(
+            name="city_fog",
+            description="The city in fog of 150 m visibility (extinction 3.912/150 per m, albedo 0.98, forward "
+                        "scattering g = 0.85) in a 60 m deep layer, under an overcast sky.",
+            render=RenderParams(daylight=day.updated(sky_model="overcast"),
+                                world=WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0)))),
     ]
     detection = city.updated(
         name="city_detection_quick",

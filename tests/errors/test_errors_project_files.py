@@ -117,7 +117,7 @@ def test_schema_1_migrates_and_drops_the_unused_illuminance():
     data["schema_version"] = 1
     data["experiment"]["mean_illuminance_lux"] = 500.0
     project = project_from_dict(data)
-    assert project.schema_version == SCHEMA_VERSION == 2
+    assert project.schema_version == SCHEMA_VERSION
     assert "mean_illuminance_lux" not in project.experiment.model_dump()
     assert project.scene.adjust_illuminance_lux == 1000.0       # what sets the illuminance
     with pytest.raises(ParameterError, match="experiment.mean_illuminance_lux"):
@@ -203,3 +203,15 @@ def test_every_sample_round_trips_through_save(tmp_path):
         again = load_project(out)
         assert again.model_dump() == project.model_dump()
         assert out.read_text() == path.read_text(), f"{path.name} is not in its saved form (run make_samples)"
+
+
+def test_schema_2_migrates_to_the_default_world():
+    """A version-2 city file (before sky models, night, fog, glass) renders as before: uniform sky,
+    day, clear air, diffuse glass."""
+    data = json.loads(_paper_text())
+    data["schema_version"] = 2
+    project = project_from_dict(data)
+    assert project.schema_version == SCHEMA_VERSION == 3
+    assert project.render.daylight.sky_model == "uniform"
+    world = project.render.world
+    assert (world.lighting, world.fog, world.glass) == ("day", None, "diffuse")

@@ -49,6 +49,9 @@ def test_window_opens_and_all_four_panes_draw_real_pixels(window, grab):
         assert pixels.std() > 5.0, f"pane {name} looks uniform"
     assert window.optics_label.text() == "optics: pinhole"
     assert "isp" in window.times_label.text()
+    from PySide6.QtWidgets import QTabBar
+    bars = [b for b in window.findChildren(QTabBar) if b.parent() is window and b.isVisible()]
+    assert sorted(b.count() for b in bars) == [2, 3]     # Lens/Sensor/ISP and Sweep/Experiments, no stale copy
 
 
 def test_isp_edit_recomputes_isp_only_and_sensor_edit_sensor_and_isp(window, qtbot):

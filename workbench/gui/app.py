@@ -14,13 +14,6 @@ import sys  # noqa: E402
 DEFAULT_PROJECT = "paper_camera"
 
 
-def has_display() -> bool:
-    """True where a window can open (an X or Wayland display, or a non-Linux desktop)."""
-    if sys.platform.startswith("linux"):
-        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    return True
-
-
 def create_window(project_path: str | None = None, with_city_view: bool = True):
     """The main window on a project file or sample name (default: the paper's camera)."""
     from workbench.gui.document import Document
@@ -36,17 +29,45 @@ def create_window(project_path: str | None = None, with_city_view: bool = True):
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="workbench-gui", description="the Camera Workbench window")
     parser.add_argument("project", nargs="?", default=None,
-                        help=f"project file or sample name (default: {DEFAULT_PROJECT})")
+                        help="project file or sample name (default: the welcome page's choice)")
+    parser.add_argument("--no-welcome", action="store_true",
+                        help=f"skip the welcome page and open {DEFAULT_PROJECT}")
     args = parser.parse_args(argv)
     os.environ.pop("PYVISTA_OFF_SCREEN", None)    # the embedded 3-D view must draw on screen
     from PySide6.QtWidgets import QApplication
     app = QApplication.instance() or QApplication([sys.argv[0]])
     app.setApplicationName("Camera Workbench")
     app.setOrganizationName("camera-workbench")
-    window = create_window(args.project)
+    project = args.project
+    if project is None and not args.no_welcome:
+        project = choose_start_project()
+    window = create_window(project)
+    from workbench.gui.crash import install_crash_handler
+    install_crash_handler(window)
     window.show()
     window.offer_recovery()
+    report_missing_backends(window)
     return app.exec()
+
+
+def choose_start_project() -> str:
+    """The welcome page (samples, recent files); the paper's camera if it is closed."""
+    from PySide6.QtCore import QSettings
+
+    from workbench.gui.paths import settings_file
+    from workbench.gui.welcome import WelcomeDialog
+    recent = QSettings(str(settings_file()), QSettings.Format.IniFormat).value("recent/files") or []
+    dialog = WelcomeDialog([recent] if isinstance(recent, str) else list(recent))
+    dialog.exec()
+    return dialog.choice or DEFAULT_PROJECT
+
+
+def report_missing_backends(window) -> None:
+    """Say in the status bar which optional back-ends are missing and what to install."""
+    from workbench.diagnostics import check_environment
+    missing = [c for c in check_environment() if not c.ok and "optional" not in c.detail]
+    if missing:
+        window.statusBar().showMessage("; ".join(f"{c.name}: {c.detail}" for c in missing), 30_000)
 
 
 if __name__ == "__main__":

@@ -183,6 +183,24 @@ def run(quick: bool = False) -> dict:
     if sweep is None or experiments is None:
         notes.append("sweep or experiments panel missing: their scenarios ran without them")
 
+    # -- a camera move: the low-sample preview, then the refined frame -------------------------
+    for i in range(2 if quick else 3):
+        frames = []
+        win.live.frameReady.connect(frames.append)
+        box = win.city_view.pose_boxes["pan"]
+        box.setValue(box.value() + 15.0)
+        t0 = time.perf_counter()
+        win.city_view.apply_typed_pose()
+        _wait(app, lambda: any(f.preview for f in frames) and win.previews.frame is not None
+              and win.previews.frame.preview, 120)
+        t_preview = time.perf_counter() - t0
+        _wait(app, lambda: _full_frame(win), 600)
+        win.live.frameReady.disconnect(frames.append)
+        rows.append({"measure": f"camera move {i + 1}: preview on screen, then refined",
+                     "preview_s": round(t_preview, 2), "refined_s": round(time.perf_counter() - t0, 2),
+                     "size": f"{size[1]}×{size[0]}", "preview_spp": win.live.preview_spp,
+                     "refined_spp": win.document.project.render.spp})
+
     full = load_project("city_paper_camera")
     win.apply_edit("city", full.city.model_dump())
     _wait(app, lambda: win.city_view.city is not None and win.city_view._city_key[0] == (full.city, win.document.project.seed), 300)
@@ -197,3 +215,26 @@ def run(quick: bool = False) -> dict:
     notes.append(f"city render for the stall test: {size[1]}×{size[0]}, spp {city.render.spp}; "
                  f"timer interval {TICK_MS} ms; OpenGL by {app.platformName()} (Mesa llvmpipe under Xvfb)")
     return {"rows": rows, "notes": notes}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the measurements (on a private Xvfb when there is no display); print them as one JSON line."""
+    import argparse
+    import json
+    import os
+    parser = argparse.ArgumentParser(description="window responsiveness (used by `workbench bench gui`)")
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
+    from workbench.gui.display import virtual_display
+    with virtual_display():
+        out = run(quick=args.quick)
+        import shiboken6
+        from PySide6.QtWidgets import QApplication
+        shiboken6.delete(QApplication.instance())       # leave the X server before it stops
+    print(json.dumps(out, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -19,6 +19,17 @@ def _free_display() -> int:
     raise WorkbenchError("no free X display number between :99 and :159")
 
 
+def die_with_parent() -> None:
+    """preexec_fn for a helper process (Xvfb): Linux sends it SIGTERM when its parent dies, so an
+    aborted run leaves no X server behind."""
+    import ctypes
+    import signal
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
 @contextlib.contextmanager
 def virtual_display(size: str = "1600x1000x24"):
     """Yield the DISPLAY to use: the current one, or a private Xvfb (24-bit) stopped on exit."""
@@ -31,7 +42,7 @@ def virtual_display(size: str = "1600x1000x24"):
     num = _free_display()
     with tempfile.TemporaryFile() as log:
         proc = subprocess.Popen([xvfb, f":{num}", "-screen", "0", size, "-nolisten", "tcp"],
-                                stdout=log, stderr=subprocess.STDOUT)
+                                stdout=log, stderr=subprocess.STDOUT, preexec_fn=die_with_parent)
         deadline = time.monotonic() + 15
         while not Path(f"/tmp/.X11-unix/X{num}").exists():
             if proc.poll() is not None or time.monotonic() > deadline:

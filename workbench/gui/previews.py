@@ -59,8 +59,13 @@ class PreviewPane(QWidget):
         lay.addWidget(self.view_widget, 1)
         lay.addWidget(self.inspector)
         self._shape: tuple[int, int] | None = None
+        self._shown: np.ndarray | None = None
 
     def set_image(self, array: np.ndarray, levels: tuple[float, float]) -> None:
+        """Show array; the very array already shown (a stage that came from the cache) is skipped."""
+        if array is self._shown:
+            return
+        self._shown = array
         first = self._shape is None or self._shape != array.shape[:2]
         self.image.setImage(array, autoLevels=False, levels=levels)
         self.histogram.setLevels(*levels)

@@ -135,20 +135,22 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
     else:
         fov = project.scene.fov_deg or camera_hfov_deg(project)
     mi_scene, id_table = build_scene(city, pose, fov, width, height, film, project.render.daylight,
-                                     lens_sensor, max_depth=project.render.max_depth)
+                                     lens_sensor, max_depth=project.render.max_depth, world=project.render.world)
     labels = render_labels(mi_scene, id_table, width, height)
     params = project.render.updated(seed=seeds.render)
     meta = {"variant": variant, "fov_deg": fov, "city_seed": recipe.seed, "arrangement": recipe.arrangement,
             "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
                      "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
                      "meta": getattr(pose, "meta", {})}}
-    if camera is None:                  # the disc the directional sun cannot show
+    night = project.render.world.lighting == "night"
+    if camera is None and not night:    # the disc the directional sun cannot show
         from workbench.render.sun_disc import sun_disc
         disc = sun_disc(film, pose, fov, width, height, project.render.daylight, mi_scene=mi_scene)
         meta["sun_disc"] = disc.meta
     else:
         disc = None
-        meta["sun_disc"] = {"status": "not composited: the full lens model bends the camera rays"}
+        meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
+                                                             "the full lens model bends the camera rays")}
 
     def with_sun(scene):
         if disc is not None:

@@ -33,6 +33,47 @@ class DaylightParams(Params):
     overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0)
 
 
+class NightParams(Params):
+    """Night lighting (render/lamps.py): the city's street lamps as isotropic point sources of
+    `lamp_kind` spectrum and luminous flux `lamp_flux_lm` (None = the kind's rated flux), vehicle
+    head-lights (`headlight_kind`, `headlight_cd` peak) and tail-lights (red LED, `taillight_cd`)
+    when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
+    blackbody shape; urban skies are ~0.01–0.1 cd/m²)."""
+
+    lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = "hps"
+    lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6)
+    vehicle_lights: bool = True
+    headlight_kind: Literal["halogen", "led"] = "led"
+    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6)
+    taillight_cd: float = Field(10.0, gt=0.0, le=1e4)
+    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0)
+
+
+class FogParams(Params):
+    """Fog or haze as a homogeneous participating medium (render/fog.py): meteorological
+    visibility `visibility_m` (extinction σ = 3.912 / V, Koschmieder, 2 % contrast), single-
+    scattering `albedo` (water droplets ≈ 0.99, urban haze ≈ 0.9), Henyey–Greenstein asymmetry
+    `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
+    Droplets ≫ λ, so σ is the same at every wavelength."""
+
+    visibility_m: float = Field(200.0, gt=1.0, le=1e5)
+    albedo: float = Field(0.98, ge=0.0, le=1.0)
+    phase_g: float = Field(0.85, gt=-1.0, lt=1.0)
+    height_m: float = Field(100.0, gt=1.0, le=1e4)
+
+
+class WorldParams(Params):
+    """Scene features beyond geometry, each switchable: `lighting` 'day' (render.daylight) or
+    'night' (`night`); `fog` (None = clear air); `glass` 'diffuse' (windows as dark Lambertian
+    surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
+    reflection of the sky)."""
+
+    lighting: Literal["day", "night"] = "day"
+    night: NightParams = Field(default_factory=NightParams)
+    fog: FogParams | None = None
+    glass: Literal["diffuse", "dielectric"] = "diffuse"
+
+
 class RenderParams(Params):
     """How to render spectral radiance with Mitsuba.
 
@@ -67,6 +108,7 @@ class RenderParams(Params):
     seed: int = Field(0, ge=0, lt=2**32)
     variant: Literal["cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral"] | None = None
     daylight: DaylightParams = Field(default_factory=DaylightParams)
+    world: WorldParams = Field(default_factory=WorldParams)
 
     @model_validator(mode="after")
     def _check(self) -> "RenderParams":

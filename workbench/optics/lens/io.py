@@ -102,9 +102,9 @@ def load_lens(path) -> Lens:
     InputFileError (naming the file) if it cannot be read or is not a valid lens."""
     p = resolve_lens_path(path)
     ext = p.suffix.lower()
+    text = read_text(p, "lens file", MAX_LENS_BYTES)          # a folder, no permission, … first
     if ext not in _FORMATS:
         raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(_FORMATS)}")
-    text = read_text(p, "lens file", MAX_LENS_BYTES)
     name = p.name[: -len(p.suffix)]
     try:
         if ext == ".json":
