@@ -150,3 +150,12 @@ def test_each_editors_edit_recomputes_only_downstream_stages(window, qtbot, edit
     assert window.previews.frame.recomputed == recomputed
     assert window.document.undo_stack.count() == 1
     assert getattr(window.document.project, section).model_dump(include=set(changes)) == changes
+
+
+def test_app_opens_a_sample_as_a_new_unsaved_project(qtbot):
+    from workbench.gui.app import create_window
+    win = create_window("paper_camera", with_city_view=False)
+    qtbot.addWidget(win)
+    assert win.document.path is None and win.document.project.name == "paper_camera"
+    assert win.windowTitle().startswith("paper_camera")
+    win.live.shutdown()

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import os
 
-# Cap OpenMP/BLAS pools before numpy/torch load them: on a 2-core machine a background run must
-# leave a core to the GUI thread (the live worker also caps torch and Dr.Jit, see live.py).
+# Cap OpenMP/BLAS pools before numpy/torch load them (effective when the window is started as
+# `workbench-gui` or `python -m workbench.gui.app`): on a 2-core machine a background run must leave
+# a core to the GUI thread. The live worker also caps torch and Dr.Jit itself (live.py).
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
@@ -18,10 +19,9 @@ def create_window(project_path: str | None = None, with_city_view: bool = True):
     """The main window on a project file or sample name (default: the paper's camera)."""
     from workbench.gui.document import Document
     from workbench.gui.main_window import MainWindow
-    from workbench.project import load_project, resolve_project_path
+    from workbench.project import PROJECTS_DIR, load_project, resolve_project_path
     path = resolve_project_path(project_path or DEFAULT_PROJECT)
-    from workbench.project import PROJECTS_DIR
-    sample = path.resolve().parent == PROJECTS_DIR.resolve()
+    sample = path.resolve().parent == PROJECTS_DIR.resolve()      # a sample is never overwritten
     doc = Document(load_project(path), None if sample else path)
     return MainWindow(doc, with_city_view=with_city_view)
 

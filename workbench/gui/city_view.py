@@ -58,7 +58,6 @@ class CityView(QWidget):
         self._city_key = None
         self._job_id = 0
         self._gizmo = None
-        self.frames_drawn = 0
 
         self.by_class = QCheckBox("Colour by class")
         self.by_class.toggled.connect(lambda _v: self._redraw_city())
@@ -209,7 +208,6 @@ class CityView(QWidget):
 
     def render(self) -> None:
         self.plotter.render()
-        self.frames_drawn += 1
 
     # -- view → document -------------------------------------------------------------------
     def _gizmo_moved(self, center) -> None:

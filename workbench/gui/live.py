@@ -131,7 +131,6 @@ class LiveRunner(QObject):
         self._builder = FrameBuilder()
         self._preview_builder = FrameBuilder()
         self._last_full: Project | None = None
-        self.runs_started = 0
         self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
         self._thread.start()
 
@@ -177,7 +176,6 @@ class LiveRunner(QObject):
                 self._pending = None
                 token = self._token = CancelToken()
             self.busyChanged.emit(True)
-            self.runs_started += 1
             limit_worker_threads()
             try:
                 self._run(project, submitted_at, token)

@@ -89,7 +89,6 @@ class MainWindow(QMainWindow):
         self.live.failed.connect(self._run_failed)
         self.live.busyChanged.connect(self._busy_changed)
         self.previews.inspected.connect(self._show_inspected)
-        self.last_error: str | None = None
         self.error_box: QMessageBox | None = None
         self.resize(1280, 860)
         self._restore_layout()
@@ -261,12 +260,10 @@ class MainWindow(QMainWindow):
 
     def _run_failed(self, message: str) -> None:
         self.statusBar().showMessage(f"simulation failed: {message}", 15000)
-        self.last_error = message
 
     # -- dialogs ---------------------------------------------------------------------------
     def show_error(self, title: str, text: str) -> QMessageBox:
         """A window-modal error box that does not block the event loop."""
-        self.last_error = text
         box = QMessageBox(QMessageBox.Icon.Critical, title, text, QMessageBox.StandardButton.Ok, self)
         box.setWindowModality(Qt.WindowModality.WindowModal)
         box.open()

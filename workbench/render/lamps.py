@@ -12,10 +12,14 @@ Spectra (relative spectral power, generated from analytic shapes; facts from lam
   Tl 535, Na 589 (broad), Sc 500–620 cluster; NIR Na 819 nm.
 - 'halogen' headlight: a 3200 K blackbody (tungsten), strong in the NIR.
 - 'led_red' tail-light: red AlInGaP LED, 625 nm, FWHM ≈ 18 nm.
-Street lamps are isotropic point sources scaled so the luminous flux Φ_v = 683 lm/W ·
-∫ 4π I(λ) V(λ) dλ equals the rated flux: E_v(d) = Φ_v / (4π d²) at normal incidence. The
-luminaire head above the point blocks its upward light (as a real housing does). Vehicle lights
-are Mitsuba `spot` emitters given their peak luminous intensity (cd) along the beam.
+Street lamps are full-cut-off point sources: uniform intensity over the lower hemisphere, none
+upward (the housing), scaled so that the luminous flux Φ_v = 683 lm/W · ∫ 2π I(λ) V(λ) dλ equals
+the rated flux: E_v(d) = Φ_v / (2π d²) straight below at distance d. (A point inside the head
+lighting its underside from 5 cm would be a firefly source.) Vehicle lights
+are Mitsuba `spot` emitters given their peak luminous intensity (cd) along the beam. Each
+emitter's `sampling_weight` (Mitsuba picks the light for next-event estimation in proportion)
+is its luminous flux, or for a spot an upper bound peak × cone solid angle, so that the dim
+tail-lights and the sky glow do not take samples from the street lamps.
 Radiometric units: intensity W/sr/nm (energy), like the daylight spectra.
 """
 from __future__ import annotations
@@ -29,6 +33,7 @@ LAMP_KINDS = ("lps", "hps", "led", "metal_halide")
 # LED ~80 W luminaire, metal halide 150 W
 RATED_FLUX_LM = {"lps": 13500.0, "hps": 15000.0, "led": 10000.0, "metal_halide": 12000.0}
 LUMINOUS_EFFICACY_LM_W = 683.0
+HEMISPHERE_CUTOFF_DEG = 89.9        # street lamps: full cut-off (no light above the horizontal)
 # fine grid so that 1-nm-wide lines are resolved (Mitsuba interpolates linearly between samples)
 LAMP_WAVELENGTHS_NM = np.arange(300.0, 1100.01, 0.25)
 
@@ -74,11 +79,11 @@ def luminous_intensity_spectrum(kind: str, intensity_cd: float,
     return s * (intensity_cd / lum)
 
 
-def isotropic_intensity_cd(flux_lm: float) -> float:
-    """Luminous intensity (cd) of an isotropic source of luminous flux `flux_lm`: Φ/(4π)."""
+def hemisphere_intensity_cd(flux_lm: float) -> float:
+    """Luminous intensity (cd) of a source spreading `flux_lm` evenly over a hemisphere: Φ/(2π)."""
     if not flux_lm > 0:
         raise ValueError(f"flux_lm must be > 0, got {flux_lm}")
-    return float(flux_lm / (4 * np.pi))
+    return float(flux_lm / (2 * np.pi))
 
 
 def _spectrum(kind: str, intensity_cd: float) -> dict:
@@ -88,13 +93,14 @@ def _spectrum(kind: str, intensity_cd: float) -> dict:
 
 
 def street_lamp_emitter(position_m, kind: str, flux_lm: float | None = None) -> dict:
-    """Mitsuba `point` emitter of a street lamp of `kind` with luminous flux `flux_lm`
-    (default RATED_FLUX_LM[kind])."""
+    """Mitsuba emitter of a full-cutoff street lamp of `kind` at position_m: luminous flux
+    `flux_lm` (default RATED_FLUX_LM[kind]) spread evenly over the lower hemisphere, I = Φ/(2π),
+    none upward (the luminaire housing)."""
     if kind not in LAMP_KINDS:
         raise ValueError(f"street lamp kind must be one of {LAMP_KINDS}, got {kind!r}")
     flux = RATED_FLUX_LM[kind] if flux_lm is None else float(flux_lm)
-    return {"type": "point", "position": [float(v) for v in position_m],
-            "intensity": _spectrum(kind, isotropic_intensity_cd(flux))}
+    return spot_emitter(position_m, (0.0, 0.0, -1.0), kind, hemisphere_intensity_cd(flux),
+                        cutoff_deg=HEMISPHERE_CUTOFF_DEG, beam_deg=HEMISPHERE_CUTOFF_DEG - 0.1)
 
 
 def spot_emitter(position_m, direction, kind: str, peak_cd: float, cutoff_deg: float,
@@ -107,13 +113,15 @@ def spot_emitter(position_m, direction, kind: str, peak_cd: float, cutoff_deg: f
     d = np.asarray(direction, dtype=np.float64)
     d = d / np.linalg.norm(d)
     up = [0.0, 0.0, 1.0] if abs(d[2]) < 0.9 else [1.0, 0.0, 0.0]
+    cone_sr = 2 * np.pi * (1 - np.cos(np.radians(cutoff_deg)))
     return {"type": "spot", "cutoff_angle": float(cutoff_deg), "beam_width": float(beam_deg),
+            "sampling_weight": float(peak_cd * cone_sr),            # ≥ its flux (lm): for light selection
             "to_world": mi.ScalarTransform4f().look_at(origin=p.tolist(), target=(p + d).tolist(), up=up),
             "intensity": _spectrum(kind, peak_cd)}
 
 
 def _lamp_head_points(city) -> list[np.ndarray]:
-    """Emitter points of the city's street lamps: 5 cm below the centre of each lamp's highest
+    """Emitter points of the city's street lamps: 2 cm below the centre of each lamp's highest
     'metal_dark' mesh (the luminaire head; assets._lamp)."""
     points = []
     for obj in city.objects:
@@ -124,7 +132,7 @@ def _lamp_head_points(city) -> list[np.ndarray]:
             raise ValueError(f"lamp {obj.instance_id} has no 'metal_dark' luminaire head mesh")
         head = max(heads, key=lambda v: v[:, 2].max())
         lo, hi = head.min(0), head.max(0)
-        points.append(np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - 0.05]))
+        points.append(np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - 0.02]))
     return points
 
 
@@ -175,6 +183,7 @@ def night_emitters(city, night) -> dict:
         shape = blackbody_spd(3500.0, wl)
         lum = LUMINOUS_EFFICACY_LM_W * np.trapezoid(shape * luminous_efficiency(wl), wl)
         sky = shape * (night.sky_luminance_cd_m2 / lum)
-        out["sky"] = {"type": "constant", "radiance": {"type": "spectrum",
-                                                       "value": list(zip(wl.tolist(), sky.tolist()))}}
+        weight = 0.01 * sum(e.get("sampling_weight", 0.0) for e in out.values()) or 1.0
+        out["sky"] = {"type": "constant", "sampling_weight": weight,
+                      "radiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sky.tolist()))}}
     return out

@@ -75,7 +75,11 @@ GLASS_MATERIALS = ("glass_dark",)
 GLASS_IOR = 1.52         # soda-lime window glass (dispersion < 1 % over 400–1000 nm: ignored)
 
 
-def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse"):
+def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False):
+    """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
+    pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
+    glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
+    reflectance) for window quads mounted on façades and bus/truck bodies."""
     wl = np.asarray(material.wavelengths_nm, dtype=np.float64)
     refl = np.asarray(material.reflectance, dtype=np.float64)
     if wl.shape != refl.shape or wl.size < 2:
@@ -86,10 +90,13 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffus
                          f"the film needs {film_range_nm[0]:.0f}–{film_range_nm[1]:.0f} nm")
     if not np.all(np.isfinite(refl)) or refl.min() < 0 or refl.max() > 1:
         raise ValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
+    spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
     if glass == "dielectric" and material.name in GLASS_MATERIALS:
-        return mi.load_dict({"type": "thindielectric", "int_ior": GLASS_IOR, "ext_ior": 1.0})
-    return mi.load_dict({"type": "diffuse", "reflectance": {
-        "type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}})
+        if pane:
+            return mi.load_dict({"type": "thindielectric", "int_ior": GLASS_IOR, "ext_ior": 1.0})
+        return mi.load_dict({"type": "plastic", "int_ior": GLASS_IOR, "ext_ior": 1.0,
+                             "diffuse_reflectance": spectrum})
+    return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
 
 
 def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height: int,
@@ -140,12 +147,14 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             if m.material not in city.materials:
                 raise ValueError(f"mesh {k} of {obj.class_name} {obj.instance_id} uses material "
                                  f"'{m.material}', which the city does not define")
-            if m.material not in bsdfs:
-                bsdfs[m.material] = _bsdf(mi, city.materials[m.material], rng, world.glass)
+            pane = obj.class_name == "car"              # closed glass cabin: see-through pane
+            key = (m.material, pane and m.material in GLASS_MATERIALS)
+            if key not in bsdfs:
+                bsdfs[key] = _bsdf(mi, city.materials[m.material], rng, world.glass, key[1])
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
-            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[m.material], medium)
+            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
     return mi.load_dict(scene), id_table
 
