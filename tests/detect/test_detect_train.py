@@ -118,3 +118,13 @@ def test_a_run_can_start_from_another_runs_weights(synthetic_dir, tmp_path):
             assert torch.allclose(a, b, atol=1e-6), name                # lr ≈ 0: the start is kept
     with pytest.raises(InputFileError, match="missing.pt"):
         train_detector(ds, config, tmp_path / "other.pt", init_checkpoint=tmp_path / "missing.pt")
+
+
+def test_testing_through_loader_workers_gives_the_same_map(synthetic_dir, tmp_path):
+    from workbench.detect.data import DetectionView
+    from workbench.detect.train import evaluate_detector
+    ds = DetectionDataset(synthetic_dir)
+    model, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "m.pt")
+    results = [evaluate_detector(model, DetectionView(ds, ds.indices("test"), "srgb", (1.0,)), ds.class_names,
+                                 batch_size=3, workers=w) for w in (0, 2)]
+    assert results[0]["map"] == results[1]["map"] and results[0]["ap"] == results[1]["ap"]

@@ -153,7 +153,8 @@ def result_rows(runs: list[dict]) -> list[dict]:
                    "coco_ap50": test.get("coco_ap50"), "train_images": run["train"]["images"],
                    "train_ms_per_image": run["train"]["train_ms_per_image"],
                    "step_ms_per_image": run["train"]["step_ms_per_image"],
-                   "sensor_isp_ms_per_image": test.get("sensor_isp_ms_per_image"),
+                   "train_sensor_isp_ms_per_image": run["train"].get("sensor_isp_ms_per_image"),
+                   "test_sensor_isp_ms_per_image": test.get("sensor_isp_ms_per_image"),
                    "infer_ms_per_image": test.get("infer_ms_per_image"), "key": run["key"]}
             rows.append(row)
     return rows
