@@ -200,3 +200,21 @@ def test_night_emitters_and_render(mi):
                            world=WorldParams(lighting="night"))
     out = run_job(render_loaded(scene, film, RenderParams(spp=4, chunk_spp=4), fov_deg=60.0))
     assert np.all(np.isfinite(out.radiance_photons)) and out.radiance_photons.max() > 0
+
+
+def test_sun_disc_is_dimmed_by_the_fog_in_front_of_it(mi):
+    """The composited disc through fog: coverage × e^{−σt}, t the sun ray's path to the layer top."""
+    from workbench.render.sun_disc import sun_disc_coverage
+    city = City([CityObject("ground", 1, [plane_mesh(200.0, 0.0, "white")])],
+                {"white": Material("white", np.array([350.0, 1000.0]), np.array([0.5, 0.5]))},
+                seed=0, extent_m=(-200, -200, 200, 200))
+    day = DaylightParams(sun_elevation_deg=20.0, sun_azimuth_deg=90.0)
+    pose = CameraPose(np.array([0.0, 0.0, 1.5]), pan_deg=0.0, tilt_deg=20.0, roll_deg=0.0)   # yaw 0 = east
+    film = box_bands(400, 1000, 2)
+    fog = FogParams(visibility_m=500.0, height_m=60.0)
+    clear = sun_disc_coverage(pose, 20.0, 64, 48, day, mi_scene=build_scene(city, pose, 20.0, 64, 48, film, day)[0])
+    foggy = sun_disc_coverage(pose, 20.0, 64, 48, day, mi_scene=build_scene(
+        city, pose, 20.0, 64, 48, film, day, world=WorldParams(fog=fog))[0])
+    assert clear.sum() > 0.5
+    t = (60.0 - 1.5) / np.sin(np.radians(20.0))
+    assert foggy.sum() / clear.sum() == pytest.approx(np.exp(-extinction_per_m(500.0) * t), rel=1e-3)

@@ -6,9 +6,9 @@ over wavelength (fog droplets ≫ λ). The medium fills a box from 1 m below the
 `height_m`, 50 m beyond the city's extent; the box has a null BSDF (an index-matched boundary),
 the camera starts inside it and every city mesh has it as its exterior medium, so that light
 is attenuated and scattered on every segment; Mitsuba's `volpath` integrator renders it.
-Rays that leave the box see the sky unattenuated beyond it. The label pass treats the box as
-background (FOG_BOX_ID has no label); the solar disc's ray test is blocked by the box, so no
-disc is composited in fog (its light still reaches the scene through the medium).
+Rays that leave the box see the sky unattenuated beyond it. The label pass and the depth map
+treat the box as background (FOG_BOX_ID has no label); the composited solar disc is dimmed by
+e^{−σt} over its path t through the box (sun_disc.py).
 """
 from __future__ import annotations
 
