@@ -188,6 +188,14 @@ def test_night_emitters_and_render(mi):
     heads = sorted(k for k in em if k.startswith("headlight"))
     tails = sorted(k for k in em if k.startswith("taillight"))
     assert len(heads) == 2 and len(tails) == 2 and "sky" in em
+    street = City(city.objects + [CityObject("lamp", 9, [_box(20, 0, 0, 20.1, 0.1, 6, "white"),
+                                                         _box(19.8, -0.2, 6, 20.4, 0.2, 6.2, "metal_dark"),
+                                                         _box(19.8, -0.2, 5.99, 20.4, 0.2, 6.0, "lens_clear")])],
+                  {**city.materials, "metal_dark": city.materials["white"]}, 0, city.extent_m)
+    em2 = night_emitters(street, NightParams())
+    assert sorted(k for k in em2 if k.startswith("headlight")) == heads          # a lamp's lens is no headlight
+    lamp = [v for k, v in em2.items() if k.startswith("street_lamp")]
+    assert len(lamp) == 1 and np.allclose(lamp[0]["to_world"].translation(), [20.1, 0.0, 5.98], atol=1e-6)
     # head-lights sit in front of the car's front face (+x), tail-lights behind the rear (−x)
     assert all(np.asarray(em[k]["to_world"].translation())[0] > 12.0 for k in heads)
     assert all(np.asarray(em[k]["to_world"].translation())[0] < 8.0 for k in tails)

@@ -33,6 +33,7 @@ LAMP_KINDS = ("lps", "hps", "led", "metal_halide")
 # LED ~80 W luminaire, metal halide 150 W
 RATED_FLUX_LM = {"lps": 13500.0, "hps": 15000.0, "led": 10000.0, "metal_halide": 12000.0}
 LUMINOUS_EFFICACY_LM_W = 683.0
+VEHICLE_CLASSES = ("car", "bus", "truck")     # objects whose lens_clear / lens_red meshes are lamps
 HEMISPHERE_CUTOFF_DEG = 89.9        # street lamps: full cut-off (no light above the horizontal)
 # fine grid so that 1-nm-wide lines are resolved (Mitsuba interpolates linearly between samples)
 LAMP_WAVELENGTHS_NM = np.arange(300.0, 1100.01, 0.25)
@@ -170,7 +171,7 @@ def night_emitters(city, night) -> dict:
     for i, p in enumerate(_lamp_head_points(city)):
         out[f"street_lamp_{i}"] = street_lamp_emitter(p, night.lamp_kind, night.lamp_flux_lm)
     if night.vehicle_lights:
-        for obj in city.objects:
+        for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES):
             for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_clear")):
                 beam = d + np.array([0.0, 0.0, -0.03])          # low beam aimed ~1.7° down
                 out[f"headlight_{obj.instance_id}_{j}"] = spot_emitter(
