@@ -178,6 +178,8 @@ def test_labels_exact_with_fog_and_glass(mi):
         [(o.instance_id, o.bbox_xywh, o.amodal_bbox_xywh) for o in ref.objects]
     assert {o.instance_id for o in ref.objects} == {1, 2, 3}
     np.testing.assert_allclose(got.depth_m, ref.depth_m, rtol=1e-5)
+    from workbench.render.spectral import depth_map_m
+    np.testing.assert_allclose(depth_map_m(foggy), depth_map_m(base), rtol=1e-5)   # the box is sky
 
 
 def test_night_emitters_and_render(mi):
