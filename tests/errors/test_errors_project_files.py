@@ -90,6 +90,7 @@ def test_error_never_echoes_file_contents(tmp_path):
     (("optics", "lens_file"), "no_such_lens.json", "no such lens"),
     (("optics", "focus_distance_m"), 1e-100, "must exceed the effective focal length (2.376 mm)"),
     (("scene", "distance_m"), 1e-6, "must exceed the effective focal length"),
+    (("render", "daylight", "time_of_day_h"), 1.0, "daylight needs the sun above the horizon"),
 ])
 def test_bad_values_name_the_field(path, value, allowed):
     data = json.loads(_paper_text())

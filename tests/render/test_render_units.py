@@ -78,8 +78,10 @@ def test_solar_position_closed_forms():
     assert el_m == pytest.approx(el_a) and az_m < 180 < az_a and az_m + az_a == pytest.approx(360)
     assert np.allclose(sun_direction(90.0, 0.0), [0, 0, 1], atol=1e-12)
     assert np.allclose(sun_direction(0.0, 90.0), [1, 0, 0], atol=1e-12)   # azimuth 90° = east = +X
-    with pytest.raises(ValueError, match="time_of_day_h=23"):
-        sun_angles(DaylightParams(time_of_day_h=23.0))
+    with pytest.raises(ValueError, match="time_of_day_h.*sun above the horizon"):    # refused when set
+        DaylightParams(time_of_day_h=23.0)
+    with pytest.raises(ValueError, match="time_of_day_h=23"):                         # and when rendered
+        sun_angles(DaylightParams.model_construct(**{**DaylightParams().model_dump(), "time_of_day_h": 23.0}))
 
 
 def test_spp_rules():

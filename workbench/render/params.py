@@ -32,6 +32,19 @@ class DaylightParams(Params):
     sky_model: Literal["uniform", "perez", "overcast"] = "uniform"
     overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0)
 
+    @model_validator(mode="after")
+    def _sun_above_horizon(self) -> "DaylightParams":
+        """A time of day that puts the sun below the horizon is refused here, not at render time."""
+        if self.time_of_day_h is not None:
+            from workbench.errors import ParameterError
+            from workbench.render.daylight import solar_position
+            elevation_deg = solar_position(self.time_of_day_h, self.latitude_deg, self.day_of_year)[0]
+            if elevation_deg <= 0.5:
+                raise ParameterError("time_of_day_h", self.time_of_day_h,
+                                     f"puts the sun at {elevation_deg:.1f}° elevation (latitude {self.latitude_deg}°, "
+                                     f"day {self.day_of_year}); daylight needs the sun above the horizon (> 0.5°)")
+        return self
+
 
 class NightParams(Params):
     """Night lighting (render/lamps.py): the city's street lamps as isotropic point sources of
