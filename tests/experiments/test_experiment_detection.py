@@ -52,7 +52,10 @@ def _check_outputs(out: Path, kind: str, n_runs: int):
 
 def test_isp_experiment_runs_end_to_end(synthetic_dir, tmp_path):
     t0 = time.perf_counter()
-    result = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path, seeds=2, profile_override=TINY))
+    job = run_experiment("isp", _project(), synthetic_dir, tmp_path, seeds=2,
+                         profile_override=replace(TINY, image_hw=(96, 128)))
+    assert "this data set is 64×48" in next(job).message        # the start says what the profile is sized for
+    result = _drive(job)
     assert time.perf_counter() - t0 < 120
     doc = _check_outputs(tmp_path, "isp", 6)
     assert doc["complete"] and len(result.trained) == 6
@@ -84,7 +87,8 @@ def test_killed_experiment_resumes_without_duplicates(synthetic_dir, tmp_path):
             "from workbench.experiments.detection import PROFILES, run_experiment\n"
             "from workbench.detect.synthetic import synthetic_project\n"
             "p = synthetic_project(); p = p.updated(experiment=p.experiment.updated(ev_biases=[-1.0, 0.0, 1.0]))\n"
-            "prof = replace(PROFILES['quick'], name='tiny', image_hw=(48, 64), epochs={'isp': 1, 'exposure_base': 1, 'exposure': 1},"
+            "prof = replace(PROFILES['quick'], name='tiny', image_hw=(48, 64),"
+            " epochs={'isp': 1, 'exposure_base': 1, 'exposure': 1},"
             " crop_hw=None, batch_size=4)\n"
             f"for _ in run_experiment('isp', p, {str(synthetic_dir)!r}, {str(tmp_path)!r}, seeds=1,"
             " profile_override=prof): pass\n")

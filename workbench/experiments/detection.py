@@ -74,7 +74,8 @@ PROFILES = {
              "designed to finish each experiment in ≤ 20 min on one uncontended CPU core (≤ 30 min on a "
              "shared 2-core machine) from an already rendered data set of ~400 frames"),
     "paper": Profile(
-        name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=3, epochs={"isp": 60, "exposure_base": 40, "exposure": 20},
+        name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=3,
+        epochs={"isp": 60, "exposure_base": 40, "exposure": 20},
         batch_size=16, crop_hw=None, lr=2e-3, threads=None, device="auto", loader_workers=12, cache_mb=4096.0,
         note="paper profile: 640×480 frames (~2,200 train / ~800 test), both nets, ≥ 3 seeds: meant for a "
              "GPU (CUDA with bf16 autocast when present); on a CPU it takes days"),
@@ -104,9 +105,9 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, out_dir: Path):
         ev_tag = "mix" if len(config.train_evs) > 1 else f"ev{config.train_evs[0]:+g}"
         key = (f"{config.net}-{config.representation}-{tag}{ev_tag}-s{config.seed}-"
                f"{_digest(config.to_json(), test_evs, dataset.fingerprint)}")
+        init = str(checkpoints / f"{config.init}.pt") if config.init else None
         jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
-                                        with_curves=kind == "isp",
-                                        init_checkpoint=str(checkpoints / f"{config.init}.pt") if config.init else None)))
+                                        with_curves=kind == "isp", init_checkpoint=init)))
         return key
 
     checkpoints = out_dir / "checkpoints"
@@ -125,7 +126,8 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, out_dir: Path):
             add({**role, "representation": "srgb", "condition": "ev_mix"}, replace(tuned, train_evs=evs), evs)
             for ev in evs:
                 if ev != 0.0:
-                    add({**role, "representation": "srgb", "condition": "per_ev"}, replace(tuned, train_evs=(ev,)), (ev,))
+                    add({**role, "representation": "srgb", "condition": "per_ev"},
+                        replace(tuned, train_evs=(ev,)), (ev,))
     return jobs
 
 
@@ -276,7 +278,11 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
            "runs": runs, "summary": summarise(kind, runs), "complete": not todo,
            "written_utc": datetime.now(timezone.utc).isoformat()}
     write_outputs(doc, out)
-    yield Progress(len(reused), len(jobs), f"{prof.note}; {len(jobs)} runs, {len(reused)} already done")
+    h, w = dataset.image_hw
+    size_note = "" if (h, w) == tuple(prof.image_hw) else (
+        f" (this data set is {w}×{h}, the profile is sized for {prof.image_hw[1]}×{prof.image_hw[0]}: "
+        f"expect about {h * w / (prof.image_hw[0] * prof.image_hw[1]):.1f}× the time)")
+    yield Progress(len(reused), len(jobs), f"{prof.note}{size_note}; {len(jobs)} runs, {len(reused)} already done")
     role_of = {job.key: role for role, job in jobs}
     compute = compute or ComputeSpec(workers=workers)
     in_process = compute.backend == "local" and compute.workers == 0
