@@ -3,11 +3,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from workbench.render.daylight import (air_mass, extraterrestrial_irradiance, sky_radiance,
-                                       solar_position, sun_angles, sun_direction, sun_irradiance)
+from workbench.render.daylight import (air_mass, extraterrestrial_irradiance, sky_radiance, sun_angles,
+                                       sun_direction, sun_irradiance)
 from workbench.render.film import box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
 from workbench.render.params import DaylightParams, RenderParams
 from workbench.render.sampling import noise_constant, spp_for_error, spp_for_shot_noise
+from workbench.render.solar import solar_position
 from workbench.units import photon_energy_J
 
 

@@ -37,7 +37,7 @@ class DaylightParams(Params):
         """A time of day that puts the sun below the horizon is refused here, not at render time."""
         if self.time_of_day_h is not None:
             from workbench.errors import ParameterError
-            from workbench.render.daylight import solar_position
+            from workbench.render.solar import solar_position
             elevation_deg = solar_position(self.time_of_day_h, self.latitude_deg, self.day_of_year)[0]
             if elevation_deg <= 0.5:
                 raise ParameterError("time_of_day_h", self.time_of_day_h,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.render.daylight import daylight_emitters
+from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium
 from workbench.render.lamps import night_emitters

@@ -201,3 +201,21 @@ def sky_emitter(daylight: DaylightParams):
     sun = sun_direction(*sun_angles(daylight)) if daylight.sky_model == "perez" else (0, 0, 1)
     return _emitter_class()(mi.Properties(), texture, daylight.sky_model,
                             perez_coefficients(daylight.turbidity), sun, scale)
+
+
+def daylight_emitters(daylight: DaylightParams) -> dict:
+    """Mitsuba emitters {'sun': directional dict, 'sky': sky_emitter}, spectra over 300–1100 nm.
+
+    An emitter whose scale is 0 is left out (Mitsuba refuses an all-zero spectrum); an overcast
+    sky has no sun."""
+    el, az = sun_angles(daylight)
+    wl = DAYLIGHT_WAVELENGTHS_NM
+    out = {}
+    if daylight.sun_scale > 0 and daylight.sky_model != "overcast":
+        sun = daylight.sun_scale * sun_irradiance(wl, el, daylight.turbidity)
+        out["sun"] = {"type": "directional", "direction": (-sun_direction(el, az)).tolist(),
+                      "irradiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sun.tolist()))}}
+    sky = sky_emitter(daylight)
+    if sky is not None:
+        out["sky"] = sky
+    return out
