@@ -10,7 +10,7 @@ import sys
 from workbench.errors import WorkbenchError
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens", "selftest")
+COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment")
 
 
 def _bench(args: argparse.Namespace) -> int:
@@ -28,6 +28,27 @@ def _bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _can_open_window() -> bool:
+    """The GUI packages are installed and there is a display (bare `workbench` opens the window)."""
+    import importlib.util
+    import os
+    if importlib.util.find_spec("PySide6") is None:
+        return False
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
+def _gui(args: argparse.Namespace) -> int:
+    """`workbench gui [PROJECT]`: the window (Qt is imported only here, so the core runs without it)."""
+    if not _can_open_window():
+        raise WorkbenchError("the window needs the GUI packages (pip install 'camera-workbench[gui]') and a "
+                             "display (DISPLAY is not set); without one, run the headless commands, e.g. "
+                             "`workbench demo`")
+    from workbench.gui.app import main as gui_main
+    return gui_main([args.project] if args.project else [])
+
+
 def build_parser() -> argparse.ArgumentParser:
     from workbench import __version__
     parser = argparse.ArgumentParser(prog="workbench", description=__doc__)
@@ -41,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.register(sub)
+    gui = sub.add_parser("gui", help="open the workbench window on a project (default: the paper's camera)")
+    gui.add_argument("project", nargs="?", default=None, help="project file or sample name")
+    gui.set_defaults(func=_gui)
     from workbench.bench import all_benches
     bench = sub.add_parser("bench", help="speed-versus-error benchmarks (prints a table)")
     bench.add_argument("name", choices=sorted(all_benches()), help="which benchmark")
@@ -64,6 +88,9 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command. Errors a user can act on (WorkbenchError, a path the system refuses, a
     value refused by the core) print one line `workbench CMD: error: …` and return 2."""
     from workbench.logs import setup_logging
+    if not (sys.argv[1:] if argv is None else argv):    # bare `workbench`: the window, given a display
+        if _can_open_window():
+            argv = ["gui"]
     args = build_parser().parse_args(argv)
     setup_logging()
     logging.getLogger("workbench.cli").info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))

@@ -182,8 +182,6 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     given = Path(path)
     target = Path(os.path.realpath(given))
     folder = target.parent
-    if target.is_dir():
-        raise OutputPathError(given, "is a folder; give a file name")
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
@@ -196,6 +194,8 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
         st = None
     except OSError as exc:
         raise OutputPathError(given, f"cannot be written ({exc.strerror})") from None
+    if st is not None and stat.S_ISDIR(st.st_mode):
+        raise OutputPathError(given, "is a folder; give a file name")
     if st is not None and not stat.S_ISREG(st.st_mode):
         raise OutputPathError(given, "exists and is not a regular file")
     remove_stale_temporaries(folder, target.name)

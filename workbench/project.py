@@ -29,7 +29,7 @@ from workbench.scene.params import SceneParams
 from workbench.sensor.params import AutoExposureMethod, SensorParams
 
 FORMAT_TAG = "camera-workbench-project"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 PROJECTS_DIR = RESOURCES / "projects"
 
 EvBias = Annotated[float, Field(ge=-16.0, le=16.0)]
@@ -126,8 +126,15 @@ def _drop_mean_illuminance_lux(data: dict) -> dict:
     return data | {"schema_version": 2}
 
 
+def _add_scene_world(data: dict) -> dict:
+    """2 → 3: render.world (day/night, fog, glass) and render.daylight.sky_model are new; their
+    defaults (day, clear air, diffuse glass, uniform sky) are what version 2 rendered, so a
+    version-2 file keeps every result. (The version marks files an older workbench cannot read.)"""
+    return data | {"schema_version": 3}
+
+
 # Migrations from schema version N to N+1 (decoded document → decoded document).
-MIGRATIONS: dict[int, Callable[[dict], dict]] = {1: _drop_mean_illuminance_lux}
+MIGRATIONS: dict[int, Callable[[dict], dict]] = {1: _drop_mean_illuminance_lux, 2: _add_scene_world}
 
 
 def project_from_dict(data: object, source: str | None = None) -> Project:
@@ -163,8 +170,11 @@ def resolve_project_path(path: str | os.PathLike) -> Path:
         return p
     if p.name == str(path):
         for cand in (PROJECTS_DIR / p.name, PROJECTS_DIR / f"{p.name}.json"):
-            if cand.is_file():
-                return cand
+            try:
+                if cand.is_file():
+                    return cand
+            except OSError:                 # a name too long for the file system, …: no sample
+                break
     samples = ", ".join(sorted(q.stem for q in PROJECTS_DIR.glob("*.json")))
     raise InputFileError(p, f"no such project file (sample projects: {samples})")
 

@@ -42,3 +42,27 @@ def slow_renderer(project, seeds):
     """tiny_renderer after a pause, so a run can be killed while frames are in flight."""
     time.sleep(float(os.environ.get("WB_TEST_SLEEP_S", "1")))
     return tiny_renderer(project, seeds)
+
+
+def thread_budget(_job):
+    """(Dr.Jit threads after the variant is chosen, OMP_NUM_THREADS, torch threads a training run
+    would use) as a worker sees them."""
+    from workbench.detect.train import choose_threads
+    from workbench.render.variants import select_variant
+    select_variant("llvm_ad_spectral")
+    import drjit as dr
+    return dr.thread_count(), os.environ.get("OMP_NUM_THREADS"), choose_threads(None)
+
+
+def progress_renderer(project, seeds, on_progress=None):
+    """tiny_renderer that first reports 4 steps of progress, a little apart."""
+    from types import SimpleNamespace
+    for k in range(1, 5):
+        time.sleep(0.3)
+        on_progress(SimpleNamespace(spp_done=k, spp_total=4))
+    return tiny_renderer(project, seeds)
+
+
+def die(_job):
+    """A job whose worker always dies (SIGKILL)."""
+    os.kill(os.getpid(), signal.SIGKILL)

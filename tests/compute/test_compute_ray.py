@@ -11,7 +11,8 @@ import time
 
 import numpy as np
 import pytest
-from compute_helpers import bad_project_renderer, crash_once_renderer, slow_renderer, tiny_renderer
+from compute_helpers import (bad_project_renderer, crash_once_renderer, progress_renderer, slow_renderer,
+                             thread_budget, tiny_renderer)
 
 from workbench.compute import ComputeSpec, JobFailed, run_jobs
 from workbench.jobs import run_job
@@ -101,6 +102,8 @@ def _die(job):
 def test_ray_run_jobs_streams_results_and_checks_its_options(ray_cluster):
     got = dict(run_jobs(math.factorial, range(6), RAY))
     assert got == {i: math.factorial(i) for i in range(6)}
+    (_, budget), = run_jobs(thread_budget, [0], ComputeSpec(backend="ray", cpus_per_task=1))
+    assert budget == (1, "1", 1)                     # Dr.Jit, OpenMP and torch keep to the task's CPUs
     with pytest.raises(JobFailed, match="has no GPU"):
         list(run_jobs(math.factorial, [1], ComputeSpec(backend="ray", gpus_per_task=1)))
 
@@ -131,3 +134,39 @@ def test_driver_killed_mid_run_resumes_from_disk(ray_cluster, reference, tmp_pat
     result = run_job(run_dataset(Project(seed=21), N, out, compute=RAY, renderer=slow_renderer))
     assert len(result.reused) == len(written) and sorted(result.reused + result.rendered) == list(range(N))
     assert frame_contents(out, N) == frame_contents(reference, N)
+
+
+@pytest.mark.parametrize("backend", [pytest.param("local", marks=pytest.mark.slow), "ray"])
+def test_frames_in_flight_report_their_progress(backend, tmp_path, request):
+    if backend == "ray":
+        request.getfixturevalue("ray_cluster")
+    spec = ComputeSpec(backend=backend, workers=1)
+    seen = []
+    result = run_job(run_dataset(Project(seed=8), 2, tmp_path, compute=spec, renderer=progress_renderer),
+                     seen.append)
+    assert sorted(result.rendered) == [0, 1]
+    live = [p for p in seen if p.message.startswith("rendering frame")]
+    assert live and any(0 < p.done % 1 for p in live)                # a frame part-way counts part-way
+    done = [p.done for p in seen if not p.message.startswith("checked")]
+    assert done == sorted(done) and done[-1] == 2
+
+
+@pytest.mark.slow
+def test_experiment_runs_as_ray_tasks_with_the_in_process_results(ray_cluster, tmp_path):
+    """Each training run is one Ray task; the mAPs equal those of the same runs in this process."""
+    from dataclasses import replace
+
+    from workbench.detect.synthetic import make_synthetic_dataset, synthetic_project
+    from workbench.experiments.detection import PROFILES, run_experiment
+    tiny = replace(PROFILES["quick"], name="tiny", image_hw=(48, 64), epochs={"isp": 1, "exposure": 1},
+                   crop_hw=None, batch_size=4)
+    make_synthetic_dataset(tmp_path / "data", frames=14)
+    project = synthetic_project()
+    runs = {}
+    for name, spec in (("here", ComputeSpec(workers=0)), ("ray", ComputeSpec(backend="ray", cpus_per_task=1))):
+        result = run_job(run_experiment("isp", project, tmp_path / "data", tmp_path / name, seeds=1,
+                                        profile_override=tiny, compute=spec))
+        assert len(result.trained) == 3
+        doc = json.loads((tmp_path / name / "results.json").read_text())
+        runs[name] = {r["key"]: [t["map"] for t in r["tests"]] for r in doc["runs"]}
+    assert runs["ray"] == runs["here"]

@@ -1,6 +1,8 @@
 """Network inputs: exact raw packing for every CFA, fixed scaling, CFA-aware crops and flips."""
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from workbench.detect.representations import (
     crop, hflip, input_channels, input_stride, network_input, pack_raw, packed_channel_names, packed_sites,
@@ -21,6 +23,15 @@ def test_pack_unpack_round_trip_exact(pattern):
     assert packed.shape == (4, 3, 5)
     assert np.array_equal(unpack_raw(packed, pattern), mosaic)
     assert sorted(packed_sites(pattern)) == [(0, 0), (0, 1), (1, 0), (1, 1)]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.sampled_from(CFA_PATTERNS), st.integers(1, 9), st.integers(1, 9), st.integers(0, 2**32 - 1))
+def test_pack_unpack_round_trip_any_even_size(pattern, half_rows, half_cols, seed):
+    mosaic = np.random.default_rng(seed).integers(0, 4096, (2 * half_rows, 2 * half_cols)).astype(np.uint16)
+    packed = pack_raw(mosaic, pattern)
+    assert packed.shape == (4, half_rows, half_cols) and packed.dtype == np.uint16
+    assert np.array_equal(unpack_raw(packed, pattern), mosaic)
 
 
 def test_plane_order_is_documented_one():

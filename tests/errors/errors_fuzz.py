@@ -24,7 +24,7 @@ SAMPLES = {p.stem: json.loads(p.read_text()) for p in sorted(PROJECTS_DIR.glob("
 CHART_SAMPLES = tuple(k for k, v in SAMPLES.items() if v["scene"]["kind"] != "city")
 SMALL_ROWS, SMALL_COLS = 12, 16
 
-ODD_STRINGS = ["", " ", "\u0000", "\ud800", "\u202e" + "evil", "😀" * 3, "é" * 200, "\n\r\t", "NaN", "inf",
+ODD_STRINGS = ["", " ", "\u0000", "\ud800", "\u202e" + "evil", "😀" * 3, "é" * 200, "x" * 5000, "\n\r\t", "NaN", "inf",
                "0.01", "120", "true", "../../etc/passwd", "/etc/passwd", "C:\\x", "null"]
 SPECIAL_VALUES = [math.nan, math.inf, -math.inf, 0, 0.0, -0.0, -1, 1, 5e-324, 1e-300, -1e308, 1e308,
                   2 ** 31, 2 ** 63, 2 ** 64, -2 ** 63, 10 ** 30, True, False, None, [], {}, [1, 2], [[1]],

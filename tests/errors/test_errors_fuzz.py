@@ -44,10 +44,11 @@ def test_fuzzed_lens_files_load_or_are_refused_naming_the_file(case):
         check_lens_file(suffix, data, Path(folder))
 
 
-def _big_run(strategy, check, n: int) -> tuple[Counter, list]:
-    """Draw n cases from `strategy`, run `check` on each; count outcomes and collect failures."""
-    from hypothesis import find  # noqa: F401  (hypothesis drives the draws below)
+def _big_run(strategy, check, n: int) -> tuple[Counter, Counter, list]:
+    """Draw n cases from `strategy`, run `check` on each; count outcomes (in all and per sample or
+    file type) and collect failures."""
     counts: Counter = Counter()
+    per_kind: Counter = Counter()
     failures = []
 
     @settings(max_examples=n, deadline=None, derandomize=True, database=None,
@@ -56,20 +57,23 @@ def _big_run(strategy, check, n: int) -> tuple[Counter, list]:
     def run(case):
         with tempfile.TemporaryDirectory() as folder:
             try:
-                counts[check(case, Path(folder))] += 1
+                outcome = check(case, Path(folder))
             except Exception as exc:           # recorded and reported, the run goes on
-                counts["traceback"] += 1
+                outcome = "traceback"
                 failures.append((case[0], case[-1], f"{type(exc).__name__}: {exc}"[:300]))
+            counts[outcome] += 1
+            per_kind[f"{case[0]}: {outcome}"] += 1
     run()
-    return counts, failures
+    return counts, per_kind, failures
 
 
 @pytest.mark.slow
 def test_big_fuzz_run():
-    docs, doc_failures = _big_run(project_texts(), lambda c, f: check_document(c[1], f), 1200)
-    lenses, lens_failures = _big_run(lens_files(), lambda c, f: check_lens_file(c[0], c[1], f), 600)
+    docs, doc_kinds, doc_failures = _big_run(project_texts(), lambda c, f: check_document(c[1], f), 1200)
+    lenses, lens_kinds, lens_failures = _big_run(lens_files(), lambda c, f: check_lens_file(c[0], c[1], f), 600)
     report = {"project_documents": {"tried": sum(docs.values()), **docs},
               "lens_files": {"tried": sum(lenses.values()), **lenses},
+              "per_sample": dict(sorted(doc_kinds.items())), "per_lens_format": dict(sorted(lens_kinds.items())),
               "failures": doc_failures[:50] + lens_failures[:50]}
     if os.environ.get("WORKBENCH_FUZZ_REPORT"):
         Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1))

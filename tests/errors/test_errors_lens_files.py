@@ -129,10 +129,11 @@ def test_good_files_still_round_trip(tmp_path):
 def test_project_with_missing_or_broken_lens_is_refused_when_it_loads(tmp_path, monkeypatch):
     from workbench.optics.lens import io
     data = json.loads((PROJECTS_DIR / "paper_camera.json").read_text())
-    data["optics"]["lens_file"] = "no_such.lens"
-    with pytest.raises(ParameterError) as info:
-        project_from_dict(data)
-    assert info.value.field == "optics.lens_file" and "no such lens" in str(info.value)
+    for missing in ("no_such.lens", "é" * 300):          # the second is too long for a file name
+        data["optics"]["lens_file"] = missing
+        with pytest.raises(ParameterError) as info:
+            project_from_dict(data)
+        assert info.value.field == "optics.lens_file" and "no such lens" in str(info.value)
     (tmp_path / "broken.json").write_text(json.dumps(DGAUSS)[:100])
     monkeypatch.setattr(io, "LENS_DIR", tmp_path)
     data["optics"]["lens_file"] = "broken.json"

@@ -46,6 +46,8 @@ def test_folder_and_missing_file_are_named(tmp_path):
         load_project(tmp_path)
     with pytest.raises(InputFileError, match="no such project file"):
         load_project(tmp_path / "nope.json")
+    with pytest.raises(InputFileError, match="no such project file"):
+        load_project("x" * 5000)
     with pytest.raises(InputFileError, match="not a regular file"):
         load_project("/dev/null")
 
@@ -88,6 +90,7 @@ def test_error_never_echoes_file_contents(tmp_path):
     (("optics", "lens_file"), "no_such_lens.json", "no such lens"),
     (("optics", "focus_distance_m"), 1e-100, "must exceed the effective focal length (2.376 mm)"),
     (("scene", "distance_m"), 1e-6, "must exceed the effective focal length"),
+    (("render", "daylight", "time_of_day_h"), 1.0, "daylight needs the sun above the horizon"),
 ])
 def test_bad_values_name_the_field(path, value, allowed):
     data = json.loads(_paper_text())
@@ -115,7 +118,7 @@ def test_schema_1_migrates_and_drops_the_unused_illuminance():
     data["schema_version"] = 1
     data["experiment"]["mean_illuminance_lux"] = 500.0
     project = project_from_dict(data)
-    assert project.schema_version == SCHEMA_VERSION == 2
+    assert project.schema_version == SCHEMA_VERSION
     assert "mean_illuminance_lux" not in project.experiment.model_dump()
     assert project.scene.adjust_illuminance_lux == 1000.0       # what sets the illuminance
     with pytest.raises(ParameterError, match="experiment.mean_illuminance_lux"):
@@ -201,3 +204,15 @@ def test_every_sample_round_trips_through_save(tmp_path):
         again = load_project(out)
         assert again.model_dump() == project.model_dump()
         assert out.read_text() == path.read_text(), f"{path.name} is not in its saved form (run make_samples)"
+
+
+def test_schema_2_migrates_to_the_default_world():
+    """A version-2 city file (before sky models, night, fog, glass) renders as before: uniform sky,
+    day, clear air, diffuse glass."""
+    data = json.loads(_paper_text())
+    data["schema_version"] = 2
+    project = project_from_dict(data)
+    assert project.schema_version == SCHEMA_VERSION == 3
+    assert project.render.daylight.sky_model == "uniform"
+    world = project.render.world
+    assert (world.lighting, world.fog, world.glass) == ("day", None, "diffuse")

@@ -26,6 +26,16 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.gui)
 
 
+def _die_with_parent() -> None:
+    """Xvfb gets SIGTERM when the test process dies (an aborted run leaves no X server behind)."""
+    import ctypes
+    import signal
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
+    except OSError:
+        pass
+
+
 def _free_display() -> int:
     for n in range(99, 160):
         if not Path(f"/tmp/.X11-unix/X{n}").exists() and not Path(f"/tmp/.X{n}-lock").exists():
@@ -50,7 +60,7 @@ def xserver(tmp_path_factory):
     log = tmp_path_factory.mktemp("xvfb") / "xvfb.log"
     with open(log, "w") as fh:
         proc = subprocess.Popen([xvfb, f":{num}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                                stdout=fh, stderr=subprocess.STDOUT)
+                                stdout=fh, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent)
     socket = Path(f"/tmp/.X11-unix/X{num}")
     deadline = time.monotonic() + 15
     while not socket.exists():
@@ -86,6 +96,7 @@ def qapp_args():
 @pytest.fixture(scope="session")
 def qapp(xserver, gui_home, qapp_args):
     """pytest-qt's QApplication, created only once the X server is up (xcb platform)."""
+    import workbench.gui  # noqa: F401  (guards the PySide6 6.12 refcount bug before Qt is used)
     from PySide6.QtWidgets import QApplication
     app = QApplication.instance() or QApplication(qapp_args)
     if app.platformName() != "xcb":

@@ -38,6 +38,14 @@ def make_panel(qtbot):
     return panel
 
 
+def test_output_split_across_reads_is_logged_as_whole_lines(qtbot):
+    panel = make_panel(qtbot)
+    for chunk in ("PID-OF", "-CHILD", " 42\nisp:  0%| | 0/9\risp: 11%| | 1", "/9 [00:01]\rdone\n"):
+        panel._take_output(chunk)
+    assert panel.log.toPlainText().splitlines() == ["PID-OF-CHILD 42", "done"]
+    assert (panel.progress.value(), panel.progress.maximum()) == (1, 9)
+
+
 def test_parse_progress():
     assert parse_progress("isp:  33%|███▎      | 3/9 [00:05<00:10,  1.2s/run]") == (3, 9)
     assert parse_progress("\risp: 0%| | 0/9\risp: 11%|█ | 1/9 [00:01") == (1, 9)
@@ -104,7 +112,7 @@ TREE = textwrap.dedent("""
 def test_cancel_kills_the_process_tree(qtbot, tmp_path):
     panel = make_panel(qtbot)
     panel.run_argv([sys.executable, "-c", TREE], tmp_path / "none")
-    qtbot.waitUntil(lambda: "PID-OF-CHILD " in panel.log.toPlainText(), timeout=20_000)
+    qtbot.waitUntil(lambda: "PID-OF-CHILD " in panel.log.toPlainText(), timeout=60_000)
     child = int(panel.log.toPlainText().split("PID-OF-CHILD ")[-1].split()[0])
     parent = panel._process.processId()
     assert psutil.pid_exists(child)
@@ -123,3 +131,16 @@ def test_experiment_argv(qtbot, tmp_path):
     argv = panel.experiment_argv("p.json")
     assert argv[1:] == ["-m", "workbench.cli", "experiment", "exposure", "p.json", "--data", str(tmp_path / "data"),
                         "--profile", "quick", "--out", str(tmp_path / "out")]
+
+
+def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_path, monkeypatch):
+    """The panel's argv reaches `workbench experiment` (a missing data set fails fast, naming it)."""
+    monkeypatch.chdir(tmp_path)
+    panel = make_panel(qtbot)
+    panel.data_dir.setText(str(tmp_path / "no-data"))
+    with qtbot.waitSignal(panel.run_finished, timeout=120_000) as sig:
+        panel.run_experiment()
+    assert sig.args[0] != 0
+    assert "no such data-set folder" in panel.log.toPlainText()
+    assert "failed" in panel.status.text()
+    assert panel.out_dir.text() == str(tmp_path / "experiment-isp-quick")

@@ -123,3 +123,24 @@ def test_nested_section_emits_the_whole_sub_model(qtbot):
         _type(qtbot, sub.fields["max_rel_rms_error"], "0.05")
     assert sig.args[0]["budget"]["max_rel_rms_error"] == 0.05
     assert form.params().budget.max_rel_rms_error == 0.05
+
+
+def test_fraction_slider_commits_on_release_and_keeps_text_exact(qtbot):
+    form = ParamsForm(SensorParams)
+    qtbot.addWidget(form)
+    field = form.fields["fill_factor"]
+    assert field.slider is not None and form.fields["pixel_pitch_um"].slider is None
+    form.set_params(SensorParams(fill_factor=0.123456))
+    assert field.edit.text() == "0.123456"
+    with qtbot.waitSignal(form.edited) as sig:
+        field.slider.setValue(0.5)
+        field.slider.sliderMoved.emit(0.5)
+        field.slider.sliderReleased.emit()
+    assert sig.args == [{"fill_factor": 0.5}]
+
+
+def test_only_unitless_fractions_get_sliders(qtbot):
+    form = ParamsForm(SensorParams)
+    qtbot.addWidget(form)
+    with_slider = {n for n, w in form.fields.items() if getattr(w, "slider", None) is not None}
+    assert with_slider == {"fill_factor", "auto_exposure_level"}

@@ -14,3 +14,19 @@ def test_qt_runs_on_xcb_and_grabs_real_pixels(qapp, qtbot, grab):
     pixels = grab(label)
     assert qapp.platformName() == "xcb"
     assert tuple(pixels[2, 2]) == (10, 200, 30)      # 24-bit: exact colour comes back
+
+
+def test_many_void_calls_and_emits_do_not_exhaust_none_or_true(qapp):
+    """PySide6 6.12 on CPython 3.11 drops a reference to None per void call and to True per emit;
+    workbench.gui guards it (without the guard this aborts the interpreter)."""
+    from PySide6.QtCore import QObject, Signal
+
+    class Emitter(QObject):
+        ping = Signal(int)
+
+    obj = Emitter()
+    obj.ping.connect(lambda _v: None)
+    for i in range(200_000):
+        obj.setObjectName("x")
+        obj.ping.emit(i)
+    assert obj.objectName() == "x"

@@ -3,11 +3,12 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from workbench.render.daylight import (air_mass, extraterrestrial_irradiance, sky_radiance,
-                                       solar_position, sun_angles, sun_direction, sun_irradiance)
+from workbench.render.daylight import (air_mass, extraterrestrial_irradiance, sky_radiance, sun_angles,
+                                       sun_direction, sun_irradiance)
 from workbench.render.film import box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
 from workbench.render.params import DaylightParams, RenderParams
 from workbench.render.sampling import noise_constant, spp_for_error, spp_for_shot_noise
+from workbench.render.solar import solar_position
 from workbench.units import photon_energy_J
 
 
@@ -78,8 +79,10 @@ def test_solar_position_closed_forms():
     assert el_m == pytest.approx(el_a) and az_m < 180 < az_a and az_m + az_a == pytest.approx(360)
     assert np.allclose(sun_direction(90.0, 0.0), [0, 0, 1], atol=1e-12)
     assert np.allclose(sun_direction(0.0, 90.0), [1, 0, 0], atol=1e-12)   # azimuth 90° = east = +X
-    with pytest.raises(ValueError, match="time_of_day_h=23"):
-        sun_angles(DaylightParams(time_of_day_h=23.0))
+    with pytest.raises(ValueError, match="time_of_day_h.*sun above the horizon"):    # refused when set
+        DaylightParams(time_of_day_h=23.0)
+    with pytest.raises(ValueError, match="time_of_day_h=23"):                         # and when rendered
+        sun_angles(DaylightParams.model_construct(**{**DaylightParams().model_dump(), "time_of_day_h": 23.0}))
 
 
 def test_spp_rules():

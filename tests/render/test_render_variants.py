@@ -57,3 +57,31 @@ def test_a_variant_that_fails_to_load_falls_back(monkeypatch, caplog):
     assert "simulated JIT start-up failure" in caplog.text
     monkeypatch.undo()
     assert select_variant() == "llvm_ad_spectral" or not find_libllvm()
+
+
+def test_an_nvidia_gpu_gets_the_cuda_variant_automatically(monkeypatch, caplog):
+    """Simulated GPU machine: Dr.Jit reports a CUDA backend, so select_variant() asks for
+    cuda_ad_spectral with no preference given; if its start fails, it falls back to the CPU JIT."""
+    import drjit as dr
+    import mitsuba as mi
+
+    select_variant()
+    real_set, asked = mi.set_variant, []
+
+    def fake_set(name, *args):
+        asked.append(name)
+        if name != "cuda_ad_spectral":
+            return real_set(name, *args)
+    monkeypatch.setattr(dr, "has_backend", lambda backend: True)
+    monkeypatch.setattr(mi, "variants", lambda: list(SPECTRAL_VARIANTS) + ["scalar_rgb"])
+    monkeypatch.setattr(mi, "set_variant", fake_set)
+    assert select_variant() == "cuda_ad_spectral" and asked == ["cuda_ad_spectral"]
+
+    def no_driver(name, *args):
+        if name == "cuda_ad_spectral":
+            raise RuntimeError("simulated: cuInit failed, no CUDA driver")
+        return real_set(name, *args)
+    monkeypatch.setattr(mi, "set_variant", no_driver)
+    with caplog.at_level("WARNING"):
+        assert select_variant() in ("llvm_ad_spectral", "scalar_spectral")
+    assert "cuda_ad_spectral failed to load" in caplog.text and "cuInit" in caplog.text

@@ -13,7 +13,7 @@ from typing import Callable
 
 from workbench.registry import Registry
 
-MODULES = ("pipeline", "render", "optics", "isp", "sensor", "city", "lens_camera", "detect")
+MODULES = ("pipeline", "render", "optics", "isp", "sensor", "city", "lens_camera", "detect", "scale")
 BENCHES: Registry[Callable] = Registry("bench", "benchmark")
 
 

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.commands.compute_options import add_compute_options, compute_spec
+
 # Box colours per class id (RGB), cycling for ids beyond the list.
 CLASS_COLOURS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
                  (145, 30, 180), (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212),
@@ -33,32 +35,6 @@ def register(sub) -> None:
                    help="store irradiance as float32 (default float16 with scale, ≤ 0.05 %% error)")
     add_compute_options(p)
     p.set_defaults(func=cmd_dataset)
-
-
-def add_compute_options(p) -> None:
-    """--backend, --address and per-task resources (shared by every command that runs many jobs)."""
-    g = p.add_argument_group("where the jobs run")
-    g.add_argument("--backend", choices=("local", "ray"), default="local",
-                   help="local processes (default) or a Ray cluster")
-    g.add_argument("--address", default=None,
-                   help="Ray cluster: 'auto' (the one `ray start --head` runs here) or ray://host:10001; "
-                        "default: start a local one for this run")
-    g.add_argument("--cpus-per-task", type=float, default=None,
-                   help="CPUs each task reserves and its thread budget (default: 1 on Ray, this "
-                        "machine's CPUs shared among the local workers)")
-    g.add_argument("--memory-mb-per-task", type=float, default=None, help="memory each Ray task reserves (MiB)")
-    g.add_argument("--gpus-per-task", type=float, default=0.0, help="GPUs each Ray task reserves")
-    g.add_argument("--max-retries", type=int, default=3,
-                   help="re-runs of a task whose worker died (default 3); errors are not retried")
-
-
-def compute_spec(args):
-    """The ComputeSpec the compute options of `args` describe."""
-    from workbench.compute import ComputeSpec
-    return ComputeSpec(backend=args.backend, workers=args.workers, address=args.address,
-                       cpus_per_task=args.cpus_per_task, memory_mb_per_task=args.memory_mb_per_task,
-                       gpus_per_task=args.gpus_per_task, max_retries=args.max_retries,
-                       max_tasks_per_child=16 if args.backend == "local" and args.workers else None)
 
 
 def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
@@ -125,7 +101,7 @@ def cmd_dataset(args) -> int:
 
     try:
         project = load_project(args.project)
-        job = run_dataset(project, args.frames, args.out, compute=compute_spec(args),
+        job = run_dataset(project, args.frames, args.out, compute=compute_spec(args, max_tasks_per_child=16),
                           irradiance_dtype="float32" if args.float32 else "float16")
         steps = iter(())
         try:
@@ -139,7 +115,7 @@ def cmd_dataset(args) -> int:
                 except StopIteration as stop:
                     result = stop.value
                     break
-                bar.n = int(p.done)
+                bar.n = round(p.done, 2)            # frames in flight count by their progress
                 bar.set_postfix_str(p.message, refresh=False)
                 bar.refresh()
     except JobFailed as exc:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Callable, Generator, Iterable, TypeVar
 
 from workbench.compute.local import JobFailed, apply_thread_budget
+from workbench.compute.progress import TaskProgress, report_progress
 from workbench.errors import ParameterError
 from workbench.jobs import CancelToken
 
@@ -19,7 +20,8 @@ J = TypeVar("J")
 R = TypeVar("R")
 BACKENDS = ("local", "ray")
 
-__all__ = ["BACKENDS", "ComputeSpec", "JobFailed", "apply_thread_budget", "run_jobs"]
+__all__ = ["BACKENDS", "ComputeSpec", "JobFailed", "TaskProgress", "apply_thread_budget", "report_progress",
+           "run_jobs"]
 
 
 @dataclass(frozen=True)
@@ -83,16 +85,19 @@ class ComputeSpec:
 
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], spec: ComputeSpec | None = None,
-             cancel: CancelToken | None = None) -> Generator[tuple[J, R], None, None]:
+             cancel: CancelToken | None = None, task_progress: bool = False
+             ) -> Generator[tuple[J, R] | TaskProgress, None, None]:
     """Run fn(job) for every job where `spec` says; yield (job, result) in completion order.
 
     A job that raises stops the run with JobFailed naming the job (pending jobs are dropped); a
-    job whose worker died is retried up to spec.max_retries times (Ray), then JobFailed. cancel
-    is checked between jobs (JobCancelled)."""
+    job whose worker died is retried up to spec.max_retries times, then JobFailed. cancel
+    is checked between jobs (JobCancelled). task_progress=True also yields TaskProgress(job, done,
+    total) items as running jobs call compute.progress.report_progress (process pool and Ray)."""
     spec = spec or ComputeSpec()
     if spec.backend == "ray":
         from workbench.compute.ray_cluster import run_jobs_ray
-        return run_jobs_ray(fn, jobs, spec, cancel)
+        return run_jobs_ray(fn, jobs, spec, cancel, task_progress)
     from workbench.compute.local import run_jobs as run_local
     return run_local(fn, jobs, spec.workers, cancel, max_tasks_per_child=spec.max_tasks_per_child,
-                     threads_per_worker=spec.threads_per_task if spec.workers else None)
+                     threads_per_worker=spec.threads_per_task if spec.workers else None,
+                     task_progress=task_progress, max_retries=spec.max_retries)

@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import ctypes
+import itertools
 import multiprocessing
 import os
 import signal
 import sys
+from concurrent.futures.process import BrokenProcessPool
+from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
+from workbench.compute.progress import TaskProgress, reporting_to
 from workbench.errors import WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
@@ -54,14 +58,26 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker_init(parent_pid: int, threads: int | None) -> None:
+_progress_queue = None          # in a pool worker: where report_progress sends (key, done, total)
+
+
+def _worker_init(parent_pid: int, threads: int | None, progress_queue=None) -> None:
+    global _progress_queue
     die_with_parent(parent_pid)
     apply_thread_budget(threads)
+    _progress_queue = progress_queue
+
+
+def _run_reporting(fn, key: int, job):
+    """fn(job) in a pool worker, its report_progress calls sent to the driver as (key, done, total)."""
+    with reporting_to(lambda done, total: _progress_queue.put((key, done, total))):
+        return fn(job)
 
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
              cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
-             threads_per_worker: int | None = None) -> Generator[tuple[J, R], None, None]:
+             threads_per_worker: int | None = None, task_progress: bool = False,
+             max_retries: int = 3) -> Generator[tuple[J, R] | TaskProgress, None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
@@ -72,7 +88,10 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
     native libraries); threads_per_worker is each worker's thread budget (OpenMP, torch, Dr.Jit).
     cancel is checked between jobs: once set, no further job starts, jobs already running are
     waited for (their results are not yielded) and JobCancelled is raised.
-    A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job.
+    A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job. When
+    a worker process dies, the jobs in flight are re-run in a fresh pool, each at most max_retries
+    times, then JobFailed names the job and the last error. task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
+    compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
         raise ValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
@@ -88,37 +107,87 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
                 raise JobFailed(f"job {job!r} failed: {exc}") from exc
             yield job, result
         return
-    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker)
+    yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker,
+                         task_progress, max_retries)
 
 
-def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads):
-    pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                  max_tasks_per_child=max_tasks_per_child,
-                                  initializer=_worker_init, initargs=(os.getpid(), threads))
-    pending: dict[cf.Future, object] = {}
+def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_progress, max_retries):
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue() if task_progress else None
+
+    def new_pool():
+        return cf.ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                      max_tasks_per_child=max_tasks_per_child,
+                                      initializer=_worker_init, initargs=(os.getpid(), threads, queue))
+    pool = new_pool()
+    pending: dict[cf.Future, int] = {}        # future → key of the job it runs
+    keys: dict[int, object] = {}              # running (or to be re-run) jobs by key
+    deaths: dict[int, int] = {}               # key → how often a worker died running it
+    retry: list[int] = []
+    counter = itertools.count()
+
+    def submit(key):
+        call = (_run_reporting, fn, key, keys[key]) if queue is not None else (fn, keys[key])
+        pending[pool.submit(*call)] = key
     try:
         exhausted = False
         while True:
-            while not exhausted and len(pending) < 2 * workers and not (cancel and cancel.cancelled):
+            while (retry or not exhausted) and len(pending) < 2 * workers and not (cancel and cancel.cancelled):
+                if retry:
+                    submit(retry.pop(0))
+                    continue
                 job = next(jobs, _END)
                 if job is _END:
                     exhausted = True
                 else:
-                    pending[pool.submit(fn, job)] = job
+                    key = next(counter)
+                    keys[key] = job
+                    submit(key)
             if cancel is not None and cancel.cancelled:
                 raise JobCancelled("cancelled")
             if not pending:
                 return
             done, _ = cf.wait(pending, timeout=POLL_S, return_when=cf.FIRST_COMPLETED)
+            if queue is not None:
+                yield from _drain(queue, keys)
+            broken = None
             for fut in done:
-                job = pending.pop(fut)
+                key = pending.pop(fut)
                 try:
                     result = fut.result()
+                except BrokenProcessPool as exc:      # a worker died (killed, out of memory, crash)
+                    broken = exc
+                    retry.append(key)
+                    continue
                 except Exception as exc:
-                    raise JobFailed(f"job {job!r} failed: {exc}") from exc
-                yield job, result
+                    raise JobFailed(f"job {keys[key]!r} failed: {exc}") from exc
+                yield keys.pop(key), result
+            if broken is not None:
+                # Every job in flight went down with the pool: each counts one death, then a fresh pool.
+                retry += list(pending.values())
+                pending.clear()
+                for key in retry:
+                    deaths[key] = deaths.get(key, 0) + 1
+                    if deaths[key] > max_retries:
+                        raise JobFailed(f"job {keys[key]!r} failed after {max_retries} retries; last error: "
+                                        f"its worker process died ({broken})") from broken
+                pool.shutdown(wait=True, cancel_futures=True)
+                pool = new_pool()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+        if queue is not None:
+            queue.close()
+
+
+def _drain(queue, keys: dict):
+    """TaskProgress for every report waiting in the queue from a job still running."""
+    while True:
+        try:
+            key, done, total = queue.get_nowait()
+        except Empty:
+            return
+        if key in keys:
+            yield TaskProgress(keys[key], done, total)
 
 
 _END = object()

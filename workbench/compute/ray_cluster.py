@@ -3,16 +3,18 @@
 Each task reserves spec.cpus_per_task CPUs (also its thread budget), memory and GPUs. A task whose
 worker process dies (killed, out of memory, node lost) is re-run by Ray up to spec.max_retries
 times; an error the job raises itself (a bad project) is never retried and stops the run at once.
-A result travels once, worker → object store → caller (Ray keeps large buffers out of the pickle
-stream); the caller writes files. Without an address a local cluster is started for the run and
-shut down after it; with 'auto' or 'ray://…' an existing cluster is joined and left running.
+A result travels once, worker → object store → caller, and the caller writes files. Without an
+address a private local cluster (no dashboard) is started for the run and shut down after it; with
+'auto' or 'ray://…' an existing cluster is joined and left running; a process already connected
+to Ray (ray.init was called) keeps its connection.
 """
 from __future__ import annotations
 
-import time
+import itertools
 from typing import Callable, Generator, Iterable
 
 from workbench.compute.local import JobFailed, apply_thread_budget
+from workbench.compute.progress import TaskProgress, reporting_to
 from workbench.errors import WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
@@ -30,10 +32,28 @@ def import_ray():
     return ray
 
 
-def _run_task(fn: Callable, job, threads: int):
-    """What a Ray worker runs: set the task's thread budget, then fn(job)."""
+def _run_task(fn: Callable, job, threads: int, board=None, key: int = 0):
+    """What a Ray worker runs: set the task's thread budget, then fn(job), its report_progress
+    calls sent to the run's progress board (fire and forget)."""
     apply_thread_budget(threads)
-    return fn(job)
+    if board is None:
+        return fn(job)
+    with reporting_to(lambda done, total: board.report.remote(key, done, total)):
+        return fn(job)
+
+
+class _ProgressBoard:
+    """A Ray actor holding the latest progress of each running task until the driver reads it."""
+
+    def __init__(self) -> None:
+        self.latest: dict[int, tuple[float, float]] = {}
+
+    def report(self, key: int, done: float, total: float) -> None:
+        self.latest[key] = (done, total)
+
+    def drain(self) -> dict[int, tuple[float, float]]:
+        latest, self.latest = self.latest, {}
+        return latest
 
 
 def connect(spec) -> bool:
@@ -42,7 +62,7 @@ def connect(spec) -> bool:
     if ray.is_initialized():
         return False
     if spec.address is None:
-        ray.init(num_cpus=spec.workers, num_gpus=None, log_to_driver=False)
+        ray.init(num_cpus=spec.workers, include_dashboard=False, log_to_driver=False)
     else:
         ray.init(address=spec.address, log_to_driver=False)
     return True
@@ -58,22 +78,28 @@ def task_slots(spec) -> int:
     return max(1, slots)
 
 
-def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None = None
-                 ) -> Generator[tuple[object, object], None, None]:
-    """compute.run_jobs on Ray (see the module docstring); jobs are submitted lazily."""
+def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None = None,
+                 task_progress: bool = False) -> Generator[tuple[object, object] | TaskProgress, None, None]:
+    """compute.run_jobs on Ray (see the module docstring); jobs are submitted lazily. With
+    task_progress, TaskProgress items are yielded too, from a small progress actor (0 CPUs)."""
     ray = import_ray()
     owned = connect(spec)
     options = {"num_cpus": spec.task_cpus, "num_gpus": spec.gpus_per_task,
                "max_retries": spec.max_retries, "retry_exceptions": False}
     if spec.memory_mb_per_task:
         options["memory"] = int(spec.memory_mb_per_task * 2 ** 20)
-    if spec.gpus_per_task and not ray.cluster_resources().get("GPU"):
-        raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU")
     remote = ray.remote(_run_task).options(**options)
-    window = QUEUE_PER_SLOT * task_slots(spec)
+    board = None
     pending: dict = {}
+    keys: dict = {}                          # progress key → ref of the running task
+    counter = itertools.count()
     jobs = iter(jobs)
     try:
+        if spec.gpus_per_task and not ray.cluster_resources().get("GPU"):
+            raise JobFailed(f"gpus_per_task = {spec.gpus_per_task} but the Ray cluster has no GPU "
+                            "(--gpus-per-task 0 runs the tasks on CPUs)")
+        window = QUEUE_PER_SLOT * task_slots(spec)
+        board = ray.remote(num_cpus=0)(_ProgressBoard).remote() if task_progress else None
         exhausted = False
         while True:
             while not exhausted and len(pending) < window and not (cancel and cancel.cancelled):
@@ -81,18 +107,27 @@ def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None 
                 if job is _END:
                     exhausted = True
                 else:
-                    pending[remote.remote(fn, job, spec.threads_per_task)] = (job, time.monotonic())
+                    key = next(counter)
+                    ref = remote.remote(fn, job, spec.threads_per_task, board, key)
+                    pending[ref], keys[key] = (job, key), ref
             if cancel is not None and cancel.cancelled:
                 raise JobCancelled("cancelled")
             if not pending:
                 return
             done, _ = ray.wait(list(pending), num_returns=1, timeout=POLL_S)
+            if board is not None:
+                for key, (steps, total) in ray.get(board.drain.remote()).items():
+                    if key in keys and keys[key] not in done:
+                        yield TaskProgress(pending[keys[key]][0], steps, total)
             for ref in done:
-                job, _ = pending.pop(ref)
+                job, key = pending.pop(ref)
+                keys.pop(key)
                 yield job, _result(ray, ref, job, spec)
     finally:
         for ref in pending:
             ray.cancel(ref, force=True)
+        if board is not None:
+            ray.kill(board)
         if owned:
             ray.shutdown()
 

@@ -148,9 +148,10 @@ def centernet_loss(outputs: dict[str, torch.Tensor], targets: dict[str, torch.Te
         raise ParameterError("targets['heatmap']", tuple(targets["heatmap"].shape),
                              f"the network's heat-map shape {tuple(outputs['heatmap'].shape)} "
                              "(encode with the input image's size and stride 4)")
-    heat = focal_loss(outputs["heatmap"], targets["heatmap"])
-    size = _masked_l1(_at_centres(outputs["size"], targets["index"]), targets["size"], targets["mask"])
-    offset = _masked_l1(_at_centres(outputs["offset"], targets["index"]), targets["offset"], targets["mask"])
+    out = {key: outputs[key].float() for key in ("heatmap", "size", "offset")}   # float32 also under autocast
+    heat = focal_loss(out["heatmap"], targets["heatmap"])
+    size = _masked_l1(_at_centres(out["size"], targets["index"]), targets["size"], targets["mask"])
+    offset = _masked_l1(_at_centres(out["offset"], targets["index"]), targets["offset"], targets["mask"])
     total = heat + SIZE_WEIGHT * size + OFFSET_WEIGHT * offset
     return total, {"heatmap": heat.detach(), "size": size.detach(), "offset": offset.detach()}
 

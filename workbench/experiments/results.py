@@ -95,6 +95,12 @@ def _error_bars(rows: list[dict]) -> np.ndarray:
     return np.array([lo, hi])
 
 
+def _top(rows: list[dict]) -> float:
+    """Upper y limit: 15 % above the highest mean or interval bound, at most 1 (mAP is a fraction)."""
+    values = [v for r in rows for v in (r["mean_map"], r["ci95_high"]) if v is not None]
+    return min(1.0, max(0.05, 1.15 * max(values, default=1.0)))
+
+
 def draw_isp(ax, summary: list[dict]) -> None:
     """Grouped bars: networks along x, one bar per representation, 95 % error bars."""
     nets = sorted({r["net"] for r in summary})
@@ -108,7 +114,7 @@ def draw_isp(ax, summary: list[dict]) -> None:
                color=REP_COLOURS[rep], label=rep)
     ax.set_xticks(range(len(nets)), nets)
     ax.set_ylabel("mAP@0.5 (mean over seeds, 95 % CI)")
-    ax.set_ylim(0, 1)
+    ax.set_ylim(0, _top(summary))
     ax.legend(title="trained and tested on")
 
 
@@ -125,7 +131,7 @@ def draw_exposure(ax, summary: list[dict], net: str) -> None:
                             alpha=0.15, lw=0)
     ax.set_xlabel("exposure bias at test (EV)")
     ax.set_ylabel("mAP@0.5")
-    ax.set_ylim(0, 1)
+    ax.set_ylim(0, _top([s for s in summary if s["net"] == net]))
     ax.set_title(net)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)

@@ -1,7 +1,7 @@
 """One form generator for every parameter section, driven by the pydantic schema of a Params model.
 
 `ParamsForm(SensorParams)` builds one row per field: a widget chosen from the field's type
-(number → line edit, bool → check box, Literal → combo box, `X | None` → check box + value,
+(number → line edit (plus a slider for fractions), bool → check box, Literal → combo box, `X | None` → check box + value,
 nested Params → collapsible sub-form, tuples/lists/unions → a JSON line edit), a label carrying
 the unit read from the field-name suffix (`pixel_pitch_um` → "pixel pitch (µm)"), and a tooltip
 holding the field's `description` and its allowed range (from ge/le/gt/lt). Every change is
@@ -19,7 +19,7 @@ from pydantic import BaseModel, ValidationError
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QHBoxLayout, QLabel, QLineEdit,
                                QVBoxLayout, QWidget)
-from superqt import QCollapsible
+from superqt import QCollapsible, QDoubleSlider
 
 from workbench.errors import ParameterError, WorkbenchError
 from workbench.params import Params
@@ -88,17 +88,35 @@ class _FieldWidget(QWidget):
         raise NotImplementedError
 
 
-class NumberField(_FieldWidget):
-    """int or float in a line edit (any magnitude, shown with 6 significant digits)."""
+def finite_bounds(field) -> tuple[float, float] | None:
+    """(low, high) when the field has both a lower (ge/gt) and an upper (le/lt) bound."""
+    lo = hi = None
+    for m in field.metadata:
+        lo = next((getattr(m, a) for a in ("ge", "gt") if getattr(m, a, None) is not None), lo)
+        hi = next((getattr(m, a) for a in ("le", "lt") if getattr(m, a, None) is not None), hi)
+    return None if lo is None or hi is None else (float(lo), float(hi))
 
-    def __init__(self, kind: type, parent=None):
+
+class NumberField(_FieldWidget):
+    """int or float in a line edit (any magnitude, shown with 6 significant digits). A fraction
+    (a unitless float bounded within a span of 1, e.g. 0 < x ≤ 1) also gets a slider; the text
+    stays exact and dragging commits when the slider is released."""
+
+    def __init__(self, kind: type, bounds: tuple[float, float] | None = None, parent=None):
         super().__init__(parent)
         self.kind = kind
         self.edit = QLineEdit(self)
         lay = QHBoxLayout(self)
         lay.setContentsMargins(0, 0, 0, 0)
-        lay.addWidget(self.edit)
+        lay.addWidget(self.edit, 1)
         self.edit.editingFinished.connect(self.committed)
+        self.slider = None
+        if kind is float and bounds is not None and bounds[1] - bounds[0] <= 1.0:
+            self.slider = QDoubleSlider(Qt.Orientation.Horizontal, self)
+            self.slider.setRange(*bounds)
+            self.slider.sliderMoved.connect(lambda v: self.edit.setText(f"{v:.4g}"))
+            self.slider.sliderReleased.connect(self.committed)
+            lay.addWidget(self.slider, 1)
 
     def value(self):
         text = self.edit.text().strip()
@@ -111,6 +129,10 @@ class NumberField(_FieldWidget):
 
     def set_value(self, value) -> None:
         self.edit.setText(str(value) if self.kind is int else f"{value:.6g}")
+        if self.slider is not None:
+            self.slider.blockSignals(True)
+            self.slider.setValue(float(value))
+            self.slider.blockSignals(False)
 
 
 class TextField(_FieldWidget):
@@ -259,11 +281,12 @@ class NestedField(_FieldWidget):
         self.form.set_params(value)
 
 
-def widget_for(annotation, name: str, choices: dict[str, list[str]] | None = None) -> _FieldWidget:
+def widget_for(annotation, name: str, choices: dict[str, list[str]] | None = None,
+               bounds: tuple[float, float] | None = None) -> _FieldWidget:
     """The field widget for a type annotation (see the module docstring)."""
     inner, optional = _split_optional(annotation)
     if optional:
-        return OptionalField(widget_for(inner, name, choices))
+        return OptionalField(widget_for(inner, name, choices, bounds))
     origin = typing.get_origin(inner)
     if origin is Literal:
         return ChoiceField(list(typing.get_args(inner)))
@@ -273,7 +296,7 @@ def widget_for(annotation, name: str, choices: dict[str, list[str]] | None = Non
         if issubclass(inner, bool):
             return BoolField()
         if issubclass(inner, (int, float)):
-            return NumberField(int if issubclass(inner, int) else float)
+            return NumberField(int if issubclass(inner, int) else float, bounds)
         if issubclass(inner, str):
             return TextField((choices or {}).get(name))
         if hasattr(inner, "__members__"):          # enum
@@ -301,8 +324,8 @@ class ParamsForm(QWidget):
         for name, info in model_cls.model_fields.items():
             if name in exclude:
                 continue
-            widget = widget_for(info.annotation, name, choices)
             text, unit = label_and_unit(name)
+            widget = widget_for(info.annotation, name, choices, None if unit else finite_bounds(info))
             label = QLabel(f"{text} ({unit})" if unit else text, self)
             tip = "\n".join(t for t in (info.description or "", ("allowed: " + range_text(info))
                                         if range_text(info) else "") if t)

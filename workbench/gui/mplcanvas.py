@@ -17,3 +17,12 @@ class ChartCanvas(FigureCanvasQTAgg):
         self.figure.clear()
         draw(self.figure)
         self.draw_idle()
+
+    def set_figure(self, fig: Figure) -> None:
+        """Show a Figure built elsewhere (e.g. on a worker thread), sized to this widget."""
+        ratio = self.device_pixel_ratio
+        fig.set_dpi(self.figure.dpi)
+        fig.set_size_inches(self.width() * ratio / fig.dpi, self.height() * ratio / fig.dpi, forward=False)
+        self.figure = fig
+        fig.set_canvas(self)
+        self.draw_idle()

@@ -72,7 +72,8 @@ class OpticsParams(Params):
         level then uses the same first-order values.
     transmittance: lens transmittance T in the camera equation, 0–1.
     off_axis: 'cos4th' (ISETCam's fall-off) or 'none'.
-    lens_file: a prescription under resources/lenses/ (relative path), for psf_grid/raytrace.
+    lens_file: a lens library name (resources/lenses/, then the user's lens folder
+        workbench.optics.lens.io.user_lens_dir()), for psf_grid/raytrace.
     scale_lens_to_focal_length: scale the prescription so its focal length is focal_length_mm.
     focus_distance_m: object distance in focus; None = focused at the scene distance.
     distortion_k: radial distortion r_d = r·(1 + k1 r² + k2 r⁴ + k3 r⁶), r = image height /
@@ -138,10 +139,10 @@ class OpticsParams(Params):
             return v
         p = PurePosixPath(v.replace("\\", "/"))
         if not v or p.is_absolute() or ".." in p.parts:
-            raise ValueError(f"lens_file must be a relative path inside resources/lenses/ "
-                             f"(no '..', not absolute), got {v!r}")
-        from workbench.optics.lens.io import check_shipped_lens
-        check_shipped_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
+            raise ValueError(f"lens_file must be a lens library name (resources/lenses/ or the user's "
+                             f"lens folder; no '..', not absolute), got {v!r}")
+        from workbench.optics.lens.io import check_library_lens
+        check_library_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
         return str(p)
 
     @field_validator("distortion_k")

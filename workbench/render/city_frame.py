@@ -182,7 +182,7 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
                                        weight="irradiance")
     check()
     mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
-                                     lens_sensor, max_depth=inputs.render.max_depth)
+                                     lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world)
     yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
     labels = render_labels(mi_scene, id_table, width, height)
     params = inputs.render.updated(seed=seeds.render)
@@ -190,13 +190,15 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
             "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
                      "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
                      "meta": getattr(pose, "meta", {})}}
-    if lens_camera is None:             # the disc the directional sun cannot show
+    night = inputs.render.world.lighting == "night"
+    if lens_camera is None and not night:   # the disc the directional sun cannot show
         from workbench.render.sun_disc import sun_disc
         disc = sun_disc(film, pose, fov, width, height, inputs.render.daylight, mi_scene=mi_scene)
         meta["sun_disc"] = disc.meta
     else:
         disc = None
-        meta["sun_disc"] = {"status": "not composited: the full lens model bends the camera rays"}
+        meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
+                                                             "the full lens model bends the camera rays")}
 
     def with_sun(scene):
         if disc is not None:

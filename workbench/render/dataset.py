@@ -20,6 +20,7 @@ error ≤ 2^-25 · 2^k below that. 'float32' stores the array as rendered (no er
 from __future__ import annotations
 
 import hashlib
+import inspect
 import io
 import json
 import os
@@ -34,7 +35,7 @@ from typing import Callable, Generator
 
 import numpy as np
 
-from workbench.compute import ComputeSpec, run_jobs
+from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
 from workbench.errors import InputFileError, OutputPathError, ParameterError
 from workbench.jobs import CancelToken, Progress
@@ -179,7 +180,7 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
 
 
 def atomic_write_json(path: Path, obj) -> None:
-    from workbench.project import atomic_write_text
+    from workbench.files import atomic_write_text
     atomic_write_text(path, json.dumps(obj, indent=1, default=str) + "\n")
 
 
@@ -209,13 +210,25 @@ class FramePayload:
 
 
 def render_frame_job(job: FrameJob) -> FramePayload:
-    """Worker function: render frame job.index and encode its file (the driver writes it)."""
+    """Worker function: render frame job.index and encode its file (the driver writes it). A
+    renderer that takes on_progress reports its samples per pixel to the driver as it goes."""
     t0 = time.perf_counter()
-    data = job.renderer(job.project, job.seeds)
+    if "on_progress" in inspect.signature(job.renderer).parameters:
+        data = job.renderer(job.project, job.seeds,
+                            on_progress=lambda step: report_progress(*_steps(step)))
+    else:
+        data = job.renderer(job.project, job.seeds)
     header = {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": job.index,
               "fingerprint": job.fingerprint, "seeds": asdict(job.seeds)}
     payload = encode_frame(data, header, job.irradiance_dtype)
     return FramePayload(job.index, payload, len(data.labels.objects), time.perf_counter() - t0)
+
+
+def _steps(step) -> tuple[float, float]:
+    """(done, total) of a renderer's progress step (samples per pixel, or a generic Progress)."""
+    if hasattr(step, "spp_done"):
+        return step.spp_done, step.spp_total
+    return step.done, step.total
 
 
 @dataclass
@@ -273,11 +286,18 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         done = set(reused)
         todo = (FrameJob(i, frame_seeds(project.seed, i), project, fingerprint, irradiance_dtype, renderer)
                 for i in range(frames) if i not in done)
-        rendered = []
-        for job, rec in run_jobs(render_frame_job, todo, compute, cancel):
+        rendered, running = [], {}
+        for item in run_jobs(render_frame_job, todo, compute, cancel, task_progress=True):
+            if isinstance(item, TaskProgress):          # a frame still rendering: overall + per frame
+                running[item.job.index] = item.fraction
+                yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
+                               "rendering " + ", ".join(f"frame {i} {100 * f:.0f} %" for i, f in sorted(running.items())))
+                continue
+            job, rec = item
             write_bytes_atomic(frame_path(out, job.index), rec.payload)
             rendered.append(job.index)
-            yield Progress(len(reused) + len(rendered), frames,
+            running.pop(job.index, None)
+            yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
                            f"frame {job.index}: {rec.objects} objects, {rec.seconds:.1f} s")
         result = yield from write_index(out, project, frames, fingerprint, irradiance_dtype, renderer)
     return DatasetResult(out, frames, rendered, reused, *result)

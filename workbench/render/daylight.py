@@ -10,7 +10,7 @@ Physics (facts from the literature, coded here):
 - Sky: SPCTRAL2's diffuse Rayleigh + aerosol terms (single-scattering albedo 0.945·exp(−0.095
   ln²(λ/0.4)), asymmetry 0.65), spread as a uniform sky radiance L = E_diffuse / π.
 - Not modelled: ozone, O₂ (760 nm) and water-vapour (940 nm) absorption, ground-reflected
-  sky light, sky brightness gradients, twilight (the sun must be above the horizon).
+  sky light, twilight (sky brightness gradients and overcast: sky.py) (the sun must be above the horizon).
 Spectra are energy units: irradiance W/m²/nm, radiance W/m²/sr/nm.
 """
 from __future__ import annotations
@@ -18,26 +18,13 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.render.params import DaylightParams
+from workbench.render.solar import solar_position
 from workbench.spectra import blackbody_spd
 
 SOLAR_CONSTANT_W_M2 = 1361.0
 SUN_TEMPERATURE_K = 5778.0
 ANGSTROM_ALPHA = 1.3
 DAYLIGHT_WAVELENGTHS_NM = np.arange(300.0, 1101.0, 5.0)
-
-
-def solar_position(time_of_day_h: float, latitude_deg: float, day_of_year: int) -> tuple[float, float]:
-    """Sun (elevation_deg, compass azimuth_deg) at local solar time (Cooper's declination)."""
-    decl = np.radians(23.44) * np.sin(2 * np.pi * (284 + day_of_year) / 365.0)
-    hour = np.radians(15.0 * (time_of_day_h - 12.0))
-    lat = np.radians(latitude_deg)
-    sin_el = np.sin(lat) * np.sin(decl) + np.cos(lat) * np.cos(decl) * np.cos(hour)
-    el = np.arcsin(np.clip(sin_el, -1, 1))
-    # azimuth from north, clockwise: east component and north component of the sun direction
-    east = -np.cos(decl) * np.sin(hour)
-    north = np.sin(decl) * np.cos(lat) - np.cos(decl) * np.sin(lat) * np.cos(hour)
-    az = np.degrees(np.arctan2(east, north)) % 360.0
-    return float(np.degrees(el)), float(az)
 
 
 def sun_angles(daylight: DaylightParams) -> tuple[float, float]:
@@ -107,21 +94,3 @@ def sky_radiance(wavelengths_nm: np.ndarray, elevation_deg: float, turbidity: fl
     rayleigh = e0 * t_aa * (1 - t_r ** 0.95) * 0.5
     aerosol = e0 * t_aa * t_r ** 1.5 * (1 - t_as) * f_s
     return (rayleigh + aerosol) / np.pi
-
-
-def daylight_emitters(daylight: DaylightParams) -> dict:
-    """Mitsuba emitter dicts {'sun': directional, 'sky': constant}, spectra over 300–1100 nm.
-
-    An emitter whose scale is 0 is left out (Mitsuba refuses an all-zero spectrum)."""
-    el, az = sun_angles(daylight)
-    wl = DAYLIGHT_WAVELENGTHS_NM
-    out = {}
-    if daylight.sun_scale > 0:
-        sun = daylight.sun_scale * sun_irradiance(wl, el, daylight.turbidity)
-        out["sun"] = {"type": "directional", "direction": (-sun_direction(el, az)).tolist(),
-                      "irradiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sun.tolist()))}}
-    if daylight.sky_scale > 0:
-        sky = daylight.sky_scale * sky_radiance(wl, el, daylight.turbidity)
-        out["sky"] = {"type": "constant",
-                      "radiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sky.tolist()))}}
-    return out

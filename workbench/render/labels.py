@@ -144,11 +144,11 @@ def _shape_luts(mi_scene, id_table: Mapping[str, Any], class_ids: Mapping[str, i
         raise ValueError(f"id_table has no entry for scene shape(s) {missing[:5]}"
                          f"{' …' if len(missing) > 5 else ''}; every top-level shape needs "
                          "(instance_id, class_name)")
-    entries = {key: _entry(key, val, class_ids) for key, val in id_table.items()}
+    entries = {key: _entry(key, val, class_ids) for key, val in id_table.items() if val is not None}
     ptrs = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes]
     shape_to_inst = np.zeros(max(ptrs, default=0) + 1, dtype=np.uint32)
     for s, p in zip(shapes, ptrs):
-        shape_to_inst[p] = entries[s.id()][0]
+        shape_to_inst[p] = entries[s.id()][0] if s.id() in entries else 0   # None: background
     n_inst = max((e[0] for e in entries.values()), default=0) + 1
     inst_to_class = np.zeros(n_inst, dtype=np.int32)
     for inst, cid, _ in entries.values():
@@ -192,7 +192,9 @@ def _peel(mi_scene, sensor, shape_to_inst: np.ndarray, width: int, height: int, 
         inst = dr.reinterpret_array(mi.UInt32, si.instance)
         shape = dr.select(inst != 0, inst, dr.reinterpret_array(mi.UInt32, si.shape))
         top = dr.gather(mi.UInt32, lut, shape, hit)
-        new = hit & (top != prev)      # another face or mesh of the same object is not a new layer
+        # another face or mesh of the same object is not a new layer; unlabelled helpers (id 0,
+        # e.g. the fog box) are passed through
+        new = hit & (top != prev) & (top != 0)
         dr.scatter(ids, top, idx * k_max + layer, new)
         dr.scatter(dist, dr.norm(si.p - origin), idx * k_max + layer, new)
         return si.spawn_ray(ray.d), dr.select(new, layer + 1, layer), dr.select(hit, top, prev), hit
@@ -234,7 +236,8 @@ def render_labels(mi_scene, id_table: Mapping[str, Any], width: int, height: int
 
     id_table: every top-level shape's id (the dict key it was loaded under, `shape.id()`) →
         (instance_id > 0, class_name), or a mapping/object with those two fields. Several shapes
-        may share an instance id (one object made of several meshes).
+        may share an instance id (one object made of several meshes). None marks an unlabelled
+        helper shape (the fog box): rays pass through it and it is background.
     class_ids: class name → class id (> 0); default the city's CLASS_IDS.
     width, height: label resolution; must have the aspect ratio of the sensor's film.
     margin_px: rays cast beyond each border to see truncated objects (default 10 % of the larger

@@ -8,14 +8,17 @@ from pydantic import Field, model_validator
 from workbench.params import Params
 
 class DaylightParams(Params):
-    """Sun (directional) + uniform sky, both spectral over 300–1100 nm (NIR included).
+    """Sun (directional) + sky, both spectral over 300–1100 nm (NIR included).
 
     The sun's position comes from `sun_elevation_deg`/`sun_azimuth_deg` (compass azimuth:
     0 = north = +Y, 90 = east = +X), or, when `time_of_day_h` is set, from local solar time,
     latitude and day of year (the angles are then ignored). `turbidity` is the Linke/Preetham
     turbidity (2 = very clear, 3 = clear, 6+ = hazy); it sets the Ångström aerosol coefficient.
     `sun_visible`: composite the solar disc (0.53° wide) onto pinhole renders where camera rays
-    reach the sky (render/sun_disc.py); the directional sun lights the scene either way."""
+    reach the sky (render/sun_disc.py); the directional sun lights the scene either way.
+    `sky_model` (render/sky.py): 'uniform' (SPCTRAL2 diffuse spread evenly), 'perez' (clear sky
+    brightening toward the sun and the horizon, same horizontal irradiance) or 'overcast' (CIE
+    overcast sky, no direct sun; `overcast_transmittance` × the clear-sky global irradiance)."""
 
     sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0, description="sun elevation above the horizon (deg); "
                                                                         "city render daylight")
@@ -31,6 +34,69 @@ class DaylightParams(Params):
     sun_scale: float = Field(1.0, ge=0.0, le=1e3, description="sun radiance multiplier (unitless); city render")
     sky_scale: float = Field(1.0, ge=0.0, le=1e3, description="sky radiance multiplier (unitless); city render")
     sun_visible: bool = Field(True, description="composite the 0.53° solar disc onto pinhole renders; city render")
+    sky_model: Literal["uniform", "perez", "overcast"] = Field(
+        "uniform", description="sky radiance distribution: uniform, Perez clear sky or CIE overcast; city render")
+    overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0, description="overcast global irradiance as a "
+                                                                           "fraction of the clear sky's (0–1)")
+
+    @model_validator(mode="after")
+    def _sun_above_horizon(self) -> "DaylightParams":
+        """A time of day that puts the sun below the horizon is refused here, not at render time."""
+        if self.time_of_day_h is not None:
+            from workbench.errors import ParameterError
+            from workbench.render.solar import solar_position
+            elevation_deg = solar_position(self.time_of_day_h, self.latitude_deg, self.day_of_year)[0]
+            if elevation_deg <= 0.5:
+                raise ParameterError("time_of_day_h", self.time_of_day_h,
+                                     f"puts the sun at {elevation_deg:.1f}° elevation (latitude {self.latitude_deg}°, "
+                                     f"day {self.day_of_year}); daylight needs the sun above the horizon (> 0.5°)")
+        return self
+
+
+class NightParams(Params):
+    """Night lighting (render/lamps.py): the city's street lamps as isotropic point sources of
+    `lamp_kind` spectrum and luminous flux `lamp_flux_lm` (None = the kind's rated flux), vehicle
+    head-lights (`headlight_kind`, `headlight_cd` peak) and tail-lights (red LED, `taillight_cd`)
+    when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
+    blackbody shape; urban skies are ~0.01–0.1 cd/m²)."""
+
+    lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
+                                                                                      "night render")
+    lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6, description="luminous flux per lamp (lm); None = the "
+                                                                         "kind's rated flux; night render")
+    vehicle_lights: bool = Field(True, description="vehicle head- and tail-lights on; night render")
+    headlight_kind: Literal["halogen", "led"] = Field("led", description="head-light spectrum; night render")
+    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6, description="head-light peak intensity (cd); night render")
+    taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
+    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
+                                                                          "night render")
+
+
+class FogParams(Params):
+    """Fog or haze as a homogeneous participating medium (render/fog.py): meteorological
+    visibility `visibility_m` (extinction σ = 3.912 / V, Koschmieder, 2 % contrast), single-
+    scattering `albedo` (water droplets ≈ 0.99, urban haze ≈ 0.9), Henyey–Greenstein asymmetry
+    `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
+    Droplets ≫ λ, so σ is the same at every wavelength."""
+
+    visibility_m: float = Field(200.0, gt=1.0, le=1e5, description="meteorological visibility (m); fog medium")
+    albedo: float = Field(0.98, ge=0.0, le=1.0, description="single-scattering albedo (0–1); fog medium")
+    phase_g: float = Field(0.85, gt=-1.0, lt=1.0, description="Henyey–Greenstein asymmetry (−1…1); fog medium")
+    height_m: float = Field(100.0, gt=1.0, le=1e4, description="fog layer depth over the city (m); fog medium")
+
+
+class WorldParams(Params):
+    """Scene features beyond geometry, each switchable: `lighting` 'day' (render.daylight) or
+    'night' (`night`); `fog` (None = clear air); `glass` 'diffuse' (windows as dark Lambertian
+    surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
+    reflection of the sky)."""
+
+    lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
+                                                                 "(night); city render")
+    night: NightParams = Field(default_factory=NightParams, description="night lighting; city render")
+    fog: FogParams | None = Field(None, description="fog or haze; None = clear air; city render")
+    glass: Literal["diffuse", "dielectric"] = Field("diffuse", description="windows as dark diffuse surfaces or "
+                                                                           "thin glass panes; city render")
 
 
 class RenderParams(Params):
@@ -81,6 +147,7 @@ class RenderParams(Params):
     variant: Literal["cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral"] | None = Field(
         None, description="Mitsuba variant; None picks the fastest available (render.variants)")
     daylight: DaylightParams = Field(default_factory=DaylightParams, description="sun and sky; city render")
+    world: WorldParams = Field(default_factory=WorldParams, description="lighting, fog and glass; city render")
 
     @model_validator(mode="after")
     def _check(self) -> "RenderParams":

@@ -2,7 +2,8 @@
 
 Every mesh becomes one Mitsuba shape with the id `<class>_<instance>_<k>`; the id table maps
 each id (`shape.id()`) to its ShapeLabel. Materials are Lambertian with the city's explicit
-spectral reflectance (0 outside its samples, so it must cover the film's range, NIR included).
+spectral reflectance (0 outside its samples, so it must cover the film's range, NIR included),
+except window glass with WorldParams.glass 'dielectric' (a thin dielectric pane).
 """
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.render.daylight import daylight_emitters
+from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
-from workbench.render.params import DaylightParams
+from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium
+from workbench.render.lamps import night_emitters
+from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.types import CameraPose, City
 
 
@@ -48,7 +51,7 @@ def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
                                                         up=up.tolist())}
 
 
-def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf):
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior=None):
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
@@ -56,7 +59,10 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf):
                          f"{v.shape} and {f.shape}")
     if f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
         raise ValueError(f"mesh '{name}': face indices outside 0…{len(v) - 1} or non-finite vertices")
-    mesh = mi.Mesh(name, len(v), len(f), has_vertex_normals=False)
+    props = mi.Properties()
+    if exterior is not None:
+        props["exterior"] = exterior
+    mesh = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=False)
     params = mi.traverse(mesh)
     params["vertex_positions"] = type(params["vertex_positions"])(v.astype(np.float32).ravel())
     params["faces"] = type(params["faces"])(f.astype(np.uint32).ravel())
@@ -65,7 +71,15 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf):
     return mesh
 
 
-def _bsdf(mi, material, film_range_nm: tuple[float, float]):
+GLASS_MATERIALS = ("glass_dark",)
+GLASS_IOR = 1.52         # soda-lime window glass (dispersion < 1 % over 400–1000 nm: ignored)
+
+
+def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False):
+    """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
+    pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
+    glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
+    reflectance) for window quads mounted on façades and bus/truck bodies."""
     wl = np.asarray(material.wavelengths_nm, dtype=np.float64)
     refl = np.asarray(material.reflectance, dtype=np.float64)
     if wl.shape != refl.shape or wl.size < 2:
@@ -76,20 +90,28 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float]):
                          f"the film needs {film_range_nm[0]:.0f}–{film_range_nm[1]:.0f} nm")
     if not np.all(np.isfinite(refl)) or refl.min() < 0 or refl.max() > 1:
         raise ValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
-    return mi.load_dict({"type": "diffuse", "reflectance": {
-        "type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}})
+    spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
+    if glass == "dielectric" and material.name in GLASS_MATERIALS:
+        if pane:
+            return mi.load_dict({"type": "thindielectric", "int_ior": GLASS_IOR, "ext_ior": 1.0})
+        return mi.load_dict({"type": "plastic", "int_ior": GLASS_IOR, "ext_ior": 1.0,
+                             "diffuse_reflectance": spectrum})
+    return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
 
 
 def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height: int,
                 film_srfs: FilmSRFs, daylight: DaylightParams, sensor: dict | None = None, *,
-                max_depth: int = 6):
+                max_depth: int = 6, world: WorldParams | None = None):
     """Load the city into Mitsuba (the spectral variant must already be set: variants.py).
 
     film_srfs: the film's response curves (film.py: box_bands, raised_cosine_basis,
         sensor_channels), which also fix the wavelength range every spectrum must cover.
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
-    Returns (mi.Scene, id_table: dict[shape id → ShapeLabel])."""
+    world: lighting (day: `daylight`; night: lamps.night_emitters), fog (fog.py: a medium box
+        whose id maps to None in the id table = background) and glass (WorldParams); None = day,
+        clear air, diffuse glass.
+    Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
     import mitsuba as mi
 
     if "spectral" not in (mi.variant() or ""):
@@ -102,11 +124,22 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     cam = dict(sensor) if sensor is not None else pinhole_sensor(pose, fov_deg)
     cam["film"] = film_srfs.mitsuba_film(width, height)
     cam["sampler"] = {"type": "independent", "sample_count": 1}
+    world = WorldParams() if world is None else world
+    lights = night_emitters(city, world.night) if world.lighting == "night" else daylight_emitters(daylight)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
-             "sensor": cam, **daylight_emitters(daylight)}
+             "sensor": cam, **lights}
+    id_table: dict[str, ShapeLabel | None] = {}
+    medium = None
+    if world.fog is not None:
+        medium = fog_medium(world.fog)
+        check_camera_inside(camera_to_world(pose)[0] if sensor is None else
+                            np.asarray(cam["to_world"].translation()), city.extent_m, world.fog.height_m)
+        scene["integrator"] = {"type": "volpath", "max_depth": int(max_depth)}
+        cam["medium"] = medium
+        scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
+        id_table[FOG_BOX_ID] = None
     rng = film_srfs.range_nm
     bsdfs = {}
-    id_table: dict[str, ShapeLabel] = {}
     for obj in city.objects:
         if obj.instance_id <= 0:
             raise ValueError(f"city object '{obj.class_name}' has instance_id {obj.instance_id}; must be > 0")
@@ -114,12 +147,14 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             if m.material not in city.materials:
                 raise ValueError(f"mesh {k} of {obj.class_name} {obj.instance_id} uses material "
                                  f"'{m.material}', which the city does not define")
-            if m.material not in bsdfs:
-                bsdfs[m.material] = _bsdf(mi, city.materials[m.material], rng)
+            pane = obj.class_name == "car"              # closed glass cabin: see-through pane
+            key = (m.material, pane and m.material in GLASS_MATERIALS)
+            if key not in bsdfs:
+                bsdfs[key] = _bsdf(mi, city.materials[m.material], rng, world.glass, key[1])
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
-            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[m.material])
+            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
     return mi.load_dict(scene), id_table
 

@@ -15,6 +15,7 @@ from typing import Generator
 import numpy as np
 
 from workbench.render.film import FilmSRFs, box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
+from workbench.render.fog import FOG_BOX_ID
 from workbench.render.labels import BACKGROUND_DEPTH_M
 from workbench.render.params import RenderParams
 from workbench.render.sampling import noise_constant, spp_for_error
@@ -88,7 +89,7 @@ def _render_chunk(mi_scene, spp: int, seed: int, index: int) -> np.ndarray:
 
 def depth_map_m(mi_scene) -> np.ndarray | None:
     """Distance (m) from the camera centre to the first hit along each pixel-centre ray of the
-    scene's sensor; sky = BACKGROUND_DEPTH_M.
+    scene's sensor; sky (and the fog box, fog.py) = BACKGROUND_DEPTH_M.
 
     JIT variants only (one vectorised ray cast); None in the scalar variant."""
     import drjit as dr
@@ -102,9 +103,14 @@ def depth_map_m(mi_scene) -> np.ndarray | None:
     pos = mi.Point2f((mi.Float(idx % w) + 0.5) / w, (mi.Float(idx // w) + 0.5) / h)
     ray, _ = sensor.sample_ray(0.0, 0.5, pos, mi.Point2f(0.5, 0.5))
     si = mi_scene.ray_intersect(ray)
+    hit = si.is_valid()
+    for shape in mi_scene.shapes():          # the fog box encloses the city: hitting it = sky
+        if shape.id() == FOG_BOX_ID:
+            box = int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0])
+            hit &= dr.reinterpret_array(mi.UInt32, si.shape) != box
     # the perspective camera starts rays at the near-clip plane: measure from the camera centre
     centre = sensor.world_transform().translation()
-    t = dr.select(si.is_valid(), dr.norm(si.p - centre), BACKGROUND_DEPTH_M)
+    t = dr.select(hit, dr.norm(si.p - centre), BACKGROUND_DEPTH_M)
     dr.eval(t)
     return np.array(t, dtype=np.float32).reshape(h, w)
 

@@ -112,16 +112,29 @@ def project_directions(pose: CameraPose, fov_deg: float, width: int, height: int
     return col, row, z
 
 
-def _ray_blocked(mi_scene, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """True where the ray from `origin` along each direction hits the scene (JIT variants)."""
+def _ray_transmittance(mi_scene, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Fraction of the direct sun reaching the camera along each direction (JIT variants): 0 where
+    the ray hits the scene, e^{−σt} where it leaves the fog box at distance t (fog.py), else 1."""
+    import drjit as dr
     import mitsuba as mi
+
+    from workbench.render.fog import FOG_BOX_ID
 
     if not mi.variant().startswith(("llvm", "cuda")):
         raise ValueError(f"sun disc ray tests need a JIT Mitsuba variant (llvm/cuda), got {mi.variant()}; "
                          "pass sky_mask instead")
     d = np.ascontiguousarray(directions, dtype=np.float32)
     ray = mi.Ray3f(mi.Point3f(*(float(v) for v in origin)), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
-    return np.array(mi_scene.ray_test(ray), dtype=bool).reshape(len(d))
+    si = mi_scene.ray_intersect(ray)
+    shape = dr.reinterpret_array(mi.UInt32, si.shape)
+    dr.eval(si.t, shape)
+    hit = np.array(si.is_valid(), dtype=bool).reshape(len(d))
+    out = np.where(hit, 0.0, 1.0)
+    for box in (s for s in mi_scene.shapes() if s.id() == FOG_BOX_ID):
+        sigma = float(mi.traverse(box.interior_medium())["sigma_t.value.value"][0])
+        through = hit & (np.array(shape) == int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(box))[0]))
+        out[through] = np.exp(-sigma * np.array(si.t, dtype=np.float64)[through])
+    return out
 
 
 def sun_disc_coverage(pose: CameraPose, fov_deg: float, width: int, height: int,
@@ -130,8 +143,9 @@ def sun_disc_coverage(pose: CameraPose, fov_deg: float, width: int, height: int,
     """H×W fraction of each pixel's image-plane area covered by the visible sun disc (0…1; fully
     covered pixels scatter by a few % about 1 from the disc sampling, sums are exact to ≪ 1 %).
 
-    Visibility: a Mitsuba ray test from the camera toward each disc sample when `mi_scene` is
-    given (sub-pixel accurate at object edges), else `sky_mask` (H×W bool, True = sky: the
+    Visibility: a Mitsuba ray cast from the camera toward each disc sample when `mi_scene` is
+    given (sub-pixel accurate at object edges; in fog the disc is dimmed by e^{−σt} over the
+    path t through the fog box), else `sky_mask` (H×W bool, True = sky: the
     pixel-centre label). One of the two is required; mi_scene wins when both are given."""
     if not 0 < fov_deg < 180:
         raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
@@ -161,10 +175,12 @@ def sun_disc_coverage(pose: CameraPose, fov_deg: float, width: int, height: int,
     dirs, z = dirs[inside], z[inside]
     c, r = np.floor(col[inside]).astype(np.int64), np.floor(row[inside]).astype(np.int64)
     if mi_scene is not None:
-        seen = ~_ray_blocked(mi_scene, camera_to_world(pose)[0], dirs)
+        trans = _ray_transmittance(mi_scene, camera_to_world(pose)[0], dirs)
     else:
-        seen = np.asarray(sky_mask, dtype=bool)[r, c]
-    weight = (omega / count) / z[seen] ** 3 / pixel_area   # image area per sample / pixel area
+        trans = np.asarray(sky_mask, dtype=np.float64)[r, c]
+    seen = trans > 0
+    # image area per sample / pixel area, times the direct beam's transmittance (fog)
+    weight = (omega / count) / z[seen] ** 3 / pixel_area * trans[seen]
     np.add.at(coverage, (r[seen], c[seen]), weight)
     return coverage
 
@@ -197,8 +213,8 @@ class SunDisc:
 def sun_disc(film: FilmSRFs, pose: CameraPose, fov_deg: float, width: int, height: int,
              daylight: DaylightParams, *, mi_scene=None, sky_mask: np.ndarray | None = None) -> SunDisc:
     """The sun disc of a pinhole view (sun_disc_coverage, sun_film_radiance); coverage 0 when
-    daylight.sun_visible is False or sun_scale is 0."""
-    if not daylight.sun_visible or daylight.sun_scale == 0:
+    daylight.sun_visible is False, sun_scale is 0 or the sky is overcast."""
+    if not daylight.sun_visible or daylight.sun_scale == 0 or daylight.sky_model == "overcast":
         return SunDisc(np.zeros((height, width)), np.zeros(film.output_wavelengths_nm.size),
                        {"status": "off"})
     coverage = sun_disc_coverage(pose, fov_deg, width, height, daylight, mi_scene=mi_scene, sky_mask=sky_mask)

@@ -11,6 +11,8 @@ import os
 import subprocess
 import sys
 
+from workbench.compute.local import THREAD_BUDGET_ENV
+
 log = logging.getLogger(__name__)
 
 SPECTRAL_VARIANTS = ("cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral")
@@ -96,7 +98,10 @@ def select_variant(prefer: str | None = None) -> str:
             log.warning("render variant %s failed to load (%s); trying the next one", variant, exc)
             compiled.remove(variant)
     allowed = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if variant != "scalar_spectral" and allowed and allowed < (os.cpu_count() or allowed):
+    budget = os.environ.get(THREAD_BUDGET_ENV, "")
+    if variant != "scalar_spectral" and budget.isdigit() and int(budget) > 0:
+        dr.set_thread_count(min(int(budget), allowed or int(budget)))   # a worker's thread budget
+    elif variant != "scalar_spectral" and allowed and allowed < (os.cpu_count() or allowed):
         dr.set_thread_count(allowed)     # restricted affinity: Embree can crash otherwise (#716)
     log.info("render variant: %s", variant)
     return variant

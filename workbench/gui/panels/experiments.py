@@ -72,6 +72,7 @@ class ExperimentsPanel(QWidget):
         self._project_file: str | None = None
         self._process: QProcess | None = None
         self._cancelled = False
+        self._partial = ""                          # output after the last line end
         self._out_dir: Path | None = None
         self.doc: dict | None = None
 
@@ -201,6 +202,7 @@ class ExperimentsPanel(QWidget):
         if self._process is not None:
             return
         self._cancelled = False
+        self._partial = ""
         self._out_dir = Path(out_dir)
         proc = QProcess(self)
         proc.setProcessChannelMode(QProcess.ProcessChannelMode.MergedChannels)
@@ -228,15 +230,24 @@ class ExperimentsPanel(QWidget):
             kill_tree(pid)
 
     def _read_output(self) -> None:
-        text = bytes(self._process.readAllStandardOutput()).decode("utf-8", errors="replace")
-        count = parse_progress(text)
-        if count is not None:
-            self.progress.setRange(0, count[1])
-            self.progress.setValue(count[0])
+        self._take_output(bytes(self._process.readAllStandardOutput()).decode("utf-8", errors="replace"))
+
+    def _take_output(self, text: str, final: bool = False) -> None:
+        """Whole lines go to the log; a segment ended by a carriage return (a progress bar
+        redrawing itself) only moves the progress bar; a partial line waits for the rest."""
+        parts = re.split(r"(\r\n|\r|\n)", self._partial + text)
+        self._partial = "" if final else parts.pop()
+        if final:
+            parts += [""] if len(parts) % 2 else []
+        counted = None
+        for segment, end in zip(parts[0::2], parts[1::2]):
+            counted = parse_progress(segment) or counted
+            if (end != "\r" or final) and segment.strip():
+                self.log.appendPlainText(segment.rstrip())
+        if counted is not None:
+            self.progress.setRange(0, counted[1])
+            self.progress.setValue(counted[0])
             self._refresh_results()
-        for line in re.split(r"[\r\n]+", text):
-            if line.strip():
-                self.log.appendPlainText(line.rstrip())
 
     def _refresh_results(self) -> None:
         if self._out_dir is not None and (self._out_dir / "results.json").is_file():
@@ -253,6 +264,8 @@ class ExperimentsPanel(QWidget):
     def _finished(self, code: int, _status) -> None:
         if self._process is None:
             return
+        self._take_output(bytes(self._process.readAllStandardOutput()).decode("utf-8", errors="replace"),
+                          final=True)
         self._process.deleteLater()
         self._process = None
         if self._project_file:

@@ -68,9 +68,14 @@ class SweepPanel(QWidget):
         self.thumbnails = QListWidget(self)
         self.thumbnails.setViewMode(QListView.ViewMode.IconMode)
         self.thumbnails.setIconSize(QSize(128, 96))
-        self.thumbnails.setResizeMode(QListView.ResizeMode.Adjust)
+        self.thumbnails.setFlow(QListView.Flow.LeftToRight)
+        self.thumbnails.setWrapping(False)                  # one row, scrolled sideways
         self.thumbnails.setMovement(QListView.Movement.Static)
+        self.thumbnails.setMinimumHeight(150)
         self.chart = ChartCanvas(self)
+        self.chart.redraw(lambda fig: fig.text(0.5, 0.5, "Run the sweep: mean level, clipped fraction and SNR "
+                                                        "against EV appear here", ha="center", va="center",
+                                               color="0.4"))
 
         controls = QHBoxLayout()
         for text, spin in (("EV from", self.start), ("to", self.stop), ("step", self.step)):

@@ -8,11 +8,10 @@ import numpy as np
 from workbench.optics.params import OpticsParams
 
 
-@lru_cache(maxsize=16)
-def _prepared_lens(lens_file: str, focal_length_mm: float | None, f_number: float):
-    from workbench.optics.lens.io import load_lens
+def prepare_lens(lens, focal_length_mm: float | None, f_number: float):
+    """`lens` scaled to focal_length_mm (None keeps its own) with its stop resized so that its
+    paraxial f-number is f_number: the lens every level images with."""
     from workbench.optics.lens.paraxial import paraxial
-    lens = load_lens(lens_file)
     if focal_length_mm is not None:
         lens = lens.scaled(focal_length_mm / paraxial(lens).efl_mm)
     native = paraxial(lens).f_number
@@ -20,12 +19,18 @@ def _prepared_lens(lens_file: str, focal_length_mm: float | None, f_number: floa
     return lens.with_stop_semi_aperture(stop.semi_aperture_mm * native / f_number)
 
 
+@lru_cache(maxsize=16)
+def _prepared_lens(lens_file: str, focal_length_mm: float | None, f_number: float):
+    from workbench.optics.lens.io import load_lens
+    return prepare_lens(load_lens(lens_file), focal_length_mm, f_number)
+
+
 def prepared_lens(params: OpticsParams):
     """The prescription of params.lens_file, scaled (if asked) and stopped to params.f_number,
     focused at infinity. ValueError when params has no lens file."""
     if params.lens_file is None:
         raise ValueError(f"optics model {params.model!r} needs a lens: set lens_file (a prescription "
-                         "under resources/lenses/, e.g. 'dgauss.50mm')")
+                         "in the lens library, e.g. 'dgauss.50mm')")
     return _prepared_lens(params.lens_file,
                           params.focal_length_mm if params.scale_lens_to_focal_length else None,
                           params.f_number)

@@ -1,6 +1,8 @@
 """Lens files: ISETCam JSON (read/write), PBRT .dat (read/write), Zemax .zmx subset (read).
 
-`load_lens(path)` also accepts a bare name of a file in resources/lenses/ ("dgauss.50mm"). Every
+`load_lens(path)` also accepts the name of a lens in the lens library ("dgauss.50mm"): the lenses
+shipped in resources/lenses/, then the user's own lenses (saved by the lens editor) in
+`user_lens_dir()`. A project names its lens that way (optics.lens_file). Every
 problem with a file is an InputFileError naming it; messages never echo the file's lines, and
 every count or index read from a file is bounded before anything is allocated.
 """
@@ -27,40 +29,65 @@ MAX_ASPHERE_TERMS = 16
 MAX_INDEX_TABLE = 4096
 
 
+USER_LENS_DIR_ENV = "WORKBENCH_LENS_DIR"
+
+
+def user_lens_dir() -> Path:
+    """The user's lens library: $WORKBENCH_LENS_DIR, else 'lenses' in the platform's user-data
+    folder of camera-workbench (e.g. ~/.local/share/camera-workbench/lenses)."""
+    env = os.environ.get(USER_LENS_DIR_ENV)
+    if env:
+        return Path(env)
+    import platformdirs
+    return Path(platformdirs.user_data_dir("camera-workbench")) / "lenses"
+
+
+def lens_library() -> tuple[Path, ...]:
+    """The folders lens names resolve in, in order: the shipped lenses, then the user's."""
+    return LENS_DIR, user_lens_dir()
+
+
 def available_lenses() -> list[str]:
-    """Names of the lenses shipped in resources/lenses/."""
-    return sorted(p.name[: -len(p.suffix)] for p in LENS_DIR.iterdir() if p.suffix in _FORMATS)
+    """Names of the lenses in the library (shipped ones first), without extension."""
+    names: list[str] = []
+    for folder in lens_library():
+        if folder.is_dir():
+            names += sorted(p.name[: -len(p.suffix)] for p in folder.iterdir()
+                            if p.suffix in _FORMATS and p.name[: -len(p.suffix)] not in names)
+    return names
 
 
 def resolve_lens_path(path_or_name) -> Path:
-    """A path to an existing lens file, or the shipped file with that name."""
+    """A path to an existing lens file, or the library lens with that name."""
     p = Path(path_or_name)
     if os.path.lexists(p):
         return p
-    return shipped_lens_path(str(path_or_name))
+    return library_lens_path(str(path_or_name))
 
 
-def shipped_lens_path(name: str) -> Path:
-    """The file of a lens under resources/lenses/ (name relative to it, with or without extension);
+def library_lens_path(name: str) -> Path:
+    """The file of a library lens (name relative to a library folder, with or without extension);
     InputFileError if there is none. Absolute names and '..' are refused."""
     rel = PurePosixPath(name.replace("\\", "/"))
     if not name or rel.is_absolute() or ".." in rel.parts:
-        raise InputFileError(name, "a lens name is relative to resources/lenses/ (no '..', not absolute)")
-    for ext in ("",) + _FORMATS:
-        q = LENS_DIR / f"{rel}{ext}"
-        try:
-            if q.is_file():
-                return q
-        except OSError as exc:             # e.g. a name longer than the file system allows
-            raise InputFileError(name, f"not a usable lens name ({exc.strerror})") from None
-    raise InputFileError(name, f"no such lens file, and not a shipped lens (available: "
+        raise InputFileError(name, "a lens name is relative to the lens library (resources/lenses/ or "
+                                   "the user's lens folder; no '..', not absolute)")
+    for folder in lens_library():
+        for ext in ("",) + _FORMATS:
+            q = folder / f"{rel}{ext}"
+            try:
+                if q.is_file():
+                    return q
+            except OSError:                 # a name too long for the file system, …: not a lens
+                break
+    raise InputFileError(name, f"no such lens file, and not a library lens (available: "
                                f"{', '.join(available_lenses())})")
 
 
-def check_shipped_lens(name: str) -> None:
-    """Raise InputFileError unless `name` is a shipped lens that reads without error (cached per
+def check_library_lens(name: str) -> None:
+    """Raise InputFileError unless `name` is a library lens that reads without error (cached per
     file version), so that a project naming a missing or broken lens is refused when it loads."""
-    p = shipped_lens_path(name)
+    p = library_lens_path(name)
     st = p.stat()
     _checked_lens(str(p), st.st_mtime_ns, st.st_size)
 
@@ -75,9 +102,9 @@ def load_lens(path) -> Lens:
     InputFileError (naming the file) if it cannot be read or is not a valid lens."""
     p = resolve_lens_path(path)
     ext = p.suffix.lower()
+    text = read_text(p, "lens file", MAX_LENS_BYTES)          # a folder, no permission, … first
     if ext not in _FORMATS:
         raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(_FORMATS)}")
-    text = read_text(p, "lens file", MAX_LENS_BYTES)
     name = p.name[: -len(p.suffix)]
     try:
         if ext == ".json":

@@ -1,2 +1,0 @@
-"""Camera-design workbench: spectral scene -> optics -> sensor -> ISP."""
-__version__ = "0.1.0"

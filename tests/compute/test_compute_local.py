@@ -1,0 +1,41 @@
+"""compute.run_jobs on this machine: the spec is checked, and each worker gets its thread budget."""
+import math
+
+import pytest
+from compute_helpers import thread_budget
+
+from workbench.compute import ComputeSpec, run_jobs
+from workbench.errors import ParameterError
+
+
+def test_every_worker_gets_its_thread_budget():
+    (_, budget), = run_jobs(thread_budget, [0], ComputeSpec(workers=1, cpus_per_task=1))
+    assert budget == (1, "1", 1)
+
+
+def test_local_spec_runs_jobs_and_bad_specs_name_the_field():
+    assert dict(run_jobs(math.factorial, [3, 4], ComputeSpec(workers=0))) == {3: 6, 4: 24}
+    for kwargs, field in (({"backend": "slurm"}, "backend"), ({"workers": -1}, "workers"),
+                          ({"address": "auto"}, "address"), ({"cpus_per_task": float("nan")}, "cpus_per_task"),
+                          ({"backend": "ray", "gpus_per_task": -1}, "gpus_per_task"),
+                          ({"backend": "ray", "address": "nowhere"}, "address"),
+                          ({"max_retries": 1000}, "max_retries"), ({"workers": True}, "workers")):
+        with pytest.raises(ParameterError, match=field):
+            ComputeSpec(**kwargs)
+    assert ComputeSpec(backend="ray").task_cpus == 1.0 and ComputeSpec(workers=1).task_cpus >= 1
+
+
+@pytest.mark.slow
+def test_a_pool_worker_killed_mid_frame_is_retried_in_a_fresh_pool(tmp_path, markers):
+    from compute_helpers import crash_once_renderer, die
+
+    from workbench.compute import JobFailed
+    from workbench.jobs import run_job
+    from workbench.project import Project
+    from workbench.render.dataset import run_dataset
+    result = run_job(run_dataset(Project(seed=31), 3, tmp_path, compute=ComputeSpec(workers=2, cpus_per_task=1),
+                                 renderer=crash_once_renderer))
+    assert sorted(result.rendered) == [0, 1, 2]                        # none missing, none twice
+    assert len(list(markers.glob("crash-31-1.*"))) == 2
+    with pytest.raises(JobFailed, match=r"job 7 failed after 1 retries; last error: its worker process died"):
+        list(run_jobs(die, [7], ComputeSpec(workers=1, max_retries=1)))

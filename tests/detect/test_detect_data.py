@@ -1,0 +1,176 @@
+"""Data views: reproducible captures per (frame, epoch), the paper's EV rule, equal EV shares in a
+mix, the split by frame seed, the label rule, and errors that name the bad file."""
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from workbench.detect.data import (TEST_FRACTION, DetectionDataset, DetectionView, drop_ignored_detections,
+                                   keep_box, split_of)
+from workbench.errors import InputFileError, ParameterError
+from workbench.sensor import irradiance_to_signal_rate
+
+
+def test_same_seed_and_epoch_give_the_same_capture(synthetic_dir):
+    ds = DetectionDataset(synthetic_dir)
+    train = ds.indices("train")
+    a = DetectionView(ds, train, "srgb", seed=3)
+    b = DetectionView(ds, train, "srgb", seed=3)
+    x0, t0 = a[1]
+    assert np.array_equal(x0.numpy(), b[1][0].numpy())
+    b.set_epoch(1)
+    assert not np.array_equal(x0.numpy(), b[1][0].numpy())          # a new capture every epoch
+    assert not np.array_equal(x0.numpy(), DetectionView(ds, train, "srgb", seed=4)[1][0].numpy())
+    assert t0["frame"] == ds.frames[train[1]].index
+
+
+@pytest.mark.parametrize("ev", [-4.0, 0.0, 2.5])
+def test_exposure_is_auto_exposure_times_two_to_the_ev(synthetic_dir, ev):
+    ds = DetectionDataset(synthetic_dir)
+    view = DetectionView(ds, ds.indices("test"), "raw", (ev,))
+    _, target = view[0]
+    from workbench.detect.data import load_signal_rates
+    rec = view.frame_record(0)
+    rate = load_signal_rates(rec, view.sensor, ds.fingerprint)[0]
+    s = view.sensor
+    t_auto = target["exposure_s"] / 2.0 ** ev
+    mean_v = (rate.mean(dtype=np.float64) + s.dark_current_e_per_s) * s.conversion_gain_V_per_e * t_auto
+    assert mean_v == pytest.approx(0.4 * s.voltage_swing_V, rel=1e-5)   # 'mean' at 0.4 of the swing
+    assert s.auto_exposure_method == "mean"
+
+
+def test_the_mirror_is_taken_before_the_cfa(synthetic_dir):
+    from workbench.detect.data import load_signal_rates
+    from workbench.render.city_frame import frame_optical_image
+    from workbench.render.dataset import read_frame
+    ds = DetectionDataset(synthetic_dir)
+    view = DetectionView(ds, ds.indices("train"), "raw")
+    rec = view.frame_record(0)
+    rate, mirrored = load_signal_rates(rec, view.sensor, ds.fingerprint)
+    oi = frame_optical_image(read_frame(rec.path)[0])
+    oi.irradiance_photons = oi.irradiance_photons[:, ::-1].copy()
+    assert np.array_equal(mirrored, irradiance_to_signal_rate(oi, view.sensor))
+    assert not np.array_equal(mirrored, rate[:, ::-1])          # flipping the mosaic would swap CFA colours
+
+
+def test_an_ev_mix_gives_every_ev_an_equal_share_each_epoch(synthetic_dir):
+    ds = DetectionDataset(synthetic_dir)
+    positions = (ds.indices("train") * 3)[:9]
+    view = DetectionView(ds, positions, "srgb", (-1.0, 0.0, 1.0), seed=1)
+    for epoch in range(3):
+        view.set_epoch(epoch)
+        evs = [view[i][1]["ev"] for i in range(len(view))]
+        assert sorted(evs) == [-1.0] * 3 + [0.0] * 3 + [1.0] * 3
+
+
+def test_training_crops_keep_the_cfa_phase_and_move_the_boxes(synthetic_dir):
+    ds = DetectionDataset(synthetic_dir)
+    view = DetectionView(ds, ds.indices("train"), "raw", augment=True, crop_hw=(32, 40), seed=2)
+    for i in range(len(view)):
+        x, t = view[i]
+        assert tuple(x.shape) == (4, 16, 20)                    # packed raw of a 32×40 window
+        b = t["boxes_xyxy"].numpy()
+        assert (b[:, [0, 2]] >= 0).all() and (b[:, [0, 2]] <= 40).all() and (b[:, [1, 3]] <= 32).all()
+
+
+def test_split_is_a_fixed_function_of_the_frame_seeds():
+    rng = np.random.default_rng(0)
+    seeds = [{"arrangement": int(a), "pose": int(p)} for a, p in rng.integers(0, 2 ** 62, size=(3000, 2))]
+    splits = [split_of(s) for s in seeds]
+    assert splits == [split_of(s) for s in seeds]
+    assert abs(splits.count("test") / len(splits) - TEST_FRACTION) < 0.03
+
+
+def test_split_and_stats_of_a_data_set(synthetic_dir):
+    ds = DetectionDataset(synthetic_dir)
+    train, test = ds.indices("train"), ds.indices("test")
+    assert sorted(train + test) == list(range(len(ds.frames))) and train and test
+    stats = ds.stats()
+    assert stats["frames"] == 14 and set(stats["classes"]) <= {"car", "pedestrian", "bus", "truck"}
+    assert stats["classes"]["pedestrian"]["ignored"] >= 14        # every frame has one 3 px pedestrian
+
+
+def test_label_rule():
+    rows = 240
+    assert keep_box({"bbox": [0, 0, 6, 16], "occlusion": 0.0, "truncation": 0.0}, rows)
+    assert not keep_box({"bbox": [0, 0, 6, 15], "occlusion": 0.0, "truncation": 0.0}, rows)   # < 1/15 of rows
+    assert not keep_box({"bbox": [0, 0, 3, 40], "occlusion": 0.0, "truncation": 0.0}, rows)   # too narrow
+    assert not keep_box({"bbox": [0, 0, 9, 40], "occlusion": 0.85, "truncation": 0.0}, rows)
+    assert not keep_box({"bbox": [0, 0, 9, 40], "occlusion": 0.0, "truncation": 0.6}, rows)
+
+
+def test_detections_on_ignored_objects_are_dropped_not_counted():
+    gt = np.array([[0, 0, 10, 10]], np.float32)
+    ignored = np.array([[50, 50, 60, 60]], np.float32)
+    dets = np.array([[0, 0, 10, 10], [50, 50, 60, 60], [50, 50, 60, 60], [80, 80, 90, 90]], np.float32)
+    boxes, scores, classes = drop_ignored_detections(dets, np.array([0.9, 0.8, 0.7, 0.6]), np.array([0, 0, 1, 0]),
+                                                     gt, np.array([0]), ignored, np.array([0]))
+    assert scores.tolist() == pytest.approx([0.9, 0.7, 0.6])      # only the same-class hit on the ignored box
+    assert classes.tolist() == [0, 1, 0]
+
+
+def _copy(src, tmp_path):
+    dst = tmp_path / "set"
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_missing_folder_is_named(tmp_path):
+    with pytest.raises(InputFileError, match="no-such-set"):
+        DetectionDataset(tmp_path / "no-such-set")
+
+
+def test_half_written_set_names_the_missing_manifest(synthetic_dir, tmp_path):
+    folder = _copy(synthetic_dir, tmp_path)
+    (folder / "manifest.json").unlink()
+    with pytest.raises(InputFileError, match="manifest.json.*half-written"):
+        DetectionDataset(folder)
+
+
+def test_missing_frame_file_is_named(synthetic_dir, tmp_path):
+    folder = _copy(synthetic_dir, tmp_path)
+    (folder / "frames" / "frame_000003.npz").unlink()
+    with pytest.raises(InputFileError, match="frame_000003.npz"):
+        DetectionDataset(folder)
+
+
+def test_another_schema_is_named(synthetic_dir, tmp_path):
+    folder = _copy(synthetic_dir, tmp_path)
+    spec = json.loads((folder / "dataset_spec.json").read_text())
+    (folder / "dataset_spec.json").write_text(json.dumps({**spec, "format": "someone-elses-dataset"}))
+    with pytest.raises(InputFileError, match="dataset_spec.json.*another schema"):
+        DetectionDataset(folder)
+    (folder / "dataset_spec.json").write_text("{not json")
+    with pytest.raises(InputFileError, match="dataset_spec.json"):
+        DetectionDataset(folder)
+
+
+def test_a_damaged_frame_is_named_when_read(synthetic_dir, tmp_path):
+    folder = _copy(synthetic_dir, tmp_path)
+    ds = DetectionDataset(folder)
+    view = DetectionView(ds, ds.indices("train"), "srgb")
+    path = view.frame_record(0).path
+    path.write_bytes(path.read_bytes()[:200])                      # a half-written file
+    with pytest.raises(InputFileError, match=path.name):
+        view[0]
+
+
+def test_a_project_that_renders_other_frames_is_refused(synthetic_dir):
+    from workbench.detect.synthetic import synthetic_project
+    project = synthetic_project()
+    DetectionDataset(synthetic_dir, project=project.updated(sensor=project.sensor.updated(read_noise_V=0.01)))
+    with pytest.raises(ParameterError, match="pose"):
+        DetectionDataset(synthetic_dir, project=project.updated(pose=project.pose.updated(height_m=2.0)))
+
+
+def test_crop_windows_hold_the_centre_of_a_kept_box():
+    from workbench.detect.data import _crop_corner
+    rng = np.random.default_rng(0)
+    boxes = np.array([[290.0, 200.0, 318.0, 238.0]], np.float32)       # near the bottom-right corner
+    for _ in range(200):
+        r0, c0 = _crop_corner(boxes, 240, 320, 128, 160, rng)
+        assert r0 % 2 == 0 and c0 % 2 == 0 and 0 <= r0 <= 112 and 0 <= c0 <= 160
+        assert c0 <= 304 < c0 + 160 and r0 <= 219 < r0 + 128
+    corners = {_crop_corner(np.zeros((0, 4), np.float32), 240, 320, 128, 160, rng) for _ in range(200)}
+    assert len(corners) > 50

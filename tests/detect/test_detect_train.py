@@ -1,0 +1,130 @@
+"""Training: the warm-up + cosine schedule, thread budget, atomic weights-only checkpoints, and a
+run stopped after an epoch that resumes to the same weights as an uninterrupted one."""
+import pickle
+
+import numpy as np
+import pytest
+import torch
+
+from workbench.detect.data import DetectionDataset
+from workbench.detect.train import (DetectionJob, TrainConfig, choose_threads, learning_rate, load_checkpoint,
+                                    run_detection_job, save_checkpoint, train_detector)
+from workbench.errors import InputFileError, ParameterError
+from workbench.jobs import CancelToken, JobCancelled
+
+TINY = dict(net="mobile", representation="srgb", epochs=2, batch_size=4, threads=1, device="cpu")
+
+
+def test_learning_rate_warms_up_then_decays_to_zero():
+    assert learning_rate(1.0, 0.0, 0.1) == 0.0
+    assert learning_rate(1.0, 0.05, 0.1) == pytest.approx(0.5)
+    assert learning_rate(1.0, 0.1, 0.1) == pytest.approx(1.0)
+    assert learning_rate(1.0, 0.55, 0.1) == pytest.approx(0.5)
+    assert learning_rate(1.0, 1.0, 0.1) == pytest.approx(0.0, abs=1e-12)
+    lrs = [learning_rate(1.0, p, 0.1) for p in np.linspace(0.1, 1, 50)]
+    assert all(a >= b for a, b in zip(lrs, lrs[1:]))
+
+
+def test_threads_leave_room_for_a_second_process():
+    import os
+    cores = len(os.sched_getaffinity(0))
+    assert choose_threads() == max(1, cores // 2)
+    assert choose_threads(concurrent_processes=cores) == 1
+    assert choose_threads(3) == 3
+    with pytest.raises(ParameterError):
+        choose_threads(0)
+
+
+def test_config_needs_exactly_one_budget():
+    with pytest.raises(ParameterError, match="epochs/minutes"):
+        TrainConfig(epochs=None, minutes=None)
+    with pytest.raises(ParameterError, match="epochs/minutes"):
+        TrainConfig(epochs=3, minutes=1.0)
+    TrainConfig(epochs=None, minutes=0.5)
+
+
+def test_checkpoints_are_atomic_and_weights_only(tmp_path):
+    path = tmp_path / "run.pt"
+    save_checkpoint(path, {"config": "{}", "model": {"w": torch.ones(3)}, "epoch": 1})
+    assert [p.name for p in tmp_path.iterdir()] == ["run.pt"]          # no temporary file left behind
+    assert load_checkpoint(path)["epoch"] == 1
+    assert load_checkpoint(tmp_path / "none.pt") is None
+    path.write_bytes(b"not a checkpoint")
+    with pytest.raises(InputFileError, match="run.pt"):
+        load_checkpoint(path)
+    torch.save({"format": "x", "evil": pickle.dumps(object)}, path)
+    with pytest.raises(InputFileError, match="run.pt"):
+        load_checkpoint(path)
+
+
+class _CancelAfterFirstCheck(CancelToken):
+    def check(self):
+        self.cancel()
+        super().check()
+
+
+def test_a_stopped_run_resumes_to_the_same_weights(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    config = TrainConfig(**TINY)
+    ref, ref_result = train_detector(ds, config, tmp_path / "ref.pt")
+    with pytest.raises(JobCancelled):
+        train_detector(ds, config, tmp_path / "cut.pt", cancel=_CancelAfterFirstCheck())
+    assert load_checkpoint(tmp_path / "cut.pt")["epoch"] == 1
+    model, result = train_detector(ds, config, tmp_path / "cut.pt")
+    assert result.epochs == 2 and result.images == ref_result.images
+    for (name, a), b in zip(ref.state_dict().items(), model.state_dict().values()):
+        assert torch.equal(a, b), name
+    again, _ = train_detector(ds, config, tmp_path / "cut.pt")       # finished: loaded, not retrained
+    assert load_checkpoint(tmp_path / "cut.pt")["epoch"] == 2
+    with pytest.raises(InputFileError, match="cut.pt"):
+        train_detector(ds, TrainConfig(**{**TINY, "seed": 5}), tmp_path / "cut.pt")
+
+
+def test_a_run_is_a_picklable_job_returning_plain_data(synthetic_dir, tmp_path):
+    import json
+    job = DetectionJob("k", str(synthetic_dir), TrainConfig(**{**TINY, "epochs": 1}), (0.0, 2.0),
+                       str(tmp_path / "k.pt"))
+    job = pickle.loads(pickle.dumps(job))
+    result = run_detection_job(job)
+    json.dumps(result)
+    assert [t["ev"] for t in result["tests"]] == [0.0, 2.0]
+    assert 0.0 <= result["tests"][0]["map"] <= 1.0
+    assert result["train"]["sensor_isp_ms_per_image"] > 0 and result["train"]["train_ms_per_image"] > 0
+
+
+def test_loader_workers_give_the_same_training(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    config = TrainConfig(**{**TINY, "epochs": 1})
+    here, _ = train_detector(ds, config, tmp_path / "here.pt")
+    pooled, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1, "loader_workers": 2}), tmp_path / "pool.pt")
+    for a, b in zip(here.state_dict().values(), pooled.state_dict().values()):
+        assert torch.equal(a, b)
+    assert result.sensor_isp_ms_per_image > 0
+
+
+def test_a_wall_clock_budget_stops_training(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    _, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": None, "minutes": 0.02}), tmp_path / "t.pt")
+    assert result.seconds >= 1.2 and result.seconds < 10
+
+
+def test_a_run_can_start_from_another_runs_weights(synthetic_dir, tmp_path):
+    ds = DetectionDataset(synthetic_dir)
+    base, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "base.pt")
+    config = TrainConfig(**{**TINY, "epochs": 1, "lr": 1e-12, "warmup_fraction": 0.0, "init": "base"})
+    tuned, _ = train_detector(ds, config, tmp_path / "tuned.pt", init_checkpoint=tmp_path / "base.pt")
+    for (name, a), b in zip(base.state_dict().items(), tuned.state_dict().values()):
+        if a.dtype.is_floating_point and "running" not in name:
+            assert torch.allclose(a, b, atol=1e-6), name                # lr ≈ 0: the start is kept
+    with pytest.raises(InputFileError, match="missing.pt"):
+        train_detector(ds, config, tmp_path / "other.pt", init_checkpoint=tmp_path / "missing.pt")
+
+
+def test_testing_through_loader_workers_gives_the_same_map(synthetic_dir, tmp_path):
+    from workbench.detect.data import DetectionView
+    from workbench.detect.train import evaluate_detector
+    ds = DetectionDataset(synthetic_dir)
+    model, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "m.pt")
+    results = [evaluate_detector(model, DetectionView(ds, ds.indices("test"), "srgb", (1.0,)), ds.class_names,
+                                 batch_size=3, workers=w) for w in (0, 2)]
+    assert results[0]["map"] == results[1]["map"] and results[0]["ap"] == results[1]["ap"]

@@ -1,0 +1,64 @@
+"""The window on a (small) city project: the 3-D view draws the city, the camera renders
+progressively (a low-sample preview first), and moving the camera re-renders from the new pose."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench.project import load_project
+
+TIMEOUT_MS = 120_000
+
+
+def small_city_project():
+    p = load_project("city_paper_camera")
+    return p.updated(sensor=p.sensor.updated(rows=48, cols=64), render=p.render.updated(spp=4),
+                     city=p.city.updated(blocks_x=1, blocks_y=1, n_pedestrians=4, n_trees=4, n_lamps=4,
+                                         n_benches=2, n_mailboxes=1))
+
+
+@pytest.fixture
+def city_window(qtbot):
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    win = MainWindow(Document(small_city_project()))
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitExposed(win)
+    return win
+
+
+def full_frame_of(win, project):
+    f = win.previews.frame
+    return f is not None and not f.preview and f.project == project and not win.live.busy
+
+
+def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_window, qtbot, grab):
+    win = city_window
+    frames = []
+    win.live.frameReady.connect(frames.append)
+    qtbot.waitUntil(lambda: win.city_view.city is not None, timeout=TIMEOUT_MS)
+    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    view = grab(win.city_view.plotter.interactor).astype(float)
+    assert view.std() > 10.0, "the 3-D city view looks blank"
+    assert len(np.unique(view.reshape(-1, 3), axis=0)) > 50
+    for name, pane in win.previews.panes.items():
+        assert grab(pane.view_widget).astype(float).std() > 3.0, f"pane {name} looks uniform"
+    assert [f.preview for f in frames][:1] == [True]             # a quick preview came first
+    assert frames[-1].recomputed[0] == "scene"
+    win.city_view.look_through.setChecked(True)
+    through = grab(win.city_view.plotter.interactor)
+    assert through.astype(float).std() > 10.0 and not np.array_equal(through, view.astype(np.uint8))
+    # Move the camera by typing a pose: one undoable edit, a new preview and a new full render.
+    box = win.city_view.pose_boxes
+    box["pan"].setValue(box["pan"].value() + 30.0)
+    frames.clear()
+    win.city_view.apply_typed_pose()
+    assert win.document.project.pose.mode == "manual"
+    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    assert frames[0].preview and frames[-1].recomputed[0] == "scene"
+    win.document.undo_stack.undo()
+    assert win.document.project == small_city_project()

@@ -1,0 +1,161 @@
+"""The main window on a real X server: panes draw, edits recompute only downstream stages, files
+round-trip, undo restores the exact image, a malformed file changes nothing."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from workbench.project import load_project, save_project
+
+FRAME_TIMEOUT_MS = 60_000
+
+
+def small_paper_project():
+    p = load_project("paper_camera")
+    return p.updated(sensor=p.sensor.updated(rows=60, cols=80))
+
+
+@pytest.fixture
+def window(qtbot, tmp_path):
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    from PySide6.QtWidgets import QMessageBox
+    path = tmp_path / "small.json"
+    save_project(small_paper_project(), path)
+    win = MainWindow(Document(load_project(path), path), with_city_view=False)
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard      # no modal prompt on close
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitExposed(win)
+    wait_frame(qtbot, win, 0)
+    return win
+
+
+def wait_frame(qtbot, win, shown_before: int) -> None:
+    """Wait until a newer full (non-preview) frame of the current project is on screen."""
+    def done():
+        f = win.previews.frame
+        return (win.previews.frames_shown > shown_before and f is not None and not f.preview
+                and f.project == win.document.project and not win.live.busy)
+    qtbot.waitUntil(done, timeout=FRAME_TIMEOUT_MS)
+
+
+def test_window_opens_and_all_four_panes_draw_real_pixels(window, grab):
+    assert "small.json" in window.windowTitle()
+    for name, pane in window.previews.panes.items():
+        pixels = grab(pane.view_widget).astype(float)
+        assert pixels.std() > 5.0, f"pane {name} looks uniform"
+    assert window.optics_label.text() == "optics: pinhole"
+    assert "isp" in window.times_label.text()
+    from PySide6.QtWidgets import QTabBar
+    bars = [b for b in window.findChildren(QTabBar) if b.parent() is window and b.isVisible()]
+    assert sorted(b.count() for b in bars) == [2, 3]     # Lens/Sensor/ISP and Sweep/Experiments, no stale copy
+
+
+def test_isp_edit_recomputes_isp_only_and_sensor_edit_sensor_and_isp(window, qtbot):
+    before = window.previews.frame
+    shown = window.previews.frames_shown
+    assert window.apply_edit("isp", {"demosaic": "malvar2004"})
+    wait_frame(qtbot, window, shown)
+    frame = window.previews.frame
+    assert frame.recomputed == ["isp"]
+    assert frame.irradiance_rgb is before.irradiance_rgb          # upstream display came from the cache
+    assert np.array_equal(frame.raw_dn, before.raw_dn)
+    assert window.document.dirty and window.isWindowModified()
+    shown = window.previews.frames_shown
+    window.apply_edit("sensor", {"read_noise_V": 0.004})
+    wait_frame(qtbot, window, shown)
+    assert window.previews.frame.recomputed == ["sensor", "isp"]
+
+
+def test_undo_returns_the_exact_previous_image(window, qtbot, grab):
+    first = window.previews.frame
+    first_pixels = grab(window.previews.panes["srgb"].view_widget)
+    shown = window.previews.frames_shown
+    window.apply_edit("sensor", {"ev_bias": 1.5})
+    wait_frame(qtbot, window, shown)
+    assert not np.array_equal(window.previews.frame.srgb, first.srgb)
+    shown = window.previews.frames_shown
+    window.document.undo_stack.undo()
+    wait_frame(qtbot, window, shown)
+    assert window.document.project == first.project
+    assert np.array_equal(window.previews.frame.srgb, first.srgb)
+    assert np.array_equal(window.previews.frame.raw_dn, first.raw_dn)
+    assert np.array_equal(grab(window.previews.panes["srgb"].view_widget), first_pixels)
+    assert not window.document.dirty
+
+
+def test_save_then_open_round_trips_exactly(window, qtbot, tmp_path):
+    window.apply_edit("isp", {"illuminant_correction": "none"})
+    target = tmp_path / "saved.json"
+    assert window.save_to(target)
+    saved = window.document.project
+    assert not window.isWindowModified() and "saved.json" in window.windowTitle()
+    window.apply_edit("sensor", {"analog_gain": 2.0})
+    window.may_discard = lambda: True
+    assert window.open_path(target)
+    assert window.document.project == saved
+    assert json.loads(target.read_text()) == json.loads(saved.model_dump_json())
+    assert str(target.resolve()) in window.recent_files()
+
+
+@pytest.mark.parametrize("content", ["{ not json", '{"format": "camera-workbench-project", "schema_version": 1, '
+                                     '"sensor": {"rows": -3}}'])
+def test_malformed_project_shows_an_error_and_changes_nothing(window, qtbot, tmp_path, content):
+    bad = tmp_path / "bad.json"
+    bad.write_text(content)
+    before, path, shown = window.document.project, window.document.path, window.previews.frames_shown
+    assert not window.open_path(bad)
+    assert window.error_box is not None and window.error_box.isVisible()
+    assert "bad.json" in window.error_box.text()
+    window.error_box.close()
+    assert window.document.project is before and window.document.path == path
+    qtbot.wait(200)
+    assert window.previews.frames_shown == shown
+
+
+def test_refused_edit_shows_why_and_changes_nothing(window):
+    before = window.document.project
+    assert not window.apply_edit("sensor", {"rows": -5})
+    assert "rows" in window.error_box.text()
+    window.error_box.close()
+    assert window.document.project is before and window.document.undo_stack.count() == 0
+
+
+def test_dock_layout_is_remembered(window, qtbot):
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    window.save_layout()
+    again = MainWindow(Document(window.document.project), with_city_view=False)
+    qtbot.addWidget(again)
+    assert again.saveState() == window.saveState()
+    again.live.shutdown()
+
+
+@pytest.mark.parametrize("editor, section, changes, recomputed", [
+    ("ISP", "isp", {"demosaic": "malvar2004"}, ["isp"]),
+    ("Sensor", "sensor", {"analog_gain": 2.0}, ["sensor", "isp"]),
+    ("Sensor", "sensor", {"fill_factor": 0.5}, ["signal", "sensor", "isp"]),
+    ("Lens", "optics", {"f_number": 5.6}, ["optics", "signal", "sensor", "isp"]),
+])
+def test_each_editors_edit_recomputes_only_downstream_stages(window, qtbot, editor, section, changes, recomputed):
+    """An editor's edited signal → one undoable edit → the stages after it run, the rest are cached."""
+    if editor not in window.editors:
+        pytest.skip(f"the {editor} editor is not in this build")
+    shown = window.previews.frames_shown
+    window.editors[editor].edited.emit(section, changes)
+    wait_frame(qtbot, window, shown)
+    assert window.previews.frame.recomputed == recomputed
+    assert window.document.undo_stack.count() == 1
+    assert getattr(window.document.project, section).model_dump(include=set(changes)) == changes
+
+
+def test_app_opens_a_sample_as_a_new_unsaved_project(qtbot):
+    from workbench.gui.app import create_window
+    win = create_window("paper_camera", with_city_view=False)
+    qtbot.addWidget(win)
+    assert win.document.path is None and win.document.project.name == "paper_camera"
+    assert win.windowTitle().startswith("paper_camera")
+    win.live.shutdown()

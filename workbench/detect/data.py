@@ -1,0 +1,439 @@
+"""Detection data views over a `workbench dataset` folder: sensor + ISP run on the fly from the
+stored irradiance, at a chosen representation and exposure bias, with no re-render.
+
+Exposure (the paper's rule): t = t_auto · 2^EV, t_auto from the experiment's auto-exposure method
+('mean': mean pixel voltage at 0.4 of the swing) on the whole noise-free frame, limited to the
+sensor's max_exposure_s. The frames keep the daylight illuminance they were rendered with (the
+paper fixed 1000 lux); auto-exposure makes the mean signal the same either way, only the dark
+current's share (10 e⁻/s here, < 0.1 e⁻ at these millisecond exposures) would differ.
+
+Noise: frame f in epoch e of a view with seed s is exposed with the generator
+default_rng([s, f, e, round(1000·EV)]): a run is reproducible, every epoch a new capture.
+Test views use epoch 0 and a fixed seed, so every network is tested on the same captures.
+
+Split (`split_of`): a frame is a test frame when u < 0.3, u uniform from its own render seeds
+(SeedSequence([arrangement, pose, SPLIT_TAG])): fixed per frame, so growing a set keeps the split.
+
+Labels (the rule, stated once): classes car, pedestrian, bus and truck (a class is used only
+when the training frames hold a kept box of it). A box is kept when its visible height is at
+least MIN_BOX_HEIGHT_FRAC of the image rows (KITTI's 25 px of 375: 16 px at 240 rows, 32 px at
+480), at least MIN_BOX_WIDTH_PX wide, at most MAX_OCCLUSION occluded and at most MAX_TRUNCATION
+outside the image. Other boxes of these classes are 'ignored': not training targets, not ground
+truth, and a detection that overlaps one (IoU ≥ 0.5, same class) while matching no kept box is
+dropped before scoring (VOC's 'difficult' rule, `drop_ignored_detections`).
+
+Augmentation (training views): the scene is mirrored before the sensor (the irradiance is flipped,
+then sampled by the same CFA, so the mosaic stays physically right: exact where flipping the
+packed mosaic would shift colours by a pixel) and a crop_hw window is cut from the signal rate at
+even row/column offsets (the CFA phase is kept), placed to hold the centre of a kept box drawn at
+random; the exposure still comes from the whole frame. Crops cut before the sensor make sensor +
+ISP cost only the window.
+"""
+from __future__ import annotations
+
+import json
+import time
+import zipfile
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from workbench.errors import InputFileError, ParameterError
+
+DETECT_CLASSES = ("car", "pedestrian", "bus", "truck")
+MIN_BOX_HEIGHT_FRAC = 25.0 / 375.0
+MIN_BOX_WIDTH_PX = 4
+MAX_OCCLUSION = 0.8
+MAX_TRUNCATION = 0.5
+TEST_FRACTION = 0.3
+SPLIT_TAG = 0x73706C74                 # 'splt': separates the split draw from other seed uses
+TEST_NOISE_SEED = 0x74657374           # 'test': the seed of every test view's captures
+RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDER`"
+
+
+def _read_json(path: Path, what: str) -> dict:
+    if not path.is_file():
+        raise InputFileError(path, f"missing: {what}")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputFileError(path, f"not valid JSON ({exc.__class__.__name__}); the file is damaged "
+                                   "or not part of a workbench data set") from None
+    if not isinstance(data, dict):
+        raise InputFileError(path, "holds no JSON object; not part of a workbench data set")
+    return data
+
+
+def split_of(seeds: dict, test_fraction: float = TEST_FRACTION) -> str:
+    """'test' or 'train' for a frame, from its render seeds only (see the module docstring)."""
+    word = np.random.SeedSequence([int(seeds["arrangement"]), int(seeds["pose"]), SPLIT_TAG]).generate_state(1)[0]
+    return "test" if word / 2.0 ** 32 < test_fraction else "train"
+
+
+def keep_box(ann: dict, image_rows: int) -> bool:
+    """The label rule of the module docstring for one COCO annotation (with occlusion/truncation)."""
+    _, _, w, h = ann["bbox"]
+    return (h >= MIN_BOX_HEIGHT_FRAC * image_rows and w >= MIN_BOX_WIDTH_PX
+            and ann.get("occlusion", 0.0) <= MAX_OCCLUSION and ann.get("truncation", 0.0) <= MAX_TRUNCATION)
+
+
+def _check_same_frames(project, rendered, manifest_path: Path) -> None:
+    """ParameterError unless `project` makes the same frames as `rendered` (the data set's)."""
+    from workbench.render.dataset import FRAME_PROJECT_SECTIONS, FRAME_SENSOR_FIELDS
+    mine, theirs = project.model_dump(mode="json"), rendered.model_dump(mode="json")
+    differ = [k for k in FRAME_PROJECT_SECTIONS if mine.get(k) != theirs.get(k)]
+    differ += [f"sensor.{k}" for k in FRAME_SENSOR_FIELDS if mine["sensor"].get(k) != theirs["sensor"].get(k)]
+    if differ:
+        raise ParameterError("project", project.name, f"a project that renders the frames of {manifest_path.parent} "
+                             f"('{rendered.name}'); these settings differ: {', '.join(differ)}")
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    """One frame's file, seeds, split and boxes (x0, y0, x1, y1 in pixels; classes index
+    DetectionDataset.class_names), kept and ignored."""
+
+    index: int
+    path: Path
+    seeds: dict
+    split: str
+    boxes_xyxy: np.ndarray
+    classes: np.ndarray
+    ignored_xyxy: np.ndarray
+    ignored_classes: np.ndarray
+
+
+def _xyxy(anns: list[dict]) -> np.ndarray:
+    return np.asarray([[a["bbox"][0], a["bbox"][1], a["bbox"][0] + a["bbox"][2], a["bbox"][1] + a["bbox"][3]]
+                       for a in anns], dtype=np.float32).reshape(-1, 4)
+
+
+def _class_indices(anns: list[dict], cat_names: dict, cls_index: dict) -> np.ndarray:
+    return np.asarray([cls_index[cat_names[int(a["category_id"])]] for a in anns], np.int64)
+
+
+class DetectionDataset:
+    """A finished `workbench dataset` folder read for detection: the project it was rendered from,
+    frame records with the label rule applied, and the train/test split.
+
+    project: the project whose sensor, ISP and experiment settings the views use (default the one
+    the frames were rendered from); its frame settings (render.dataset.FRAME_PROJECT_SECTIONS and
+    the sensor's grid and channels) must be the data set's.
+    Raises InputFileError naming the file when the folder is missing, half-written (no
+    manifest.json / coco.json, or a listed frame absent) or of another format or version."""
+
+    def __init__(self, folder: str | Path, classes: tuple[str, ...] = DETECT_CLASSES,
+                 test_fraction: float = TEST_FRACTION, project=None):
+        from workbench.project import project_from_dict
+        from workbench.render.dataset import DATASET_FORMAT
+
+        self.folder = Path(folder)
+        if not self.folder.is_dir():
+            raise InputFileError(self.folder, f"no such data-set folder; {RENDER_HINT}")
+        spec_path = self.folder / "dataset_spec.json"
+        spec = _read_json(spec_path, f"not a workbench data set folder; {RENDER_HINT}")
+        if spec.get("format") != DATASET_FORMAT:
+            raise InputFileError(spec_path, f"format {spec.get('format')!r} is not '{DATASET_FORMAT}'; "
+                                            "a file of another schema")
+        manifest_path = self.folder / "manifest.json"
+        manifest = _read_json(manifest_path, "the data set is half-written (its frames were not all "
+                                             "rendered); rerun the same `workbench dataset` command to finish it")
+        if manifest.get("format") != DATASET_FORMAT or manifest.get("fingerprint") != spec.get("fingerprint"):
+            raise InputFileError(manifest_path, "does not belong to dataset_spec.json (format or fingerprint "
+                                                "differ): a file of another schema or another data set")
+        try:
+            self.project = project_from_dict(manifest.get("project"), str(manifest_path))
+        except (InputFileError, ParameterError) as exc:
+            raise InputFileError(manifest_path, f"its project cannot be used: {exc}") from None
+        if project is not None:
+            _check_same_frames(project, self.project, manifest_path)
+            self.project = project
+        self.fingerprint = str(manifest["fingerprint"])
+        coco_path = self.folder / str(manifest.get("coco", "coco.json"))
+        coco = _read_json(coco_path, "the data set is half-written; rerun `workbench dataset` to finish it")
+        try:
+            cat_names = {int(c["id"]): str(c["name"]) for c in coco["categories"]}
+            images = {int(im["frame_index"]): im for im in coco["images"]}
+            anns_of: dict[int, list] = {}
+            for ann in coco["annotations"]:
+                anns_of.setdefault(int(ann["image_id"]), []).append(ann)
+            entries = [(int(e["index"]), str(e["file"]), dict(e["seeds"])) for e in manifest["frames"]]
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputFileError(coco_path, f"lacks the fields a workbench data set writes ({exc}); "
+                                            "a file of another schema") from None
+        self.image_hw = (self.project.sensor.rows, self.project.sensor.cols)
+        rows = self.image_hw[0]
+        present = {cat_names.get(int(a["category_id"])) for anns in anns_of.values() for a in anns
+                   if keep_box(a, rows)}
+        self.class_names = tuple(c for c in classes if c in present) or tuple(classes)
+        cls_index = {c: k for k, c in enumerate(self.class_names)}
+        self.frames: list[FrameRecord] = []
+        for index, rel, seeds in entries:
+            path = self.folder / rel
+            if not path.is_file():
+                raise InputFileError(path, "listed in manifest.json but missing: the data set is damaged; "
+                                           "rerun `workbench dataset` on the folder to render it again")
+            image = images.get(index)
+            if image is None:
+                raise InputFileError(coco_path, f"has no image for frame {index}; a file of another data set")
+            anns = [a for a in anns_of.get(int(image["id"]), []) if cat_names.get(int(a["category_id"])) in cls_index]
+            kept = [a for a in anns if keep_box(a, rows)]
+            ignored = [a for a in anns if not keep_box(a, rows)]
+            self.frames.append(FrameRecord(index, path, seeds, split_of(seeds, test_fraction),
+                                           _xyxy(kept), _class_indices(kept, cat_names, cls_index),
+                                           _xyxy(ignored), _class_indices(ignored, cat_names, cls_index)))
+        if not self.frames:
+            raise InputFileError(manifest_path, "lists no frames")
+
+    def indices(self, split: str) -> list[int]:
+        """Positions (into self.frames) of the 'train' or 'test' frames."""
+        if split not in ("train", "test"):
+            raise ParameterError("split", split, "one of 'train', 'test'")
+        return [k for k, f in enumerate(self.frames) if f.split == split]
+
+    def stats(self) -> dict:
+        """Frames per split and kept/ignored objects per class (and per frame)."""
+        out = {"frames": len(self.frames), "train": len(self.indices("train")),
+               "test": len(self.indices("test")), "image_hw": list(self.image_hw), "classes": {}}
+        for k, name in enumerate(self.class_names):
+            kept = sum(int((f.classes == k).sum()) for f in self.frames)
+            out["classes"][name] = {"kept": kept, "ignored": sum(int((f.ignored_classes == k).sum())
+                                                                 for f in self.frames)}
+        kept_total = sum(len(f.classes) for f in self.frames)
+        out["kept_per_frame"] = kept_total / len(self.frames)
+        out["ignored_per_frame"] = sum(len(f.ignored_classes) for f in self.frames) / len(self.frames)
+        return out
+
+
+def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np.ndarray, np.ndarray]:
+    """(rate, mirrored-scene rate): mean e⁻/s per pixel of the frame and of its mirror image
+    (irradiance flipped left-right before the CFA samples it). Errors name the frame file."""
+    from workbench.render.city_frame import frame_optical_image
+    from workbench.render.dataset import FRAME_VERSION, read_frame
+    from workbench.sensor import irradiance_to_signal_rate
+
+    try:
+        data, head = read_frame(record.path)
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputFileError(record.path, f"cannot be read ({exc.__class__.__name__}: {exc}); the frame is "
+                                          "damaged or half-written: rerun `workbench dataset` on the folder") from None
+    if head.get("version") != FRAME_VERSION or head.get("fingerprint") != fingerprint:
+        raise InputFileError(record.path, f"frame version {head.get('version')!r} / fingerprint do not match "
+                                          "the data set's: a file of another schema or data set")
+    oi = frame_optical_image(data)
+    mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
+    return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
+
+
+class RateCache:
+    """Least-recently-used cache of per-frame signal rates, bounded in MB (RATES: the one cache
+    of a process, shared by every view and run in it)."""
+
+    def __init__(self, limit_mb: float):
+        self.limit_bytes = int(limit_mb * 2 ** 20)
+        self._items: OrderedDict = OrderedDict()
+        self._bytes = 0
+
+    def set_limit(self, limit_mb: float) -> None:
+        self.limit_bytes = int(limit_mb * 2 ** 20)
+
+    def get(self, key, make):
+        if key in self._items:
+            self._items.move_to_end(key)
+            return self._items[key]
+        value = make()
+        size = sum(a.nbytes for a in value)
+        if size <= self.limit_bytes:
+            self._items[key] = value
+            self._bytes += size
+            while self._bytes > self.limit_bytes:
+                _, old = self._items.popitem(last=False)
+                self._bytes -= sum(a.nbytes for a in old)
+        return value
+
+
+RATES = RateCache(1024.0)
+
+
+def experiment_sensor(project):
+    """The project's sensor with the experiment's auto-exposure (method, level) and no EV bias."""
+    exp = project.experiment
+    return project.sensor.updated(exposure_s=None, ev_bias=0.0, auto_exposure_method=exp.auto_exposure_method,
+                                  auto_exposure_level=exp.auto_exposure_level)
+
+
+def _mirror_boxes(boxes: np.ndarray, width: int) -> np.ndarray:
+    out = boxes.copy()
+    out[:, 0], out[:, 2] = width - boxes[:, 2], width - boxes[:, 0]
+    return out
+
+
+def _crop_boxes(boxes: np.ndarray, classes: np.ndarray, r0: int, c0: int, h: int, w: int):
+    """Boxes shifted into a crop window and clipped to it; boxes left under 2 px are dropped."""
+    out = boxes - np.asarray([c0, r0, c0, r0], np.float32)
+    out[:, [0, 2]] = out[:, [0, 2]].clip(0, w)
+    out[:, [1, 3]] = out[:, [1, 3]].clip(0, h)
+    ok = ((out[:, 2] - out[:, 0]) >= 2) & ((out[:, 3] - out[:, 1]) >= 2)
+    return out[ok], classes[ok]
+
+
+def _crop_corner(boxes: np.ndarray, h: int, w: int, ch: int, cw: int, rng: np.random.Generator) -> tuple[int, int]:
+    """Even (row, col) corner of a ch×cw window: uniform among the windows that hold the centre
+    of one kept box drawn at random (uniform over the frame when there is none)."""
+    lo_r, hi_r, lo_c, hi_c = 0, h - ch, 0, w - cw
+    if len(boxes):
+        x0, y0, x1, y1 = boxes[int(rng.integers(len(boxes)))]
+        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+        lo_r, hi_r = max(0, int(np.ceil(cy - ch + 1))), min(h - ch, int(cy))
+        lo_c, hi_c = max(0, int(np.ceil(cx - cw + 1))), min(w - cw, int(cx))
+    r0 = 2 * int(rng.integers((lo_r + 1) // 2, hi_r // 2 + 1)) if hi_r >= lo_r + 1 else 2 * (hi_r // 2)
+    c0 = 2 * int(rng.integers((lo_c + 1) // 2, hi_c // 2 + 1)) if hi_c >= lo_c + 1 else 2 * (hi_c // 2)
+    return r0, c0
+
+
+class DetectionView:
+    """A torch-style Dataset (len, getitem) of network inputs and box targets.
+
+    dataset: DetectionDataset; positions: indices into dataset.frames; representation: 'raw',
+    'linear' or 'srgb'; evs: one EV bias, or several for an EV mix (every epoch each EV is given
+    to an equal share of the frames, by a seeded permutation); seed: noise and augmentation seed;
+    augment: mirror the scene with probability ½ and cut crop_hw windows (training);
+    cache_mb: the limit of the process's signal-rate cache (RATES). A key is an item number (in the epoch set by
+    set_epoch) or an (item, epoch) pair, so loader worker processes need no epoch state.
+    Item: (input C×h×w float32 tensor, target dict with boxes_xyxy, classes, ignored_xyxy,
+    ignored_classes, frame index, ev, exposure_s, sensor_isp_s). `timing` sums seconds spent
+    loading and in sensor + ISP in this process."""
+
+    def __init__(self, dataset: DetectionDataset, positions, representation: str, evs=(0.0,), *,
+                 seed: int = TEST_NOISE_SEED, augment: bool = False, crop_hw: tuple[int, int] | None = None,
+                 cache_mb: float = 1024.0):
+        from workbench.detect.representations import REPRESENTATIONS
+        if representation not in REPRESENTATIONS:
+            raise ParameterError("representation", representation, f"one of {', '.join(REPRESENTATIONS)}")
+        evs = tuple(float(e) for e in np.atleast_1d(evs))
+        if not evs or not all(np.isfinite(evs)) or any(abs(e) > 16 for e in evs):
+            raise ParameterError("evs", evs, "one or more finite EV biases in −16…16")
+        h, w = dataset.image_hw
+        if crop_hw is not None and not (crop_hw[0] % 4 == 0 and crop_hw[1] % 4 == 0
+                                        and 0 < crop_hw[0] <= h and 0 < crop_hw[1] <= w):
+            raise ParameterError("crop_hw", crop_hw, f"multiples of 4 no larger than the {h}×{w} frames")
+        self.dataset, self.positions = dataset, list(positions)
+        self.representation, self.evs, self.seed = representation, evs, int(seed)
+        self.augment, self.crop_hw = augment, crop_hw
+        self.sensor = experiment_sensor(dataset.project)
+        self._sensors = {(h, w): self.sensor}
+        RATES.set_limit(cache_mb)
+        self._rate_key = (str(dataset.folder), dataset.fingerprint, self.sensor.model_dump_json())
+        self._exposure: dict[int, float] = {}
+        self.epoch = 0
+        self._ev_by_epoch: dict[int, np.ndarray] = {}
+        self.timing = {"load_s": 0.0, "sensor_isp_s": 0.0, "items": 0}
+        wl = dataset.project.scene.wavelengths
+        self._qe_wl = np.arange(wl.start_nm, wl.stop_nm + 0.5 * wl.step_nm, wl.step_nm)
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def set_epoch(self, epoch: int) -> None:
+        """The epoch that integer keys use (a key may also be an (item, epoch) pair)."""
+        self.epoch = int(epoch)
+
+    def _ev_of(self, item: int, epoch: int) -> float:
+        if epoch not in self._ev_by_epoch:
+            order = np.random.default_rng([self.seed, epoch, 0x6576]).permutation(len(self.positions))
+            evs = np.empty(len(self.positions))
+            evs[order] = np.resize(np.asarray(self.evs), len(self.positions))
+            self._ev_by_epoch = {epoch: evs}
+        return float(self._ev_by_epoch[epoch][item])
+
+    def _sensor_for(self, h: int, w: int):
+        if (h, w) not in self._sensors:
+            self._sensors[(h, w)] = self.sensor.updated(rows=h, cols=w)
+        return self._sensors[(h, w)]
+
+    def frame_record(self, item: int) -> FrameRecord:
+        return self.dataset.frames[self.positions[item]]
+
+    def __getitem__(self, key):
+        import torch
+
+        from workbench.detect.representations import network_input
+        from workbench.isp import sensor_image_to_srgb
+        from workbench.sensor import auto_exposure, signal_rate_to_sensor_image
+
+        item, epoch = key if isinstance(key, tuple) else (key, self.epoch)
+        rec = self.frame_record(item)
+        ev = self._ev_of(item, epoch)
+        t0 = time.perf_counter()
+        rates = RATES.get((*self._rate_key, rec.index),
+                          lambda: load_signal_rates(rec, self.sensor, self.dataset.fingerprint))
+        t1 = time.perf_counter()
+        if rec.index not in self._exposure:
+            self._exposure[rec.index] = float(auto_exposure(rates[0], self.sensor))
+        exposure_s = min(self._exposure[rec.index] * 2.0 ** ev, self.sensor.max_exposure_s)
+        rng = np.random.default_rng([self.seed, rec.index, epoch, int(round(1000 * ev)) & 0xFFFFFFFF])
+        h, w = self.dataset.image_hw
+        boxes, classes = rec.boxes_xyxy, rec.classes
+        ignored, ignored_cls = rec.ignored_xyxy, rec.ignored_classes
+        rate = rates[0]
+        if self.augment and rng.random() < 0.5:
+            rate = rates[1]
+            boxes, ignored = _mirror_boxes(boxes, w), _mirror_boxes(ignored, w)
+        if self.crop_hw is not None:
+            ch, cw = self.crop_hw
+            r0, c0 = _crop_corner(boxes, h, w, ch, cw, rng)
+            rate = rate[r0:r0 + ch, c0:c0 + cw]
+            boxes, classes = _crop_boxes(boxes, classes, r0, c0, ch, cw)
+            ignored, ignored_cls = _crop_boxes(ignored, ignored_cls, r0, c0, ch, cw)
+        image = signal_rate_to_sensor_image(np.ascontiguousarray(rate), self._sensor_for(*rate.shape), exposure_s, rng,
+                       wavelengths_nm=self._qe_wl)
+        isp = None if self.representation == "raw" else sensor_image_to_srgb(image, self.dataset.project.isp)
+        x = network_input(image, isp, self.representation)
+        t2 = time.perf_counter()
+        self.timing["load_s"] += t1 - t0
+        self.timing["sensor_isp_s"] += t2 - t1
+        self.timing["items"] += 1
+        target = {"boxes_xyxy": torch.from_numpy(np.ascontiguousarray(boxes)),
+                  "classes": torch.from_numpy(np.ascontiguousarray(classes)),
+                  "ignored_xyxy": torch.from_numpy(np.ascontiguousarray(ignored)),
+                  "ignored_classes": torch.from_numpy(np.ascontiguousarray(ignored_cls)),
+                  "frame": rec.index, "ev": ev, "exposure_s": exposure_s, "sensor_isp_s": t2 - t1}
+        return torch.as_tensor(np.ascontiguousarray(x)), target
+
+
+def collate(batch):
+    """Stack inputs (same size within a batch); keep targets as a list."""
+    import torch
+    return torch.stack([x for x, _ in batch]), [t for _, t in batch]
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """IoU matrix of xyxy boxes a (n×4) and b (m×4)."""
+    a, b = np.asarray(a, np.float64).reshape(-1, 4), np.asarray(b, np.float64).reshape(-1, 4)
+    lt = np.maximum(a[:, None, :2], b[None, :, :2])
+    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    inter = np.prod(np.clip(rb - lt, 0, None), axis=2)
+    area_a = np.prod(np.clip(a[:, 2:] - a[:, :2], 0, None), axis=1)
+    area_b = np.prod(np.clip(b[:, 2:] - b[:, :2], 0, None), axis=1)
+    union = area_a[:, None] + area_b[None, :] - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
+
+
+def drop_ignored_detections(boxes, scores, classes, gt_boxes, gt_classes, ignored_boxes, ignored_classes,
+                            iou: float = 0.5):
+    """Detections without a kept box of their class at IoU ≥ iou but with an ignored one removed
+    (the module docstring's rule); returns the kept (boxes, scores, classes)."""
+    boxes, scores, classes = np.asarray(boxes), np.asarray(scores), np.asarray(classes)
+    if len(boxes) == 0 or len(ignored_boxes) == 0:
+        return boxes, scores, classes
+    same_ign = np.asarray(classes)[:, None] == np.asarray(ignored_classes)[None, :]
+    hits_ignored = ((box_iou(boxes, ignored_boxes) >= iou) & same_ign).any(axis=1)
+    if len(gt_boxes):
+        same_gt = np.asarray(classes)[:, None] == np.asarray(gt_classes)[None, :]
+        hits_kept = ((box_iou(boxes, gt_boxes) >= iou) & same_gt).any(axis=1)
+    else:
+        hits_kept = np.zeros(len(boxes), bool)
+    keep = ~(hits_ignored & ~hits_kept)
+    return boxes[keep], scores[keep], classes[keep]

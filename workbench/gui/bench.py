@@ -1,0 +1,240 @@
+"""Responsiveness of the window (`workbench bench gui`), measured on the real widgets.
+
+* GUI-thread stalls: a 5 ms QTimer on the GUI thread records the gaps between its ticks while
+  background work runs — a city render in the live worker, an exposure sweep in the sweep panel,
+  an experiment-like process started by the experiments panel, and all three at once.
+* Edit-to-pane latency at 640×480 (paper camera): from the edit to the four panes having painted
+  the new frame, for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run).
+* 3-D view frames per second with the full city of the city sample while orbiting the view.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+TICK_MS = 5
+
+
+class TickRecorder:
+    """Gaps (ms) between ticks of a GUI-thread timer."""
+
+    def __init__(self):
+        from PySide6.QtCore import Qt, QTimer
+        self.timer = QTimer()
+        self.timer.setTimerType(Qt.TimerType.PreciseTimer)
+        self.timer.setInterval(TICK_MS)
+        self.timer.timeout.connect(self._tick)
+        self.gaps_ms: list[float] = []
+        self._last = None
+
+    def _tick(self) -> None:
+        now = time.perf_counter()
+        if self._last is not None:
+            self.gaps_ms.append(1e3 * (now - self._last))
+        self._last = now
+
+    def start(self) -> None:
+        """Start ticking; the first gap counts from now, so a stall while a job starts is seen."""
+        self.gaps_ms, self._last = [], time.perf_counter()
+        self.timer.start()
+
+    def stop(self) -> dict:
+        self.timer.stop()
+        g = np.asarray(self.gaps_ms or [0.0])
+        return {"max_gap_ms": round(float(g.max()), 1), "p99_gap_ms": round(float(np.percentile(g, 99)), 1),
+                "median_gap_ms": round(float(np.median(g)), 1), "ticks": int(g.size)}
+
+
+def _wait(app, predicate, timeout_s: float) -> bool:
+    """Run the Qt event loop (idle in the loop, as an application is) until predicate() holds."""
+    from PySide6.QtCore import QEventLoop, QTimer
+    deadline = time.perf_counter() + timeout_s
+    loop = QEventLoop()
+    check = QTimer()
+    check.setInterval(2)
+
+    def poll():
+        if predicate() or time.perf_counter() > deadline:
+            loop.quit()
+    check.timeout.connect(poll)
+    check.start()
+    if not predicate():
+        loop.exec()
+    check.stop()
+    return predicate()
+
+
+def _window(project):
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    win = MainWindow(Document(project))
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    win.show()
+    return win
+
+
+def _full_frame(win):
+    f = win.previews.frame
+    return f is not None and not f.preview and f.project == win.document.project and not win.live.busy
+
+
+def edit_latency_ms(app, win, section: str, values: list[dict], timeout_s: float = 60) -> list[float]:
+    """Edit → the panes have shown the resulting frame (ms), once per value."""
+    out = []
+    for changes in values:
+        shown = win.previews.frames_shown
+        t0 = time.perf_counter()
+        win.apply_edit(section, changes)
+        if not _wait(app, lambda: win.previews.frames_shown > shown and _full_frame(win), timeout_s):
+            raise TimeoutError(f"no frame after the {section} edit {changes}")
+        for pane in win.previews.panes.values():      # until the new pixels are painted
+            pane.view_widget.viewport().repaint()
+        out.append(1e3 * (time.perf_counter() - t0))
+    return out
+
+
+def orbit_fps(app, city_view, frames: int) -> float:
+    """Frames per second while the 3-D view orbits the city (render + event processing)."""
+    cam = city_view.plotter.camera
+    t0 = time.perf_counter()
+    for _ in range(frames):
+        cam.Azimuth(3.0)
+        city_view.render()
+        app.processEvents()
+    return frames / (time.perf_counter() - t0)
+
+
+def run(quick: bool = False) -> dict:
+    from PySide6.QtWidgets import QApplication
+
+    import workbench.gui  # noqa: F401  (PySide6 refcount guard)
+    from workbench.project import load_project
+    app = QApplication.instance() or QApplication(["workbench-bench"])
+    rows = []
+    notes = []
+
+    # -- edit-to-pane latency at 640×480 ---------------------------------------------------
+    paper = load_project("paper_camera")
+    win = _window(paper)
+    if not _wait(app, lambda: _full_frame(win), 120):
+        raise TimeoutError("the paper camera's first frame did not arrive")
+    n = 3 if quick else 7
+    isp = edit_latency_ms(app, win, "isp", [{"illuminant_correction": v} for v in
+                                            (["white_world", "gray_world"] * n)[:n]])
+    sensor = edit_latency_ms(app, win, "sensor", [{"analog_gain": 1.0 + 0.1 * (i + 1)} for i in range(n)])
+    for name, values, goal in (("edit→pane, ISP edit, 640×480", isp, 50), ("edit→pane, sensor edit, 640×480", sensor, 80)):
+        rows.append({"measure": name, "median_ms": round(statistics.median(values), 1),
+                     "max_ms": round(max(values), 1), "goal_ms": goal, "runs": len(values)})
+    sweep = win.editors.get("Exposure sweep")
+    experiments = win.editors.get("Experiments")
+    win.document.undo_stack.setClean()
+    win.close()
+
+    # -- GUI-thread stalls under background work, and 3-D orbit speed ------------------------
+    city = load_project("city_paper_camera")
+    size = (120, 160) if quick else (240, 320)
+    city = city.updated(sensor=city.sensor.updated(rows=size[0], cols=size[1]),
+                        render=city.render.updated(spp=16 if quick else 64))
+    win = _window(city)
+    if not _wait(app, lambda: win.city_view.city is not None and _full_frame(win), 600):
+        raise TimeoutError("the city project's first frame did not arrive")
+    sweep = win.editors.get("Exposure sweep")
+    experiments = win.editors.get("Experiments")
+    ticks = TickRecorder()
+    out_dir = tempfile.mkdtemp(prefix="workbench-bench-gui-")
+
+    def start_render():
+        win.apply_edit("render", {"seed": win.document.project.render.seed + 1})
+
+    def start_sweep():
+        if sweep is not None:
+            sweep.run()
+
+    def start_experiment():
+        if experiments is not None:
+            experiments.run_argv([sys.executable, "-m", "workbench.cli", "simulate", "paper_camera",
+                                  "--out", out_dir], out_dir)
+
+    def busy():
+        return (win.live.busy or (sweep is not None and sweep._worker is not None)
+                or (experiments is not None and experiments._process is not None))
+
+    scenarios = [("idle (baseline: nothing running)", []), ("render (city, live worker)", [start_render]), ("exposure sweep", [start_sweep]),
+                 ("experiment process", [start_experiment]),
+                 ("render + sweep + experiment", [start_render, start_sweep, start_experiment])]
+    for name, starts in scenarios:
+        ticks.start()
+        t0 = time.perf_counter()
+        for s in starts:
+            s()
+        if starts:
+            _wait(app, lambda: not busy(), 600)
+        else:
+            _wait(app, lambda: False, 3.0)
+        stats = ticks.stop()
+        rows.append({"measure": f"GUI tick gaps during {name}", **stats, "goal_max_gap_ms": 100,
+                     "job_s": round(time.perf_counter() - t0, 2)})
+    if sweep is None or experiments is None:
+        notes.append("sweep or experiments panel missing: their scenarios ran without them")
+
+    # -- a camera move: the low-sample preview, then the refined frame -------------------------
+    for i in range(2 if quick else 3):
+        frames = []
+        win.live.frameReady.connect(frames.append)
+        box = win.city_view.pose_boxes["pan"]
+        box.setValue(box.value() + 15.0)
+        t0 = time.perf_counter()
+        win.city_view.apply_typed_pose()
+        _wait(app, lambda: any(f.preview for f in frames) and win.previews.frame is not None
+              and win.previews.frame.preview, 120)
+        t_preview = time.perf_counter() - t0
+        _wait(app, lambda: _full_frame(win), 600)
+        win.live.frameReady.disconnect(frames.append)
+        rows.append({"measure": f"camera move {i + 1}: preview on screen, then refined",
+                     "preview_s": round(t_preview, 2), "refined_s": round(time.perf_counter() - t0, 2),
+                     "size": f"{size[1]}×{size[0]}", "preview_spp": win.live.preview_spp,
+                     "refined_spp": win.document.project.render.spp})
+
+    full = load_project("city_paper_camera")
+    win.apply_edit("city", full.city.model_dump())
+    _wait(app, lambda: win.city_view.city is not None and win.city_view._city_key[0] == (full.city, win.document.project.seed), 300)
+    win.live.cancel()
+    fps = orbit_fps(app, win.city_view, 30 if quick else 120)
+    rows.append({"measure": "3-D view orbit, full city", "fps": round(fps, 1),
+                 "objects": len(win.city_view.city.objects),
+                 "view_px": f"{win.city_view.plotter.interactor.width()}×{win.city_view.plotter.interactor.height()}"})
+    win.document.undo_stack.setClean()
+    win.close()
+    app.processEvents()
+    notes.append(f"city render for the stall test: {size[1]}×{size[0]}, spp {city.render.spp}; "
+                 f"timer interval {TICK_MS} ms; OpenGL by {app.platformName()} (Mesa llvmpipe under Xvfb)")
+    return {"rows": rows, "notes": notes}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the measurements (on a private Xvfb when there is no display); print them as one JSON line."""
+    import argparse
+    import json
+    import os
+    parser = argparse.ArgumentParser(description="window responsiveness (used by `workbench bench gui`)")
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
+    from workbench.gui.display import virtual_display
+    with virtual_display():
+        out = run(quick=args.quick)
+        import shiboken6
+        from PySide6.QtWidgets import QApplication
+        shiboken6.delete(QApplication.instance())       # leave the X server before it stops
+    print(json.dumps(out, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,235 @@
+"""The 3-D city view (pyvistaqt): the project's city, the camera with its view frustum, a gizmo
+to drag the camera, typed pose values, colour by class, and "look through camera".
+
+Generating the city (seed, arrangement) runs on a background thread; the meshes come back to the
+GUI thread, which alone touches VTK. Pose edits go through the document (one undoable edit)."""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
+                               QPushButton, QSpinBox, QVBoxLayout, QWidget)
+
+from workbench.project import Project
+
+
+def city_and_pose(project: Project):
+    """The city and camera pose of the project's frame 0, as the pipeline's scene stage renders it."""
+    from workbench.render.city_frame import frame_seeds
+    from workbench.scene.city import generate_city, sample_camera_poses
+    from workbench.scene.city.recipe import CityRecipe, PoseParams
+    seeds = frame_seeds(project.seed, 0)
+    recipe = (project.city or CityRecipe()).model_copy(update={"arrangement": seeds.arrangement})
+    city = generate_city(recipe)
+    pose = sample_camera_poses(city, project.pose or PoseParams(), 1, seeds.pose)[0]
+    return city, pose
+
+
+def _city_key(project: Project):
+    return (project.city, project.seed)
+
+
+def _spin(lo: float, hi: float, decimals: int, suffix: str) -> QDoubleSpinBox:
+    box = QDoubleSpinBox()
+    box.setRange(lo, hi)
+    box.setDecimals(decimals)
+    box.setSuffix(suffix)
+    box.setKeyboardTracking(False)
+    return box
+
+
+class CityView(QWidget):
+    """cityReady(object) is internal: the background job's (key, city, pose) for the GUI thread."""
+
+    cityReady = Signal(object)
+    failed = Signal(str)
+
+    def __init__(self, document, parent=None):
+        super().__init__(parent)
+        from pyvistaqt import QtInteractor
+        self.document = document
+        self.plotter = QtInteractor(self, off_screen=False, auto_update=False)
+        self.plotter.set_background("#dfe8f0", top="#7fa7cf")
+        self.project: Project | None = None
+        self.city = None
+        self.pose = None
+        self._city_key = None
+        self._job_id = 0
+        self._gizmo = None
+
+        self.by_class = QCheckBox("Colour by class")
+        self.by_class.toggled.connect(lambda _v: self._redraw_city())
+        self.look_through = QCheckBox("Look through camera")
+        self.look_through.toggled.connect(lambda _v: self._redraw_camera(reset_view=True))
+        self.status = QLabel("")
+        self.pose_boxes = {"x": _spin(-1e4, 1e4, 2, " m"), "y": _spin(-1e4, 1e4, 2, " m"),
+                           "height": _spin(0.01, 50, 2, " m"), "pan": _spin(-360, 360, 1, "°"),
+                           "tilt": _spin(-90, 90, 1, "°"), "roll": _spin(-180, 180, 1, "°")}
+        apply_pose = QPushButton("Set pose")
+        apply_pose.setToolTip("place the camera at these values (pose mode 'manual')")
+        apply_pose.clicked.connect(self.apply_typed_pose)
+        self.seed_box = QSpinBox()
+        self.seed_box.setRange(0, 2**31 - 1)
+        self.seed_box.setToolTip("city seed: streets, buildings and placements")
+        regen = QPushButton("Regenerate city")
+        regen.clicked.connect(lambda: self.document.edit("city", {"seed": self.seed_box.value()}))
+
+        form = QFormLayout()
+        row1, row2 = QHBoxLayout(), QHBoxLayout()
+        for k in ("x", "y", "height"):
+            row1.addWidget(QLabel(k))
+            row1.addWidget(self.pose_boxes[k])
+        for k in ("pan", "tilt", "roll"):
+            row2.addWidget(QLabel(k))
+            row2.addWidget(self.pose_boxes[k])
+        row2.addWidget(apply_pose)
+        form.addRow("Position", row1)
+        form.addRow("Angles", row2)
+        row3 = QHBoxLayout()
+        row3.addWidget(self.by_class)
+        row3.addWidget(self.look_through)
+        row3.addStretch(1)
+        row3.addWidget(QLabel("seed"))
+        row3.addWidget(self.seed_box)
+        row3.addWidget(regen)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(2, 2, 2, 2)
+        lay.addWidget(self.plotter.interactor, 1)
+        lay.addLayout(row3)
+        lay.addLayout(form)
+        lay.addWidget(self.status)
+        self.cityReady.connect(self._city_ready)
+        self.failed.connect(lambda msg: self.status.setText(f"city: {msg}"))
+
+    # -- project → view --------------------------------------------------------------------
+    def set_project(self, project: Project) -> None:
+        self.project = project
+        if project.scene.kind != "city":
+            self.status.setText("This project's scene is a test chart; pick a city sample to see a city.")
+            if self.city is not None:
+                self.plotter.clear()
+                self.city, self._city_key = None, None
+                self.plotter.render()
+            return
+        self.seed_box.setValue(min((project.city.seed if project.city else 0), 2**31 - 1))
+        key = (_city_key(project), project.pose)
+        if key == self._city_key:
+            return
+        self._generate(project, key)
+
+    def _generate(self, project: Project, key) -> None:
+        """Generate the city and pose on a background thread (latest request wins)."""
+        self._job_id += 1
+        job = self._job_id
+        self.status.setText("generating the city…")
+
+        def work():
+            try:
+                city, pose = city_and_pose(project)
+            except Exception as exc:  # noqa: BLE001 — shown in the view's status line
+                self.failed.emit(f"{type(exc).__name__}: {exc}")
+                return
+            self.cityReady.emit((job, key, city, pose))
+        threading.Thread(target=work, name="workbench-city", daemon=True).start()
+
+    def _city_ready(self, payload) -> None:
+        job, key, city, pose = payload
+        if job != self._job_id:
+            return
+        same_city = self._city_key is not None and self._city_key[0] == key[0]
+        self._city_key = key
+        self.pose = pose
+        p = pose.position_m
+        for name, value in zip(("x", "y", "height", "pan", "tilt", "roll"),
+                               (p[0], p[1], p[2], pose.pan_deg, pose.tilt_deg, pose.roll_deg)):
+            box = self.pose_boxes[name]
+            box.blockSignals(True)
+            box.setValue(float(value))
+            box.blockSignals(False)
+        if not same_city or self.city is None:
+            self.city = city
+            self._redraw_city(reset_view=True)
+        else:
+            self._redraw_camera()
+        self.status.setText(f"{len(city.objects)} objects; camera at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.2f}) m, "
+                            f"pan {pose.pan_deg:.1f}°")
+
+    def _hfov_deg(self) -> float:
+        from workbench.pipeline import camera_hfov_deg
+        return float(self.project.scene.fov_deg or camera_hfov_deg(self.project))
+
+    def _redraw_city(self, reset_view: bool = False) -> None:
+        if self.city is None:
+            return
+        from workbench.scene.city.view import add_city_to_plotter
+        self.plotter.clear()
+        add_city_to_plotter(self.plotter, self.city, color_by="class" if self.by_class.isChecked() else "material")
+        self._redraw_camera(reset_view=reset_view)
+
+    def _redraw_camera(self, reset_view: bool = False) -> None:
+        if self.city is None or self.pose is None:
+            return
+        from workbench.scene.city.view import add_camera_frustum, look_through
+        hfov = self._hfov_deg()
+        if self.look_through.isChecked():
+            self.plotter.remove_actor("city_camera")
+            self._remove_gizmo()
+            look_through(self.plotter, self.pose, hfov)
+        else:
+            add_camera_frustum(self.plotter, self.pose, hfov, frustum_length_m=12.0)
+            self._place_gizmo()
+            if reset_view:
+                self._overview()
+        self.render()
+
+    def _overview(self) -> None:
+        """An oblique view from behind and above the camera, showing the city around it."""
+        from workbench.scene.city.poses import pose_basis
+        f, _r, _u = pose_basis(self.pose)
+        p = np.asarray(self.pose.position_m, dtype=float)
+        self.plotter.camera.focal_point = tuple(p + 25 * f)
+        self.plotter.camera.position = tuple(p - 45 * f + np.array([0.0, 0.0, 35.0]))
+        self.plotter.camera.up = (0.0, 0.0, 1.0)
+        self.plotter.camera.view_angle = 45.0
+        self.plotter.reset_camera_clipping_range()
+
+    def _place_gizmo(self) -> None:
+        self._remove_gizmo()
+        self._gizmo = self.plotter.add_sphere_widget(
+            self._gizmo_moved, center=tuple(self.pose.position_m), radius=1.2, color="magenta",
+            style="surface", interaction_event="end")
+
+    def _remove_gizmo(self) -> None:
+        if self._gizmo is not None:
+            self.plotter.clear_sphere_widgets()
+            self._gizmo = None
+
+    def render(self) -> None:
+        self.plotter.render()
+
+    # -- view → document -------------------------------------------------------------------
+    def _gizmo_moved(self, center) -> None:
+        """The camera gizmo was dropped: move the camera there (keeping its height and angles)."""
+        x, y = float(center[0]), float(center[1])
+        if self.pose is None or np.hypot(x - self.pose.position_m[0], y - self.pose.position_m[1]) < 0.01:
+            return                        # placed, not moved
+        self.pose_boxes["x"].setValue(x)
+        self.pose_boxes["y"].setValue(y)
+        self.apply_typed_pose()
+
+    def typed_pose(self) -> dict:
+        b = {k: box.value() for k, box in self.pose_boxes.items()}
+        return {"mode": "manual", "manual_position_xy_m": (b["x"], b["y"]), "height_m": b["height"],
+                "manual_pan_deg": b["pan"], "manual_tilt_deg": b["tilt"], "manual_roll_deg": b["roll"]}
+
+    def apply_typed_pose(self) -> None:
+        try:
+            self.document.edit("pose", self.typed_pose())
+        except ValueError as exc:
+            self.status.setText(f"pose not set: {exc}")
+
+    def close_view(self) -> None:
+        self._job_id += 1
+        self.plotter.close()

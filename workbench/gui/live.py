@@ -1,0 +1,221 @@
+"""The live pipeline: one background thread runs workbench.pipeline.Pipeline on the newest project.
+
+"Latest edit wins": submit() during a run cancels it through its CancelToken and the thread starts
+again on the newest project; only the stages downstream of the edit recompute (the pipeline's
+cache). A city whose render inputs changed is drawn progressively: first a low-sample preview,
+then the project's own sampling, each cancelled by the next edit. Results reach the GUI thread as
+numpy arrays (Frame) through a queued signal; the GUI thread never waits on the worker.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from PySide6.QtCore import QObject, Signal
+
+from workbench.jobs import CancelToken, JobCancelled
+from workbench.pipeline import Pipeline
+from workbench.project import Project
+
+PREVIEW_SPP = 2          # samples per pixel of the first, quick city render after a camera move
+WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so the GUI keeps a core
+
+
+def limit_worker_threads(n: int = WORKER_THREADS) -> None:
+    """Cap the compute libraries the worker uses (process-wide) so the GUI thread is not starved;
+    called before every run, as torch and Dr.Jit load lazily. OpenMP/BLAS pools are capped by
+    app.py's environment before numpy loads."""
+    import sys
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(n)
+    if "drjit" in sys.modules:          # imported by the first render (which sets its LLVM path)
+        sys.modules["drjit"].set_thread_count(n)
+
+
+@dataclass
+class Frame:
+    """One pipeline result, as the preview panes need it (all numpy, made in the worker).
+
+    irradiance_photons: H×W×Nλ photons/s/m²/nm; irradiance_rgb: its H×W×3 sRGB preview in [0,1].
+    raw_dn: H×W digital numbers; max_dn: the clip code; cfa_tile/channel_names: the mosaic.
+    linear: H×W×K demosaiced channels in [0,1]; linear_rgb: H×W×3 of them for display.
+    srgb: H×W×3 in [0,1]. signal_rate_e_per_s: H×W noise-free pixel signal (for the sweep)."""
+
+    project: Project
+    irradiance_photons: np.ndarray
+    wavelengths_nm: np.ndarray
+    irradiance_rgb: np.ndarray
+    raw_dn: np.ndarray
+    max_dn: float
+    cfa_tile: np.ndarray
+    channel_names: list[str]
+    linear: np.ndarray
+    linear_rgb: np.ndarray
+    srgb: np.ndarray
+    signal_rate_e_per_s: np.ndarray
+    optics_level: str
+    optics_reason: str
+    stage_times_s: dict[str, float]
+    recomputed: list[str]
+    preview: bool = False
+    submitted_at: float = 0.0
+    isp_notes: list[str] = field(default_factory=list)
+
+
+def _optics_level(oi, project: Project) -> tuple[str, str]:
+    meta = oi.meta or {}
+    auto = meta.get("auto")
+    if isinstance(auto, dict):
+        return f"auto → {auto.get('chosen', meta.get('model', '?'))}", str(auto.get("why", ""))
+    return str(meta.get("model", project.optics.model)), ""
+
+
+class FrameBuilder:
+    """Turns a pipeline's stages into a Frame, re-deriving display arrays only for stages that ran."""
+
+    def __init__(self) -> None:
+        self._irr_key = None
+        self._irr_rgb = None
+
+    def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float) -> Frame:
+        from workbench.previews import channels_to_rgb, irradiance_preview
+        oi = pipe.optical_image()
+        img = pipe.sensor_image()
+        isp = pipe.isp_result()
+        if self._irr_key is not oi:
+            self._irr_rgb = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta).astype(np.float32)
+            self._irr_key = oi
+        level, reason = _optics_level(oi, project)
+        return Frame(project=project, irradiance_photons=oi.irradiance_photons,
+                     wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=self._irr_rgb,
+                     raw_dn=img.dn, max_dn=float(img.max_dn), cfa_tile=np.asarray(img.cfa_tile),
+                     channel_names=list(img.channel_names), linear=isp.linear,
+                     linear_rgb=np.clip(channels_to_rgb(isp.linear, list(isp.channel_names)), 0, 1).astype(np.float32),
+                     srgb=np.asarray(isp.srgb, dtype=np.float32), signal_rate_e_per_s=pipe.signal_rate(),
+                     optics_level=level, optics_reason=reason, stage_times_s=dict(pipe.stage_times_s),
+                     recomputed=list(pipe.recomputed), preview=preview, submitted_at=submitted_at,
+                     isp_notes=list(getattr(isp, "notes", []) or []))
+
+
+def _render_inputs_changed(old: Project | None, new: Project) -> bool:
+    if new.scene.kind != "city":
+        return False
+    if old is None:
+        return True
+    return (old.city, old.pose, old.render, old.seed, old.scene, old.sensor.rows, old.sensor.cols) != \
+           (new.city, new.pose, new.render, new.seed, new.scene, new.sensor.rows, new.sensor.cols)
+
+
+class LiveRunner(QObject):
+    """Owns one worker thread and one Pipeline; submit(project) → frameReady(Frame) later.
+
+    Signals (delivered on the GUI thread): frameReady(Frame), progress(str stage, float 0…1),
+    failed(str message), busyChanged(bool)."""
+
+    frameReady = Signal(object)
+    progress = Signal(str, float)
+    failed = Signal(str)
+    busyChanged = Signal(bool)
+
+    def __init__(self, parent=None, preview_spp: int = PREVIEW_SPP):
+        super().__init__(parent)
+        self.preview_spp = preview_spp
+        self._cond = threading.Condition()
+        self._pending: tuple[Project, float] | None = None
+        self._token: CancelToken | None = None
+        self._stop = False
+        self.pipeline: Pipeline | None = None
+        self._preview_pipeline: Pipeline | None = None
+        self._builder = FrameBuilder()
+        self._preview_builder = FrameBuilder()
+        self._last_full: Project | None = None
+        self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
+        self._thread.start()
+
+    # -- GUI thread ------------------------------------------------------------------------
+    def submit(self, project: Project) -> None:
+        """Run the pipeline on `project` as soon as possible; supersedes any pending or running run."""
+        with self._cond:
+            self._pending = (project, time.perf_counter())
+            if self._token is not None:
+                self._token.cancel()
+            self._cond.notify()
+
+    def cancel(self) -> None:
+        """Stop the current run and drop any pending one."""
+        with self._cond:
+            self._pending = None
+            if self._token is not None:
+                self._token.cancel()
+
+    def shutdown(self, timeout_s: float = 10.0) -> None:
+        with self._cond:
+            self._stop = True
+            self._pending = None
+            if self._token is not None:
+                self._token.cancel()
+            self._cond.notify()
+        self._thread.join(timeout_s)
+
+    @property
+    def busy(self) -> bool:
+        with self._cond:
+            return self._token is not None or self._pending is not None
+
+    # -- worker thread ---------------------------------------------------------------------
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while self._pending is None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                project, submitted_at = self._pending
+                self._pending = None
+                token = self._token = CancelToken()
+            self.busyChanged.emit(True)
+            limit_worker_threads()
+            try:
+                self._run(project, submitted_at, token)
+            except JobCancelled:
+                pass
+            except Exception as exc:  # noqa: BLE001 — shown to the user, the worker lives on
+                if not token.cancelled:
+                    self.failed.emit(f"{type(exc).__name__}: {exc}")
+            finally:
+                with self._cond:
+                    self._token = None
+                    idle = self._pending is None
+                if idle:
+                    self.busyChanged.emit(False)
+
+    def _drive(self, pipe: Pipeline, token: CancelToken) -> None:
+        job = pipe.run_job(token)
+        while True:
+            try:
+                p = next(job)
+            except StopIteration:
+                return
+            token.check()
+            self.progress.emit(p.message, p.fraction)
+
+    def _run(self, project: Project, submitted_at: float, token: CancelToken) -> None:
+        if self.pipeline is None:
+            self.pipeline = Pipeline(project)
+        if (_render_inputs_changed(self._last_full, project) and project.render.spp is not None
+                and project.render.spp > self.preview_spp):
+            quick = project.updated(render=project.render.updated(spp=self.preview_spp))
+            if self._preview_pipeline is None:
+                self._preview_pipeline = Pipeline(quick)
+            self._preview_pipeline.set_project(quick)
+            self._drive(self._preview_pipeline, token)
+            token.check()
+            self.frameReady.emit(self._preview_builder.build(self._preview_pipeline, project, True, submitted_at))
+        self.pipeline.set_project(project)
+        self._drive(self.pipeline, token)
+        token.check()
+        frame = self._builder.build(self.pipeline, project, False, submitted_at)
+        self._last_full = project
+        self.frameReady.emit(frame)

@@ -1,0 +1,191 @@
+"""The four live preview panes: irradiance, raw, linear, sRGB (pyqtgraph ImageItem + histogram).
+
+The panes share one zoom/pan (linked view boxes); a pixel inspector under each pane shows the value
+and unit under the cursor (photons/s/m²/nm summed over bands or at one band for irradiance, DN and
+the pixel's CFA colour for raw, channel values for linear and sRGB); clipped pixels (raw at the
+largest code) can be highlighted in red on the raw, linear and sRGB panes.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout,
+                               QWidget)
+
+pg.setConfigOptions(imageAxisOrder="row-major", antialias=False)
+
+PANES = ("irradiance", "raw", "linear", "srgb")
+TITLES = {"irradiance": "Irradiance (sensor plane)", "raw": "Raw (mosaic, DN)",
+          "linear": "Linear (demosaiced)", "srgb": "sRGB (full ISP)"}
+CLIP_RGBA = (255, 0, 0, 200)
+
+
+class PreviewPane(QWidget):
+    """One image with its histogram/levels, title, and inspector line."""
+
+    def __init__(self, name: str, parent=None):
+        super().__init__(parent)
+        self.name = name
+        self.view_widget = pg.GraphicsLayoutWidget()
+        self.view_widget.setBackground("k")
+        self.view_widget.ci.setContentsMargins(2, 2, 2, 2)
+        self.viewbox = self.view_widget.addViewBox(row=0, col=0, lockAspect=True, invertY=True)
+        self.viewbox.setMenuEnabled(False)
+        self.image = pg.ImageItem()
+        self.clip_overlay = pg.ImageItem()
+        self.clip_overlay.setZValue(10)
+        self.viewbox.addItem(self.image)
+        self.viewbox.addItem(self.clip_overlay)
+        self.histogram = pg.HistogramLUTItem(image=self.image, fillHistogram=True)
+        self.histogram.setMaximumWidth(90)
+        self.view_widget.addItem(self.histogram, row=0, col=1)
+        self.title = QLabel(f"<b>{TITLES[name]}</b>")
+        self.inspector = QLabel("—")
+        self.inspector.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        top = QHBoxLayout()
+        top.addWidget(self.title)
+        top.addStretch(1)
+        self.band = None
+        if name == "irradiance":
+            self.band = QComboBox()
+            self.band.setToolTip("inspect the irradiance summed over all bands or at one band")
+            self.band.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
+            top.addWidget(self.band)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(2, 2, 2, 2)
+        lay.setSpacing(1)
+        lay.addLayout(top)
+        lay.addWidget(self.view_widget, 1)
+        lay.addWidget(self.inspector)
+        self._shape: tuple[int, int] | None = None
+        self._shown: np.ndarray | None = None
+
+    def set_image(self, array: np.ndarray, levels: tuple[float, float]) -> None:
+        """Show array; the very array already shown (a stage that came from the cache) is skipped."""
+        if array is self._shown:
+            return
+        self._shown = array
+        first = self._shape is None or self._shape != array.shape[:2]
+        self.image.setImage(array, autoLevels=False, levels=levels)
+        self.histogram.setLevels(*levels)
+        if first:
+            self._shape = array.shape[:2]
+            self.viewbox.autoRange(padding=0)
+
+    def set_clip_mask(self, mask: np.ndarray | None) -> None:
+        if mask is None or not mask.any():
+            self.clip_overlay.clear()
+            return
+        rgba = np.zeros(mask.shape + (4,), np.uint8)
+        rgba[mask] = CLIP_RGBA
+        self.clip_overlay.setImage(rgba, autoLevels=False, levels=(0, 255))
+
+
+class PreviewPanes(QWidget):
+    """The four panes in a 2×2 grid with shared zoom/pan; show_frame(frame) updates them."""
+
+    inspected = Signal(str)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.panes = {name: PreviewPane(name) for name in PANES}
+        grid = QGridLayout()
+        grid.setContentsMargins(0, 0, 0, 0)
+        for i, name in enumerate(PANES):
+            grid.addWidget(self.panes[name], i // 2, i % 2)
+        first = self.panes[PANES[0]].viewbox
+        for name in PANES[1:]:
+            self.panes[name].viewbox.setXLink(first)
+            self.panes[name].viewbox.setYLink(first)
+        self.highlight_clipped = QCheckBox("Highlight clipped pixels")
+        self.highlight_clipped.setToolTip("raw pixels at the largest code, in red")
+        self.highlight_clipped.toggled.connect(self._update_clip)
+        bar = QHBoxLayout()
+        bar.addWidget(self.highlight_clipped)
+        bar.addStretch(1)
+        lay = QVBoxLayout(self)
+        lay.setContentsMargins(0, 0, 0, 0)
+        lay.addLayout(bar)
+        lay.addLayout(grid, 1)
+        self.frame = None
+        self.frames_shown = 0
+        for name, pane in self.panes.items():
+            pane.view_widget.scene().sigMouseMoved.connect(lambda pos, n=name: self._mouse_moved(n, pos))
+        self.panes["irradiance"].band.currentIndexChanged.connect(lambda _i: self._refresh_inspectors())
+        self._last_px: tuple[int, int] | None = None
+
+    # -- images ----------------------------------------------------------------------------
+    def show_frame(self, frame) -> None:
+        """Show a live.Frame (numpy arrays) in the four panes."""
+        new_bands = self.frame is None or not np.array_equal(self.frame.wavelengths_nm, frame.wavelengths_nm)
+        self.frame = frame
+        p = self.panes
+        p["irradiance"].set_image(frame.irradiance_rgb, (0.0, 1.0))
+        p["raw"].set_image(frame.raw_dn, (0.0, frame.max_dn))
+        p["linear"].set_image(frame.linear_rgb, (0.0, 1.0))
+        p["srgb"].set_image(frame.srgb, (0.0, 1.0))
+        if new_bands:
+            combo = p["irradiance"].band
+            combo.blockSignals(True)
+            combo.clear()
+            combo.addItem("Σ all bands")
+            for wl in frame.wavelengths_nm:
+                combo.addItem(f"{wl:g} nm")
+            combo.blockSignals(False)
+        self._update_clip()
+        self._refresh_inspectors()
+        self.frames_shown += 1
+
+    def clipped_mask(self) -> np.ndarray | None:
+        if self.frame is None:
+            return None
+        return self.frame.raw_dn >= self.frame.max_dn
+
+    def _update_clip(self) -> None:
+        mask = self.clipped_mask() if self.highlight_clipped.isChecked() else None
+        for name in ("raw", "linear", "srgb"):
+            self.panes[name].set_clip_mask(mask)
+
+    # -- inspector -------------------------------------------------------------------------
+    def _mouse_moved(self, name: str, scene_pos) -> None:
+        if self.frame is None:
+            return
+        pt = self.panes[name].viewbox.mapSceneToView(scene_pos)
+        r, c = int(np.floor(pt.y())), int(np.floor(pt.x()))
+        h, w = self.frame.raw_dn.shape
+        self._last_px = (r, c) if 0 <= r < h and 0 <= c < w else None
+        self._refresh_inspectors()
+
+    def _refresh_inspectors(self) -> None:
+        texts = self.describe_pixel(self._last_px)
+        for name, pane in self.panes.items():
+            pane.inspector.setText(texts.get(name, "—"))
+        if self._last_px is not None:
+            self.inspected.emit(" | ".join(texts[n] for n in PANES))
+
+    def describe_pixel(self, px: tuple[int, int] | None) -> dict[str, str]:
+        """The inspector text of each pane for pixel (row, col) of the current frame."""
+        f = self.frame
+        if f is None or px is None:
+            return {}
+        r, c = px
+        where = f"({c}, {r})"
+        h, w = f.raw_dn.shape
+        ih, iw = f.irradiance_photons.shape[:2]
+        ir, ic = min(ih - 1, r * ih // h), min(iw - 1, c * iw // w)
+        spectrum = f.irradiance_photons[ir, ic]
+        band = self.panes["irradiance"].band.currentIndex()
+        if band <= 0:
+            irr = f"{where} E summed over {len(spectrum)} bands = {float(spectrum.sum()):.4g} photons/s/m²/nm"
+        else:
+            irr = f"{where} E({f.wavelengths_nm[band - 1]:g} nm) = {float(spectrum[band - 1]):.4g} photons/s/m²/nm"
+        th, tw = f.cfa_tile.shape
+        colour = f.channel_names[int(f.cfa_tile[r % th, c % tw])]
+        dn = float(f.raw_dn[r, c])
+        clipped = " (clipped)" if dn >= f.max_dn else ""
+        raw = f"{where} {dn:g} DN of {f.max_dn:g}, CFA {colour}{clipped}"
+        lin = ", ".join(f"{n} {float(v):.4f}" for n, v in zip(f.channel_names, f.linear[r, c]))
+        s = f.srgb[r, c]
+        srgb = f"{where} R {s[0]:.3f} G {s[1]:.3f} B {s[2]:.3f} ({', '.join(str(int(round(255 * v))) for v in s)} /255)"
+        return {"irradiance": irr, "raw": raw, "linear": f"{where} {lin} (of full scale)", "srgb": srgb}

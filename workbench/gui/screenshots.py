@@ -1,0 +1,118 @@
+"""Screenshots for the README (`python -m workbench.gui.screenshots docs/ [--results FOLDER]`):
+the main window on the city sample, the lens editor, the exposure-sweep panel after a sweep, and
+the experiments panel on a result folder. Runs on a private Xvfb when there is no display."""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+
+def _wait(app, predicate, timeout_s: float) -> None:
+    from workbench.gui.bench import _wait as wait_in_loop
+    if not wait_in_loop(app, predicate, timeout_s):
+        raise TimeoutError("the window did not get there in time")
+
+
+def _settle(app, seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        app.processEvents()
+        time.sleep(0.01)
+
+
+def _save(widget, path: Path) -> Path:
+    if not widget.grab().save(str(path)):
+        raise OSError(f"could not write {path}")
+    print(f"wrote {path}")
+    return path
+
+
+def take(out: Path, results: Path | None, size=(240, 320)) -> list[Path]:
+    from PySide6.QtWidgets import QApplication, QMessageBox
+
+    import workbench.gui  # noqa: F401
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    from workbench.project import load_project
+    app = QApplication.instance() or QApplication(["workbench-screenshots"])
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    city = load_project("city_paper_camera")
+    city = city.updated(sensor=city.sensor.updated(rows=size[0], cols=size[1]))
+    win = MainWindow(Document(city))
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    win.resize(1600, 1000)
+    win.show()
+    win.previews.highlight_clipped.setChecked(False)
+    _wait(app, lambda: win.city_view.city is not None and win.previews.frame is not None
+          and not win.previews.frame.preview and not win.live.busy, 900)
+    win.docks["Sensor"].raise_()
+    _settle(app, 1.0)
+    win.city_view.render()            # redraw the GL view at its final size
+    _settle(app, 1.0)
+    written.append(_save(win, out / "window-city.png"))
+
+    lens = win.editors.get("Lens")
+    if lens is not None:
+        auto = load_project("city_automotive_lens_full_model")
+        lens.setParent(None)
+        lens.resize(1300, 900)
+        lens.set_project(auto)
+        lens.show()
+        _settle(app, 15.0)
+        written.append(_save(lens, out / "lens-editor.png"))
+
+    sweep = win.editors.get("Exposure sweep")
+    if sweep is not None:
+        sweep.setParent(None)
+        sweep.resize(1300, 700)
+        sweep.show()
+        frame = win.previews.frame
+        sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.wavelengths_nm)
+        done = []
+        sweep.sweep_finished.connect(done.append)
+        sweep.run()
+        _wait(app, lambda: bool(done), 600)
+        _settle(app, 1.0)
+        written.append(_save(sweep, out / "sweep-panel.png"))
+
+    experiments = win.editors.get("Experiments")
+    if experiments is not None and results is not None:
+        experiments.setParent(None)
+        experiments.resize(1300, 800)
+        experiments.show()
+        experiments.set_project(city)
+        if not experiments.open_folder(results):
+            raise FileNotFoundError(f"no experiment results under {results}")
+        _settle(app, 2.0)
+        written.append(_save(experiments, out / "experiments-panel.png"))
+    win.document.undo_stack.setClean()
+    win.close()
+    for w in (lens, sweep, experiments):
+        if w is not None:
+            w.close()
+    app.processEvents()
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("out", type=Path, help="folder for the PNG files")
+    parser.add_argument("--results", type=Path, default=None, help="an experiment result folder to show")
+    args = parser.parse_args(argv)
+    import os
+    import tempfile
+    os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
+    from workbench.gui.display import virtual_display
+    with virtual_display("1700x1100x24"):
+        take(args.out, args.results)
+        import shiboken6
+        from PySide6.QtWidgets import QApplication
+        shiboken6.delete(QApplication.instance())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,190 @@
+"""Night lighting: street-lamp and vehicle-light spectra, photometric calibration, Mitsuba emitters.
+
+Spectra (relative spectral power, generated from analytic shapes; facts from lamp literature):
+- 'lps' low-pressure sodium: the Na D doublet 589.0/589.6 nm carries almost all visible power;
+  the 818.3/819.5 nm Na doublet adds strong NIR (≈ 0.25 of the D-line power).
+- 'hps' high-pressure sodium: pressure-broadened D lines with the self-reversed dip at 589 nm
+  (wings peaking near 581 and 597 nm), Na lines at 498, 568, 616 nm, the 819 nm NIR doublet and
+  a weak continuum.
+- 'led' phosphor-converted white LED (~4000 K): InGaN pump at 450 nm (FWHM ≈ 20 nm) plus a
+  YAG:Ce phosphor band centred ≈ 565 nm (FWHM ≈ 130 nm); essentially no power past ~780 nm.
+- 'metal_halide' (quartz, Na–Tl–In–Sc): weak continuum plus Hg 436/546/577, In 410/451,
+  Tl 535, Na 589 (broad), Sc 500–620 cluster; NIR Na 819 nm.
+- 'halogen' headlight: a 3200 K blackbody (tungsten), strong in the NIR.
+- 'led_red' tail-light: red AlInGaP LED, 625 nm, FWHM ≈ 18 nm.
+Street lamps are full-cut-off point sources: uniform intensity over the lower hemisphere, none
+upward (the housing), scaled so that the luminous flux Φ_v = 683 lm/W · ∫ 2π I(λ) V(λ) dλ equals
+the rated flux: E_v(d) = Φ_v / (2π d²) straight below at distance d. (A point inside the head
+lighting its underside from 5 cm would be a firefly source.) Vehicle lights
+are Mitsuba `spot` emitters given their peak luminous intensity (cd) along the beam. Each
+emitter's `sampling_weight` (Mitsuba picks the light for next-event estimation in proportion)
+is its luminous flux, or for a spot an upper bound peak × cone solid angle, so that the dim
+tail-lights and the sky glow do not take samples from the street lamps.
+Radiometric units: intensity W/sr/nm (energy), like the daylight spectra.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.spectra import blackbody_spd, luminous_efficiency
+
+LAMP_KINDS = ("lps", "hps", "led", "metal_halide")
+# typical rated luminous flux of a street lamp of each kind (lm): LPS 90 W, HPS 150 W,
+# LED ~80 W luminaire, metal halide 150 W
+RATED_FLUX_LM = {"lps": 13500.0, "hps": 15000.0, "led": 10000.0, "metal_halide": 12000.0}
+LUMINOUS_EFFICACY_LM_W = 683.0
+VEHICLE_CLASSES = ("car", "bus", "truck")     # objects whose lens_clear / lens_red meshes are lamps
+HEMISPHERE_CUTOFF_DEG = 89.9        # street lamps: full cut-off (no light above the horizontal)
+# fine grid so that 1-nm-wide lines are resolved (Mitsuba interpolates linearly between samples)
+LAMP_WAVELENGTHS_NM = np.arange(300.0, 1100.01, 0.25)
+
+
+def _g(wl, centre_nm, fwhm_nm, power=1.0):
+    """Gaussian line of unit area × power."""
+    s = fwhm_nm / 2.3548
+    return power * np.exp(-0.5 * ((wl - centre_nm) / s) ** 2) / (s * np.sqrt(2 * np.pi))
+
+
+def lamp_spectrum(kind: str, wavelengths_nm: np.ndarray = LAMP_WAVELENGTHS_NM) -> np.ndarray:
+    """Relative spectral power (W/nm, arbitrary scale, ≥ 0) of a lamp kind (module docstring)."""
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    if kind == "lps":
+        return _g(wl, 589.0, 1.0, 0.6) + _g(wl, 589.6, 1.0, 0.4) + _g(wl, 818.9, 1.5, 0.25)
+    if kind == "hps":
+        return (_g(wl, 581.0, 12.0, 0.35) + _g(wl, 597.0, 16.0, 0.45) + _g(wl, 568.8, 3.0, 0.05)
+                + _g(wl, 615.9, 3.0, 0.05) + _g(wl, 498.0, 2.0, 0.03) + _g(wl, 819.0, 3.0, 0.18)
+                + 0.0008 * ((wl > 380) & (wl < 1000)))
+    if kind == "led":
+        return _g(wl, 450.0, 20.0, 0.30) + _g(wl, 565.0, 130.0, 0.70)
+    if kind == "metal_halide":
+        return (0.0010 * ((wl > 380) & (wl < 1000)) + _g(wl, 435.8, 2.0, 0.04) + _g(wl, 546.1, 2.0, 0.06)
+                + _g(wl, 577.5, 2.0, 0.03) + _g(wl, 410.2, 2.0, 0.04) + _g(wl, 451.1, 2.0, 0.06)
+                + _g(wl, 535.0, 2.0, 0.10) + _g(wl, 589.3, 8.0, 0.12) + _g(wl, 560.0, 60.0, 0.15)
+                + _g(wl, 819.0, 3.0, 0.04))
+    if kind == "halogen":
+        return blackbody_spd(3200.0, wl)
+    if kind == "led_red":
+        return _g(wl, 625.0, 18.0)
+    raise ValueError(f"unknown lamp kind {kind!r}; known: {', '.join(LAMP_KINDS + ('halogen', 'led_red'))}")
+
+
+def luminous_intensity_spectrum(kind: str, intensity_cd: float,
+                                wavelengths_nm: np.ndarray = LAMP_WAVELENGTHS_NM) -> np.ndarray:
+    """Radiant intensity I(λ) (W/sr/nm) of the lamp's spectrum scaled to `intensity_cd` candela:
+    683 ∫ I V dλ = intensity_cd."""
+    if not intensity_cd > 0:
+        raise ValueError(f"intensity_cd must be > 0, got {intensity_cd}")
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    s = lamp_spectrum(kind, wl)
+    lum = LUMINOUS_EFFICACY_LM_W * np.trapezoid(s * luminous_efficiency(wl), wl)
+    return s * (intensity_cd / lum)
+
+
+def hemisphere_intensity_cd(flux_lm: float) -> float:
+    """Luminous intensity (cd) of a source spreading `flux_lm` evenly over a hemisphere: Φ/(2π)."""
+    if not flux_lm > 0:
+        raise ValueError(f"flux_lm must be > 0, got {flux_lm}")
+    return float(flux_lm / (2 * np.pi))
+
+
+def _spectrum(kind: str, intensity_cd: float) -> dict:
+    wl = LAMP_WAVELENGTHS_NM
+    return {"type": "spectrum", "value": list(zip(wl.tolist(),
+                                                   luminous_intensity_spectrum(kind, intensity_cd, wl).tolist()))}
+
+
+def street_lamp_emitter(position_m, kind: str, flux_lm: float | None = None) -> dict:
+    """Mitsuba emitter of a full-cutoff street lamp of `kind` at position_m: luminous flux
+    `flux_lm` (default RATED_FLUX_LM[kind]) spread evenly over the lower hemisphere, I = Φ/(2π),
+    none upward (the luminaire housing)."""
+    if kind not in LAMP_KINDS:
+        raise ValueError(f"street lamp kind must be one of {LAMP_KINDS}, got {kind!r}")
+    flux = RATED_FLUX_LM[kind] if flux_lm is None else float(flux_lm)
+    return spot_emitter(position_m, (0.0, 0.0, -1.0), kind, hemisphere_intensity_cd(flux),
+                        cutoff_deg=HEMISPHERE_CUTOFF_DEG, beam_deg=HEMISPHERE_CUTOFF_DEG - 0.1)
+
+
+def spot_emitter(position_m, direction, kind: str, peak_cd: float, cutoff_deg: float,
+                 beam_deg: float) -> dict:
+    """Mitsuba `spot` emitter: `peak_cd` along `direction`, full within beam_deg, 0 past cutoff_deg
+    (a smooth falloff between)."""
+    import mitsuba as mi
+
+    p = np.asarray(position_m, dtype=np.float64)
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    up = [0.0, 0.0, 1.0] if abs(d[2]) < 0.9 else [1.0, 0.0, 0.0]
+    cone_sr = 2 * np.pi * (1 - np.cos(np.radians(cutoff_deg)))
+    return {"type": "spot", "cutoff_angle": float(cutoff_deg), "beam_width": float(beam_deg),
+            "sampling_weight": float(peak_cd * cone_sr),            # ≥ its flux (lm): for light selection
+            "to_world": mi.ScalarTransform4f().look_at(origin=p.tolist(), target=(p + d).tolist(), up=up),
+            "intensity": _spectrum(kind, peak_cd)}
+
+
+def _lamp_head_points(city) -> list[np.ndarray]:
+    """Emitter points of the city's street lamps: 2 cm below the centre of each lamp's highest
+    'metal_dark' mesh (the luminaire head; assets._lamp)."""
+    points = []
+    for obj in city.objects:
+        if obj.class_name != "lamp":
+            continue
+        heads = [m.vertices for m in obj.meshes if m.material == "metal_dark"]
+        if not heads:
+            raise ValueError(f"lamp {obj.instance_id} has no 'metal_dark' luminaire head mesh")
+        head = max(heads, key=lambda v: v[:, 2].max())
+        lo, hi = head.min(0), head.max(0)
+        points.append(np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - 0.02]))
+    return points
+
+
+def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(position, outward horizontal direction) of the left and right lamps of a vehicle made of
+    the `material` mesh (two lamp boxes, split across the vehicle's width)."""
+    lenses = [m.vertices for m in obj.meshes if m.material == material]
+    if not lenses:
+        return []
+    v = np.concatenate(lenses)
+    body = np.concatenate([m.vertices for m in obj.meshes])
+    centre = body.mean(0)
+    out = v.mean(0) - centre
+    out[2] = 0.0
+    out /= np.linalg.norm(out)
+    side = np.array([-out[1], out[0], 0.0])
+    s = (v - v.mean(0)) @ side
+    result = []
+    for half in (s < 0, s >= 0):
+        if half.any():
+            p = v[half]
+            lo, hi = p.min(0), p.max(0)
+            front = ((p - centre) @ out).max()
+            pos = (lo + hi) / 2
+            pos = pos + out * (front - (pos - centre) @ out + 0.02)      # 2 cm in front of the lens
+            result.append((pos, out))
+    return result
+
+
+def night_emitters(city, night) -> dict:
+    """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights, sky glow."""
+    from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM
+
+    out = {}
+    for i, p in enumerate(_lamp_head_points(city)):
+        out[f"street_lamp_{i}"] = street_lamp_emitter(p, night.lamp_kind, night.lamp_flux_lm)
+    if night.vehicle_lights:
+        for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES):
+            for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_clear")):
+                beam = d + np.array([0.0, 0.0, -0.03])          # low beam aimed ~1.7° down
+                out[f"headlight_{obj.instance_id}_{j}"] = spot_emitter(
+                    p, beam, night.headlight_kind, night.headlight_cd, cutoff_deg=30.0, beam_deg=10.0)
+            for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_red")):
+                out[f"taillight_{obj.instance_id}_{j}"] = spot_emitter(
+                    p, d, "led_red", night.taillight_cd, cutoff_deg=60.0, beam_deg=20.0)
+    if night.sky_luminance_cd_m2 > 0:
+        wl = DAYLIGHT_WAVELENGTHS_NM
+        shape = blackbody_spd(3500.0, wl)
+        lum = LUMINOUS_EFFICACY_LM_W * np.trapezoid(shape * luminous_efficiency(wl), wl)
+        sky = shape * (night.sky_luminance_cd_m2 / lum)
+        weight = 0.01 * sum(e.get("sampling_weight", 0.0) for e in out.values()) or 1.0
+        out["sky"] = {"type": "constant", "sampling_weight": weight,
+                      "radiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sky.tolist()))}}
+    return out
