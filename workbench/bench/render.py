@@ -199,7 +199,7 @@ def bench_render(args) -> BenchResult:
         notes.append("640x480 @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
     from workbench.bench.render_features import feature_costs
     fw, fh = (64, 48) if quick else (320, 240)
-    extra["features_2pct"] = feature_costs(city, pose, reps["sensor3"], fov, fw, fh, (2, 8) if quick else (4, 16))
+    extra["features_2pct"] = feature_costs(city, pose, reps["sensor3"], fov, fw, fh, (2, 8) if quick else (8, 64))
     for item in extra["features_2pct"]:
         notes.append(f"feature {fw}x{fh} @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
     notes.append(f"spp = (c/0.02)² with c from the {last} rows; "
