@@ -4,7 +4,7 @@ bar, the GUI from a worker thread."""
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Generator, TypeVar
 
 T = TypeVar("T")
@@ -12,11 +12,13 @@ T = TypeVar("T")
 
 @dataclass(frozen=True)
 class Progress:
-    """done of total steps, and what is being done."""
+    """done of total steps, and what is being done; preview: an optional partial result the
+    window may show (e.g. a render's H×W×Nλ radiance so far), None when there is none."""
 
     done: float
     total: float
     message: str = ""
+    preview: object = field(default=None, compare=False, repr=False)
 
     @property
     def fraction(self) -> float:

@@ -1,100 +1,129 @@
 """The staged, cached simulation: scene → optics → pixel signal → sensor → ISP.
 
-Each stage is a pure function of its inputs and of the project sections it reads, so a stage is
-recomputed only when one of those changed: moving an ISP parameter re-runs the ISP alone, a
-sensor exposure or noise parameter re-runs the exposure from the cached pixel signal, and the
-optics run again only when the scene or the optics change.
+The pipeline only orchestrates: the stage functions live in workbench.stages (camera geometry,
+charts, optical image), workbench.render.city_frame (city renders), workbench.sensor and
+workbench.isp. Each stage is a pure function of its inputs, and its cache key is the digest of
+exactly those inputs (stage_inputs) chained to its upstream stage's key, so a stage is
+recomputed only when something it reads changed: moving an ISP parameter re-runs the ISP alone,
+an exposure or noise parameter re-runs the sensor from the cached pixel signal, and the scene
+is re-sampled whenever the camera geometry (focus, lens, sensor size, pixel pitch) changes.
+
+Thread safety (the window drives it from a worker thread): every run works on one Snapshot of
+the project, its camera geometry and its keys, taken when the run starts; set_project may be
+called from another thread at any time and affects the next run only; the cache is locked, and
+a result is stored under the key of the snapshot it was computed from.
 """
 from __future__ import annotations
 
-import hashlib
-import json
+import itertools
+import threading
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
+from workbench.errors import check_finite
 from workbench.jobs import CancelToken, Job, Progress, run_job
+from workbench.optics.formation.geometry import CameraGeometry
 from workbench.optics.types import OpticalImage
 from workbench.project import Project
 from workbench.scene.types import Scene
 from workbench.sensor.image import SensorImage
+from workbench.stages.geometry import project_geometry
+from workbench.stages.keys import digest
 
 STAGES = ("scene", "optics", "signal", "sensor", "isp")
 
-# Sensor fields that change the noise-free pixel signal rate (e⁻/s); every other sensor field
-# (exposure, noise, gain, ADC, seed) only changes the exposure stage.
-SIGNAL_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "cfa_pattern", "filter_file",
-                 "photodiode_qe_file", "ir_cut_file")
+
+@dataclass(frozen=True)
+class FixedScene:
+    """A scene given to the pipeline (set_scene) instead of the project's chart or city; `token`
+    changes with every set_scene, so it keys the scene stage."""
+
+    scene: Scene = field(compare=False)
+    token: int
 
 
-def _digest(*parts) -> str:
-    text = json.dumps(parts, sort_keys=True, default=str)
-    return hashlib.sha1(text.encode()).hexdigest()
+def stage_inputs(project: Project, camera: CameraGeometry, fixed: FixedScene | None = None) -> dict[str, object]:
+    """What each stage reads, per stage: the scene stage the chart section and the camera
+    geometry, or a city render's inputs (city_frame.city_scene_inputs), or the fixed scene; the
+    optics stage the optics section, the geometry the scene was sampled for (None for a fixed
+    scene: its own field of view) and the illuminance adjustment; the signal stage the pixel
+    response; the sensor stage the whole sensor section; the ISP its section."""
+    if fixed is not None:
+        scene_in, optics_camera = ("fixed scene", fixed.token), None
+    elif project.scene.kind == "city":
+        from workbench.render.city_frame import city_scene_inputs
+        scene_in, optics_camera = city_scene_inputs(project), camera
+    else:
+        scene_in, optics_camera = ("chart", project.scene, camera), camera
+    return {"scene": scene_in,
+            "optics": (project.optics, optics_camera, project.scene.adjust_illuminance_lux),
+            "signal": project.sensor.pixel_response,
+            "sensor": project.sensor,
+            "isp": project.isp}
 
 
-def camera_hfov_deg(project: Project) -> float:
-    """Horizontal field of view (deg) of the sensor behind the project's optics.
-
-    The sensor sits at the image distance of the object in focus (thin-lens law), so a chart
-    sampled over this field lands exactly on the pixel grid (the sensor's fast path)."""
-    from workbench.optics.formation.geometry import image_distance_m
-    from workbench.optics.params import fov_deg
-    optics = project.optics
-    focus_m = optics.focus_distance_m if optics.focus_distance_m is not None else project.scene.distance_m
-    d_mm = 1e3 * image_distance_m(optics.focal_length_m, focus_m)
-    return fov_deg(d_mm, project.sensor.cols * project.sensor.pixel_pitch_um * 1e-3)
+def stage_keys(inputs: dict[str, object]) -> dict[str, str]:
+    """Each stage's key: its inputs' digest chained to the upstream stage's key."""
+    keys, upstream = {}, ""
+    for stage in STAGES:
+        keys[stage] = upstream = digest(stage, upstream, inputs[stage])
+    return keys
 
 
-def check_finite(stage: str, array: np.ndarray) -> None:
-    """No NaN/Inf ever leaves a stage (DESIGN.md §3)."""
-    if not np.all(np.isfinite(array)):
-        raise FloatingPointError(f"stage '{stage}' produced NaN/Inf values; this is a bug or an "
-                                 "input outside the model's range — please report the project file")
+@dataclass(frozen=True)
+class Snapshot:
+    """What one run works on: the project, the fixed scene if any, the camera geometry, and each
+    stage's inputs and key, all taken together when the run starts."""
+
+    project: Project
+    fixed: FixedScene | None
+    camera: CameraGeometry
+    inputs: dict = field(compare=False)
+    keys: dict = field(compare=False)
 
 
-def make_scene(project: Project) -> Scene:
-    """The analytic chart of the project's scene section, sampled on the camera's field."""
-    from workbench.scene.charts import CHARTS
-    sp = project.scene
-    if sp.kind == "city":
-        raise ValueError("scene.kind 'city' is rendered, not drawn: use Pipeline(project), whose scene "
-                         "stage renders frame 0 of the city")
-    size = (project.sensor.rows * sp.oversample, project.sensor.cols * sp.oversample)
-    common = dict(size=size, fov_deg=sp.fov_deg or camera_hfov_deg(project),
-                  distance_m=sp.distance_m, wavelengths_nm=sp.wavelengths.grid())
-    if sp.kind == "uniform":
-        return CHARTS["uniform"](illuminant=sp.illuminant, mean_luminance_cd_m2=sp.mean_luminance_cd_m2, **common)
-    if sp.kind == "macbeth":
-        return CHARTS["macbeth"](illuminant=sp.illuminant, mean_luminance_cd_m2=sp.mean_luminance_cd_m2, **common)
-    if sp.kind == "slanted_edge":
-        return CHARTS["slanted_edge"](angle_deg=sp.edge_angle_deg, contrast=sp.edge_contrast,
-                                      illuminant=sp.illuminant,
-                                      mean_luminance_cd_m2=sp.mean_luminance_cd_m2, **common)
-    return CHARTS["hdr_tunnel"](exit_luminance_cd_m2=sp.hdr_exit_luminance_cd_m2,
-                                tunnel_luminance_cd_m2=sp.hdr_tunnel_luminance_cd_m2, **common)
+# -- the stage computations: each sees its own inputs and the upstream result only ----------------
+def _scene_job(inputs, cancel) -> Job:
+    if isinstance(inputs, tuple):              # ("chart", scene section, camera geometry)
+        from workbench.stages.scene import chart_scene
+        return chart_scene(inputs[1], inputs[2])
+    from workbench.render.city_frame import city_scene_job, frame_seeds
+    return (yield from city_scene_job(inputs, frame_seeds(inputs.seed, 0), cancel))
 
 
-def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None) -> OpticalImage:
-    """Rescale the optical image to a mean illuminance (scene.adjust_illuminance_lux); None keeps it."""
-    from workbench import spectra
-    if target_lux is None:
-        return oi
-    lux = float(spectra.illuminance_from_photons(
-        oi.irradiance_photons.reshape(-1, oi.irradiance_photons.shape[-1]).mean(0), oi.wavelengths_nm))
-    if lux <= 0:
-        raise ValueError("scene.adjust_illuminance_lux: the optical image is black, it cannot be "
-                         "scaled to a mean illuminance")
-    oi.irradiance_photons = oi.irradiance_photons * np.float32(target_lux / lux)
+def _optics(inputs, source):
+    optics, camera, lux = inputs
+    if isinstance(source, Scene):
+        from workbench.stages.optics import form_optical_image
+        oi = form_optical_image(source, optics, camera, lux)
+    else:
+        from workbench.render.city_frame import city_optical_image
+        oi = city_optical_image(source, optics, lux)
+    check_finite("optics", oi.irradiance_photons)
     return oi
 
 
-def form_optical_image(scene: Scene, project: Project) -> OpticalImage:
-    """Run the project's optics model, then rescale to a mean illuminance if the scene asks."""
-    import workbench.optics.formation  # noqa: F401  (registers the optics models)
-    from workbench.optics.types import OPTICS_MODELS
-    oi = OPTICS_MODELS[project.optics.model](scene, project.optics)
-    return scale_to_mean_illuminance(oi, project.scene.adjust_illuminance_lux)
+def _signal(pixels, oi):
+    from workbench.sensor import irradiance_to_signal_rate
+    return check_finite("signal", irradiance_to_signal_rate(oi, pixels))
+
+
+def _sensor(sensor, upstream):
+    from workbench.sensor import resolve_exposure, signal_rate_to_sensor_image
+    oi, rate = upstream
+    image = signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), wavelengths_nm=oi.wavelengths_nm)
+    check_finite("sensor", image.dn)
+    return image
+
+
+def _isp(isp, image):
+    from workbench.isp import sensor_image_to_srgb
+    result = sensor_image_to_srgb(image, isp)
+    check_finite("isp", result.srgb)
+    return result
 
 
 @dataclass
@@ -109,129 +138,141 @@ class PipelineResult:
 
 
 class Pipeline:
-    """Cached stages over a project. Call set_project() after edits; run() recomputes what changed."""
+    """Cached stages over a project. Call set_project() after edits (from any thread); run() or
+    run_job() recomputes what changed, on a snapshot of the project taken when it starts.
+
+    recomputed lists the stages the latest call (a run or a stage getter) computed so far;
+    stage_times_s holds each stage's latest compute time (s)."""
 
     def __init__(self, project: Project, scene: Scene | None = None):
+        self._lock = threading.RLock()
+        self._tokens = itertools.count(1)
         self._project = project
-        self._fixed_scene = scene
+        self._fixed = FixedScene(scene, next(self._tokens)) if scene is not None else None
         self._cache: dict[str, tuple[str, object]] = {}
         self.stage_times_s: dict[str, float] = {}
         self.recomputed: list[str] = []
 
     @property
     def project(self) -> Project:
-        return self._project
+        with self._lock:
+            return self._project
 
     def set_project(self, project: Project) -> None:
-        self._project = project
+        """Use `project` from the next run on (a run in progress keeps its snapshot)."""
+        with self._lock:
+            self._project = project
 
     def set_scene(self, scene: Scene | None) -> None:
         """Use a given scene (e.g. radiance loaded from disk) instead of the project's chart or city."""
-        self._fixed_scene = scene
-        self._cache.pop("scene", None)
+        with self._lock:
+            self._fixed = FixedScene(scene, next(self._tokens)) if scene is not None else None
 
-    # -- keys: what each stage depends on -------------------------------------------------
-    def _keys(self) -> dict[str, str]:
-        p = self._project
-        sensor = p.sensor.model_dump()
-        signal_part = {k: sensor[k] for k in SIGNAL_FIELDS if k in sensor}
-        scene_key = _digest("fixed" if self._fixed_scene is not None else p.scene.model_dump(),
-                            id(self._fixed_scene), p.sensor.rows, p.sensor.cols,
-                            p.sensor.pixel_pitch_um, p.optics.focal_length_mm)
-        if self._fixed_scene is None and p.scene.kind == "city":
-            # A render depends on the city, pose, render settings, the sensor's QE (film range)
-            # and, for the full lens model, on the optics it traces.
-            from workbench.render.city_frame import uses_full_lens_model
-            scene_key = _digest(scene_key, p.seed, p.city, p.pose, p.render, signal_part,
-                                p.optics if uses_full_lens_model(p.optics) else None)
-        optics_key = _digest(scene_key, p.optics.model_dump(), p.scene.adjust_illuminance_lux)
-        signal_key = _digest(optics_key, signal_part)
-        sensor_key = _digest(signal_key, sensor)
-        isp_key = _digest(sensor_key, p.isp.model_dump())
-        return dict(scene=scene_key, optics=optics_key, signal=signal_key, sensor=sensor_key, isp=isp_key)
+    def snapshot(self) -> Snapshot:
+        """The project, fixed scene, camera geometry, stage inputs and keys a run started now uses."""
+        with self._lock:
+            project, fixed = self._project, self._fixed
+        camera = project_geometry(project)
+        inputs = stage_inputs(project, camera, fixed)
+        return Snapshot(project, fixed, camera, inputs, stage_keys(inputs))
 
-    def _compute(self, stage: str):
-        from workbench.isp import sensor_image_to_srgb
-        from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
-        p = self._project
-        if stage == "scene":
-            if self._fixed_scene is not None:
-                return self._fixed_scene
-            if p.scene.kind == "city":
-                from workbench.render.city_frame import frame_seeds, render_city_scene
-                return render_city_scene(p, frame_seeds(p.seed, 0))
-            return make_scene(p)
-        if stage == "optics":
-            source = self._get("scene")
-            if isinstance(source, Scene):
-                oi = form_optical_image(source, p)
-            else:
-                from workbench.render.city_frame import city_optical_image
-                oi = city_optical_image(source, p)
-            check_finite("optics", oi.irradiance_photons)
-            return oi
-        if stage == "signal":
-            rate = irradiance_to_signal_rate(self._get("optics"), p.sensor)
-            check_finite("signal", rate)
-            return rate
-        if stage == "sensor":
-            oi = self._get("optics")
-            rate = self._get("signal")
-            image = signal_rate_to_sensor_image(rate, p.sensor, resolve_exposure(rate, p.sensor),
-                                                wavelengths_nm=oi.wavelengths_nm)
-            check_finite("sensor", image.dn)
-            return image
-        result = sensor_image_to_srgb(self._get("sensor"), p.isp)
-        check_finite("isp", result.srgb)
-        return result
+    def cached(self, stage: str, key: str):
+        """The cached result of `stage` if it was computed for `key`, else None."""
+        with self._lock:
+            hit = self._cache.get(stage)
+        return hit[1] if hit is not None and hit[0] == key else None
 
-    def _get(self, stage: str):
-        key = self._keys()[stage]
-        hit = self._cache.get(stage)
-        if hit is not None and hit[0] == key:
-            return hit[1]
-        # Upstream stages are fetched (and timed) before this stage's own clock starts.
-        idx = STAGES.index(stage)
-        if idx > 0:
-            self._get(STAGES[idx - 1])
+    # -- running ------------------------------------------------------------------------------
+    def _stage_job(self, snap: Snapshot, stage: str, upstream, cancel, record: list[str]) -> Job:
+        key = snap.keys[stage]
+        if stage == "scene" and snap.fixed is not None:
+            return snap.fixed.scene
+        value = self.cached(stage, key)
+        if value is not None:
+            return value
         t0 = time.perf_counter()
-        value = self._compute(stage)
-        self.stage_times_s[stage] = time.perf_counter() - t0
-        self.recomputed.append(stage)
-        self._cache[stage] = (key, value)
+        inputs = snap.inputs[stage]
+        if stage == "scene":
+            value = yield from _scene_job(inputs, cancel)
+        else:
+            value = {"optics": _optics, "signal": _signal, "sensor": _sensor, "isp": _isp}[stage](inputs, upstream)
+        with self._lock:
+            self._cache[stage] = (key, value)
+            self.stage_times_s = {**self.stage_times_s, stage: time.perf_counter() - t0}
+            record.append(stage)
         return value
 
+    def _job(self, upto: str, cancel: CancelToken | None) -> Job[dict]:
+        """Run the stages up to `upto` on one snapshot; yields Progress (done/total in stages,
+        a render's own progress and preview inside the scene stage); returns {stage: result}."""
+        if upto not in STAGES:
+            raise ValueError(f"upto must be one of {STAGES}, got {upto!r}")
+        snap = self.snapshot()
+        stages = STAGES[:STAGES.index(upto) + 1]
+        record: list[str] = []                 # this call's recomputed stages, as they finish
+        with self._lock:
+            self.recomputed = record
+        results: dict[str, object] = {}
+        for i, stage in enumerate(stages):
+            if cancel is not None:
+                cancel.check()
+            yield Progress(i, len(stages), stage)
+            upstream = {"scene": None, "optics": results.get("scene"), "signal": results.get("optics"),
+                        "sensor": (results.get("optics"), results.get("signal")),
+                        "isp": results.get("sensor")}[stage]
+            job = self._stage_job(snap, stage, upstream, cancel, record)
+            while True:
+                try:
+                    step = next(job)
+                except StopIteration as stop:
+                    results[stage] = stop.value
+                    break
+                yield Progress(i + step.fraction, len(stages), f"{stage}: {step.message}", step.preview)
+        yield Progress(len(stages), len(stages), "done")
+        return results
+
+    def _run_to(self, stage: str):
+        return run_job(self._job(stage, None))[stage]
+
+    def scene_stage_result(self):
+        """The scene stage's result: the Scene of a chart or fixed scene, or the CityRender of a
+        city frame (render, labels, meta)."""
+        return self._run_to("scene")
+
     def scene(self) -> Scene:
-        source = self._get("scene")
+        source = self._run_to("scene")
         return source if isinstance(source, Scene) else source.scene
 
     def labels(self):
         """Per-pixel and per-object labels of a rendered city frame (None for charts)."""
-        return getattr(self._get("scene"), "labels", None)
+        return getattr(self._run_to("scene"), "labels", None)
+
+    def camera_geometry(self) -> CameraGeometry:
+        """The camera geometry of the current project (what the scene is sampled on)."""
+        return self.snapshot().camera
 
     def optical_image(self) -> OpticalImage:
-        return self._get("optics")
+        return self._run_to("optics")
 
     def signal_rate(self) -> np.ndarray:
-        return self._get("signal")
+        return self._run_to("signal")
 
     def sensor_image(self) -> SensorImage:
-        return self._get("sensor")
+        return self._run_to("sensor")
 
     def isp_result(self):
-        return self._get("isp")
+        return self._run_to("isp")
 
-    def run_job(self, cancel: CancelToken | None = None) -> Job[PipelineResult]:
-        """The pipeline as a long job: yields Progress per stage, checks cancel between stages."""
-        self.recomputed = []
-        for i, stage in enumerate(STAGES):
-            if cancel is not None:
-                cancel.check()
-            yield Progress(i, len(STAGES), stage)
-            self._get(stage)
-        yield Progress(len(STAGES), len(STAGES), "done")
-        return PipelineResult(self.scene(), self.optical_image(), self.signal_rate(),
-                              self.sensor_image(), self.isp_result(), dict(self.stage_times_s), self.labels())
+    def run_job(self, cancel: CancelToken | None = None, upto: str = "isp") -> Job[PipelineResult]:
+        """The pipeline as a long job on one snapshot of the project: yields Progress per stage
+        (and a city render's progress with previews), checks `cancel` between stages and render
+        chunks (JobCancelled). upto='sensor' etc. stops early; the result's later fields are None."""
+        results = yield from self._job(upto, cancel)
+        source = results["scene"]
+        return PipelineResult(source if isinstance(source, Scene) else source.scene, results.get("optics"),
+                              results.get("signal"), results.get("sensor"), results.get("isp"),
+                              dict(self.stage_times_s), getattr(source, "labels", None))
 
-    def run(self, cancel: CancelToken | None = None) -> PipelineResult:
-        return run_job(self.run_job(cancel))
+    def run(self, cancel: CancelToken | None = None, on_progress: Callable[[Progress], None] | None = None
+            ) -> PipelineResult:
+        return run_job(self.run_job(cancel), on_progress)

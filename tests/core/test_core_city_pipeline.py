@@ -46,7 +46,7 @@ def test_render_noise_follows_the_sensor_shot_noise():
     p = tiny_city(spp=None, shot_noise_ratio=10.0, pilot_spp=2)
     pipe = Pipeline(p)
     meta = pipe.scene().meta
-    target = pipe._get("scene").meta["shot_noise_target_rel_error"]
+    target = pipe.scene_stage_result().meta["shot_noise_target_rel_error"]
     img = pipe.sensor_image()
     mean_e = img.electrons.mean()            # 'mean' auto-exposure at 0.4 of the swing ≈ 4000 e⁻
     assert target == pytest.approx(10.0 / np.sqrt(mean_e), rel=0.1)

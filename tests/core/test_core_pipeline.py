@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 
 from workbench import spectra
-from workbench.pipeline import Pipeline, camera_hfov_deg
+from workbench.pipeline import Pipeline
 from workbench.project import Project, load_project
 from workbench.scene.params import SceneParams
 from workbench.sensor.cfa import channel_qe
+from workbench.stages.geometry import project_geometry
 from workbench.units import band_widths_nm
 
 
@@ -96,7 +97,7 @@ def test_hdr_tunnel_through_every_sensor_preset_has_no_overflow():
 
 
 def test_camera_field_of_view_is_the_papers():
-    assert camera_hfov_deg(load_project("paper_camera")) == pytest.approx(44.0, abs=0.01)
+    assert project_geometry(load_project("paper_camera")).hfov_deg == pytest.approx(44.0, abs=0.01)
 
 
 def test_illuminance_adjustment():
@@ -114,7 +115,7 @@ def test_pipeline_job_cancels_between_stages():
     job = pipe.run_job(token)
     first = next(job)
     assert first.message == "scene" and first.fraction == 0.0
-    next(job)
+    assert next(job).message == "optics"
     token.cancel()
     with pytest.raises(JobCancelled):
         next(job)

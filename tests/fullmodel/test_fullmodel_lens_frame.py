@@ -19,32 +19,38 @@ def _optics(**kw) -> OpticsParams:
     return OpticsParams(model="raytrace", lens_file=LENS, **kw)
 
 
+def _camera(params, focus_m, **width):
+    from workbench.optics.formation.geometry import camera_geometry
+    from workbench.optics.formation.full_model import full_model_camera
+    return full_model_camera(params, camera_geometry(params, focus_m, (12, 16), **width))
+
+
 def test_camera_follows_formation_lens_preparation():
     from workbench.optics.formation import lens_setup
-    from workbench.optics.formation.full_model import full_model_camera
-    scaled = full_model_camera(_optics(scale_lens_to_focal_length=True, focal_length_mm=3.0, f_number=5.6),
-                               10.0, sensor_width_mm=1.92)
+    from workbench.optics.formation.geometry import camera_geometry
+    scaled = _camera(_optics(scale_lens_to_focal_length=True, focal_length_mm=3.0, f_number=5.6),
+                     10.0, sensor_width_m=1.92e-3)
     assert scaled.focal_length_m == pytest.approx(3.0e-3, rel=1e-9)
     assert paraxial(scaled.lens).f_number == pytest.approx(5.6, rel=1e-9) == scaled.f_number
-    native = full_model_camera(_optics(f_number=4.0), 10.0, fov_deg=44.0)
+    native = _camera(_optics(f_number=4.0), 10.0, fov_deg=44.0)
     assert native.focal_length_m == pytest.approx(paraxial(load_lens(LENS)).efl_mm * 1e-3, rel=1e-9)
     assert native.fov_deg == pytest.approx(44.0, rel=1e-9)
     # focused like raytrace: the lens formation/ focuses on the same object distance
-    ref, _ = lens_setup.focused_lens(lens_setup.effective_params(_optics(f_number=4.0)), 10.0)
+    ref, _ = lens_setup.focused_lens(_optics(f_number=4.0), 10.0)
     assert sensor_z_mm(native.lens) == pytest.approx(sensor_z_mm(ref), abs=1e-12)
-    fixed = full_model_camera(_optics(focus_distance_m=2.0), 10.0, sensor_width_mm=1.0)
+    fixed = _camera(_optics(focus_distance_m=2.0), 10.0, sensor_width_m=1e-3)
     assert fixed.focus_distance_m == 2.0
     with pytest.raises(ValueError, match="exactly one"):
-        full_model_camera(_optics(), 10.0, sensor_width_mm=1.0, fov_deg=40.0)
-    with pytest.raises(ValueError, match="sensor_width_mm"):
-        full_model_camera(_optics(), 10.0, sensor_width_mm=-1.0)
+        camera_geometry(_optics(), 10.0, (12, 16), sensor_width_m=1e-3, fov_deg=40.0)
+    with pytest.raises(ValueError, match="sensor_width_m"):
+        camera_geometry(_optics(), 10.0, (12, 16), sensor_width_m=-1e-3)
 
 
 def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     """Constant sky of L = 0.02 W/m²/sr/nm through the calibrated spectral film: on-axis irradiance
     = T · L_photons · E/L of the traced lens (the numpy estimator), in photons/s/m²/nm."""
     from workbench.jobs import run_job
-    from workbench.optics.formation.full_model import full_model_camera, full_model_optical_image
+    from workbench.optics.formation.full_model import full_model_optical_image
     from workbench.render.lens_camera import lens_sensor_dict
     from workbench.render.film import box_bands
     from workbench.render.params import RenderParams
@@ -52,7 +58,7 @@ def test_uniform_environment_gives_camera_equation_irradiance_in_photons(mi):
     L_W = 0.02
     film = box_bands(450.0, 650.0, 4)
     params = _optics(f_number=2.8, transmittance=0.9, raytrace_diffraction=False)
-    cam = full_model_camera(params, math.inf, sensor_width_mm=0.04)   # 16 px within 25 µm of the axis
+    cam = _camera(params, math.inf, sensor_width_m=0.04e-3)   # 16 px within 25 µm of the axis
     to_world = mi.ScalarTransform4f().look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, 1, 0])
     sensor = lens_sensor_dict(cam.lens, film.mitsuba_film(16, 12), to_world, cam.sensor_width_mm)
     sensor["sampler"] = {"type": "independent", "sample_count": 1}

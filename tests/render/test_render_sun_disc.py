@@ -199,7 +199,7 @@ def test_city_frame_with_the_sun_in_view_stays_finite_through_sensor_and_isp(mi)
 
     pipe = Pipeline(sunrise_city())
     result = pipe.run()
-    render = pipe._get("scene")
+    render = pipe.scene_stage_result()
     assert render.meta["sun_disc"]["status"] == "composited" and render.meta["sun_disc"]["pixels"] > 0
     rad = render.scene.radiance_photons.astype(np.float64).mean(axis=2)
     shadow = _shadowed_ground(mi, pipe.project, render)
@@ -211,6 +211,6 @@ def test_city_frame_with_the_sun_in_view_stays_finite_through_sensor_and_isp(mi)
     sun_px = np.unravel_index(np.argmax(rad), rad.shape)
     assert result.sensor_image.dn[sun_px] == result.sensor_image.max_dn     # clipped at the swing
     dark = Pipeline(sunrise_city(sun_visible=False))
-    dark_render = dark._get("scene")
+    dark_render = dark.scene_stage_result()
     assert dark_render.meta["sun_disc"]["status"] == "off"
     assert dark_render.scene.radiance_photons.max() < 1e-3 * render.scene.radiance_photons.max()

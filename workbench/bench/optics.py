@@ -68,10 +68,11 @@ def _city_scenes(cols: int, spp: int) -> tuple[Scene | None, tuple | None, list[
         return None, None, [f"city frame skipped: rendering failed here ({type(exc).__name__}: {exc})"]
     try:
         from workbench.optics.formation.full_model import full_model_camera, full_model_optical_image
+        from workbench.optics.formation.geometry import scene_geometry
         from workbench.render.lens_camera import lens_sensor_dict
         from workbench.render.scene_builder import pinhole_sensor
-        optics = _camera().model_copy(update={"model": "raytrace", "focus_distance_m": scene.distance_m})
-        camera = full_model_camera(optics, scene.distance_m, fov_deg=44.0)
+        optics = _camera().updated(model="raytrace", focus_distance_m=scene.distance_m)
+        camera = full_model_camera(optics, scene_geometry(scene, optics))
         to_world = pinhole_sensor(demo_pose(), 44.0)["to_world"]
         images, times = [], []
         for seed in (0, 1):

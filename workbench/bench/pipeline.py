@@ -23,9 +23,11 @@ def _median_ms(fn, repeats: int) -> float:
 def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 20.0) -> dict:
     """Stage medians (ms) for the paper's camera on the Macbeth chart at rows×cols."""
     from workbench.isp import sensor_image_to_srgb
-    from workbench.pipeline import form_optical_image, make_scene
     from workbench.project import load_project
     from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
+    from workbench.stages.geometry import project_geometry
+    from workbench.stages.optics import form_optical_image
+    from workbench.stages.scene import chart_scene
 
     base = load_project("paper_camera")
     # Same field of view at every resolution: the pixel shrinks as the count grows.
@@ -33,8 +35,15 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
     project = base.updated(
         sensor=base.sensor.updated(rows=rows, cols=cols, pixel_pitch_um=pitch),
         scene=base.scene.updated(kind="macbeth", wavelengths=base.scene.wavelengths.updated(step_nm=bands_step_nm)))
-    scene = make_scene(project)
-    oi = form_optical_image(scene, project)
+
+    def make_scene():
+        return chart_scene(project.scene, project_geometry(project))
+
+    def make_optical_image(scene):
+        return form_optical_image(scene, project.optics, project_geometry(project),
+                                  project.scene.adjust_illuminance_lux)
+    scene = make_scene()
+    oi = make_optical_image(scene)
     rate = irradiance_to_signal_rate(oi, project.sensor)
     rng = np.random.default_rng(0)
     sensor, wl = project.sensor, oi.wavelengths_nm
@@ -47,7 +56,7 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
         sensor_image_to_srgb(capture(irradiance_to_signal_rate(oi, sensor)), project.isp)
 
     tracemalloc.start()
-    sensor_image_to_srgb(capture(irradiance_to_signal_rate(form_optical_image(make_scene(project), project), sensor)), project.isp)
+    sensor_image_to_srgb(capture(irradiance_to_signal_rate(make_optical_image(make_scene()), sensor)), project.isp)
     peak_bytes = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()
 
@@ -55,8 +64,8 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
     return {
         "resolution": f"{cols}x{rows}",
         "bands": int(oi.wavelengths_nm.size),
-        "scene_ms": _median_ms(lambda: make_scene(project), heavy),
-        "optics_ms": _median_ms(lambda: form_optical_image(scene, project), heavy),
+        "scene_ms": _median_ms(make_scene, heavy),
+        "optics_ms": _median_ms(lambda: make_optical_image(scene), heavy),
         "signal_ms": _median_ms(lambda: irradiance_to_signal_rate(oi, sensor), repeats),
         "sensor_ms": _median_ms(lambda: capture(rate), repeats),
         "isp_ms": _median_ms(lambda: sensor_image_to_srgb(image, project.isp), repeats),

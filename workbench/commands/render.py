@@ -53,8 +53,7 @@ def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
 
 
 def cmd_render(args) -> int:
-    from tqdm import tqdm
-
+    from workbench.jobs import tqdm_progress
     from workbench.previews import irradiance_preview, save_png
     from workbench.project import load_project
     from workbench.render.city_frame import frame_seeds, render_city_frame
@@ -68,20 +67,11 @@ def cmd_render(args) -> int:
         raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
     out = prepare_output_folder(args.out)
     seeds = frame_seeds(project.seed, args.frame)
-    bars = []          # the bar opens with the first chunk (after the project was checked)
-
-    def progress(step) -> None:
-        if not bars:
-            bars.append(tqdm(total=step.spp_total, desc=f"render frame {args.frame}", unit="spp",
-                             leave=False))
-        bars[0].total = step.spp_total
-        bars[0].n = step.spp_done
-        bars[0].refresh()
+    progress = tqdm_progress(f"render frame {args.frame}")
     try:
         frame = render_city_frame(project, seeds, on_progress=progress)
     finally:
-        for bar in bars:
-            bar.close()
+        progress.close()
     stem = f"frame_{args.frame:06d}"
     rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
     save_png(out / f"{stem}_irradiance.png", rgb)

@@ -51,9 +51,15 @@ class ErrorBudget(Params):
         between a level's geometry and the lens's traced distortion.
     """
 
-    max_rel_rms_error: float = Field(0.02, gt=0, le=1)
-    max_mtf50_error: float = Field(0.05, gt=0, le=1)
-    max_distortion_shift_samples: float = Field(0.5, gt=0, le=100)
+    max_rel_rms_error: float = Field(0.02, gt=0, le=1,
+                                     description="largest relative RMS error against the full model (0–1); "
+                                                 "optics 'auto' selector")
+    max_mtf50_error: float = Field(0.05, gt=0, le=1,
+                                   description="largest relative MTF50 error against the full model (0–1); "
+                                               "optics 'auto' selector")
+    max_distortion_shift_samples: float = Field(0.5, gt=0, le=100,
+                                                description="largest frame-corner shift against the lens's "
+                                                            "traced distortion (samples); optics 'auto' selector")
 
 
 class OpticsParams(Params):
@@ -86,25 +92,45 @@ class OpticsParams(Params):
     budget: error budget used by 'auto'.
     """
 
-    model: OpticsModelName = "pinhole"
+    model: OpticsModelName = Field("pinhole", description="optics level of detail (OPTICS_MODELS); 'auto' lets "
+                                                          "the selector pick the cheapest within the budget")
     focal_length_mm: float = Field(round(focal_length_for_fov_mm(PAPER_HFOV_DEG, PAPER_SENSOR_WIDTH_MM), 4),
-                                   gt=0, le=2000)
-    f_number: float = Field(4.0, ge=0.5, le=256)
-    transmittance: float = Field(1.0, ge=0, le=1)
-    off_axis: Literal["cos4th", "none"] = "cos4th"
-    lens_file: str | None = None
-    scale_lens_to_focal_length: bool = False
-    focus_distance_m: float | None = Field(None, gt=0)
-    distortion_k: tuple[float, ...] = Field((), max_length=3)
-    depth_layers: int = Field(8, ge=1, le=64)
-    defocus_kernel: Literal["pillbox", "gaussian"] = "pillbox"
-    psf_field_zones: int = Field(5, ge=2, le=32)
-    psf_azimuths: int = Field(8, ge=1, le=64)
-    psf_wavelengths: int = Field(3, ge=1, le=64)
-    psf_depth_nodes: int = Field(3, ge=1, le=16)
-    rays_per_sample: int = Field(64, ge=1, le=4096)
-    raytrace_diffraction: bool = True
-    budget: ErrorBudget = Field(default_factory=ErrorBudget)
+                                   gt=0, le=2000,
+                                   description="focal length (mm) of every level when no lens_file is set (with "
+                                               "one, the lens's paraxial focal length is used instead); with the "
+                                               "sensor width and focus it sets the field of view")
+    f_number: float = Field(4.0, ge=0.5, le=256,
+                            description="f-number N (camera equation, defocus, diffraction); a lens file's stop "
+                                        "is resized to it; every level")
+    transmittance: float = Field(1.0, ge=0, le=1, description="lens transmittance T (0–1); every level")
+    off_axis: Literal["cos4th", "none"] = Field(
+        "cos4th", description="off-axis fall-off of the lens-free levels: ISETCam's cos⁴ or none; pinhole, "
+                              "diffraction_limited, thin_lens")
+    lens_file: str | None = Field(None, description="lens prescription under resources/lenses/ (relative path); "
+                                                    "psf_grid, raytrace, auto; sets the effective focal length")
+    scale_lens_to_focal_length: bool = Field(False, description="scale the prescription to focal_length_mm; "
+                                                                "psf_grid, raytrace")
+    focus_distance_m: float | None = Field(None, gt=0, description="object distance in focus (m); None = the "
+                                                                   "scene distance; sets the image distance, "
+                                                                   "so the field of view; every level")
+    distortion_k: tuple[float, ...] = Field((), max_length=3,
+                                            description="radial distortion k1, k2, k3 of r_d = r(1 + k1 r² + k2 r⁴ "
+                                                        "+ k3 r⁶), r = tan(field angle) (unitless); lens-free levels")
+    depth_layers: int = Field(8, ge=1, le=64, description="defocus layers (count); thin_lens")
+    defocus_kernel: Literal["pillbox", "gaussian"] = Field(
+        "pillbox", description="defocus blur shape: geometric pillbox or a Gaussian of the same 2nd moment; thin_lens")
+    psf_field_zones: int = Field(5, ge=2, le=32, description="field heights with a traced PSF, centre to "
+                                                             "corner (count); psf_grid")
+    psf_azimuths: int = Field(8, ge=1, le=64, description="orientations each off-axis PSF is turned to "
+                                                          "(count); psf_grid")
+    psf_wavelengths: int = Field(3, ge=1, le=64, description="wavelengths with traced PSFs (count); psf_grid")
+    psf_depth_nodes: int = Field(3, ge=1, le=16, description="object distances with traced PSFs, even in "
+                                                             "1/distance (count); psf_grid")
+    rays_per_sample: int = Field(64, ge=1, le=4096, description="exit-pupil rays per output sample (count); "
+                                                                "raytrace")
+    raytrace_diffraction: bool = Field(True, description="add the Airy pattern of the working f-number to the "
+                                                         "traced blur; raytrace and the full lens model")
+    budget: ErrorBudget = Field(default_factory=ErrorBudget, description="error budget; optics 'auto' selector")
 
     @field_validator("lens_file")
     @classmethod

@@ -42,5 +42,6 @@ class OpticalImage:
 
 
 OPTICS_MODELS: Registry[Callable] = Registry("optics.model", "optics model")
-"""The optics levels of detail: name → fn(scene, params) -> OpticalImage (filled by optics.formation)."""
+"""The optics levels of detail: name → fn(scene, params, camera=None) -> OpticalImage
+(filled by optics.formation); camera: the CameraGeometry the scene was sampled for."""
 register_optics = OPTICS_MODELS.register

@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.jobs import Job
 from workbench.render.labels import Labels
 
 DATASET_SEED_TAG = 0x6461_7461       # separates data-set seeds from other uses of the project seed
@@ -65,6 +66,53 @@ def uses_full_lens_model(optics) -> bool:
     return optics.model == "raytrace" and optics.lens_file is not None
 
 
+@dataclass(frozen=True)
+class CitySceneInputs:
+    """All a city frame's render reads (so it is the scene stage's cache key): the project seed,
+    scene, city, pose and render sections, the pixel response (resolution and the QE that sets
+    the film's range), the camera geometry; the optics only when the lens is traced inside
+    Mitsuba (full model) or render.shot_noise_ratio needs a pilot through the optics, and the
+    sensor only for shot_noise_ratio (its exposure)."""
+
+    seed: int
+    scene: object                 # SceneParams
+    city: object                  # CityRecipe
+    pose: object                  # PoseParams
+    render: object                # RenderParams
+    pixels: object                # PixelResponseParams
+    camera: object                # CameraGeometry
+    optics: object | None = None  # OpticsParams
+    sensor: object | None = None  # SensorParams
+
+
+@dataclass(frozen=True)
+class CityFrameInputs:
+    """All a stored frame (render_city_frame) reads: the render's inputs, then the optics level
+    and the mean-illuminance adjustment applied to it."""
+
+    render: CitySceneInputs
+    optics: object                # OpticsParams
+    adjust_illuminance_lux: float | None
+
+
+def city_scene_inputs(project) -> CitySceneInputs:
+    """What rendering a city frame of `project` reads (CitySceneInputs)."""
+    from workbench.scene.city.recipe import CityRecipe, PoseParams
+    from workbench.stages.geometry import project_geometry
+    if project.scene.kind != "city":
+        raise ValueError(f"scene.kind is '{project.scene.kind}'; rendering a frame needs scene.kind 'city'")
+    pilot = project.render.shot_noise_ratio is not None
+    return CitySceneInputs(project.seed, project.scene, project.city or CityRecipe(), project.pose or PoseParams(),
+                           project.render, project.sensor.pixel_response, project_geometry(project),
+                           project.optics if pilot or uses_full_lens_model(project.optics) else None,
+                           project.sensor if pilot else None)
+
+
+def city_frame_inputs(project) -> CityFrameInputs:
+    """What a stored frame of `project` reads (CityFrameInputs): its data-set fingerprint."""
+    return CityFrameInputs(city_scene_inputs(project), project.optics, project.scene.adjust_illuminance_lux)
+
+
 @dataclass
 class CityRender:
     """One rendered city frame before the sensor: the render (spectral radiance through a pinhole,
@@ -74,78 +122,78 @@ class CityRender:
     labels: object                # workbench.render.labels.Labels
     camera: object | None         # FullModelCamera when the film holds lens irradiance
     meta: dict
+    geometry: object = None       # the CameraGeometry it was rendered on
 
 
 # Scene meta entries the sensor needs to read a render whose film is not a spectrum.
 FILM_META_KEYS = ("representation", "channel_names", "channel_integrals_nm", "channel_centroids_nm")
 
 
-def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> CityRender:
-    """Render frame `seeds.index` of a city project, with the label pass cast through the same
-    Mitsuba scene.
+def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> Job[CityRender]:
+    """Render frame `seeds.index` of a city (a long job: yields Progress with the radiance so far
+    as its preview, stops with JobCancelled when `cancel` is set), with the label pass cast
+    through the same Mitsuba scene.
 
-    The city's streets and buildings come from project.city; its arrangement, the camera pose
-    and the render noise from `seeds`. Resolution = sensor rows × cols × scene.oversample.
-    Pinhole path: a pinhole radiance render (field of view scene.fov_deg, or the sensor behind
-    the optics: pipeline.camera_hfov_deg); city_optical_image then applies the optics level.
-    The visible sun disc is composited where camera rays reach the sky (render/sun_disc.py,
-    render.daylight.sun_visible; meta['sun_disc']); not on the full-model path below.
+    The city's streets and buildings come from inputs.city; its arrangement, the camera pose
+    and the render noise from `seeds`. Resolution and field of view: inputs.camera (the
+    project's CameraGeometry: sensor rows × cols × scene.oversample samples of pixel pitch /
+    oversample, or scene.fov_deg).
+    Pinhole path: a pinhole radiance render over camera.hfov_deg; city_optical_image then applies
+    the optics level on the same geometry. The visible sun disc is composited where camera rays
+    reach the sky (render/sun_disc.py, render.daylight.sun_visible; meta['sun_disc']); not on
+    the full-model path below.
     Full model (optics.model 'raytrace' with a lens_file, uses_full_lens_model): Mitsuba traces
     every camera ray through the lens (render.lens_camera, weight 'irradiance'), so the film holds
     sensor irradiance. The lens is prepared as formation/ prepares it and focused on
-    optics.focus_distance_m or else scene.distance_m (the distance camera_hfov_deg focuses on);
-    the sensor is cols × pixel pitch wide (or spans scene.fov_deg at the image distance), so the
-    sample spacing is pixel pitch / oversample. Labels are cast through the lens camera (each
-    pixel's ray through the centre of its exit-pupil box), so boxes follow the lens's distortion.
+    camera.focus_distance_m; the film is camera.sensor_width_m wide, so the sample spacing is
+    the geometry's. Labels are cast through the lens camera (each pixel's ray through the centre
+    of its exit-pupil box), so boxes follow the lens's distortion.
     render.shot_noise_ratio is resolved here: a pilot render through the optics and sensor gives
     the mean electrons N_e of the exposure, and the target error is ratio/√N_e."""
-    from workbench.jobs import run_job
-    from workbench.pipeline import camera_hfov_deg
+    from workbench.jobs import JobCancelled, Progress
     from workbench.render.labels import render_labels
     from workbench.render.scene_builder import build_scene, pinhole_sensor
     from workbench.render.spectral import film_for, render_loaded
     from workbench.render.variants import select_variant
     from workbench.scene.city import generate_city, sample_camera_poses
-    from workbench.scene.city.recipe import CityRecipe, PoseParams
     from workbench.sensor.cfa import channel_qe
 
-    if project.scene.kind != "city":
-        raise ValueError(f"scene.kind is '{project.scene.kind}'; rendering a frame needs scene.kind 'city'")
-    recipe = (project.city or CityRecipe()).model_copy(update={"arrangement": seeds.arrangement})
+    def check():
+        if cancel is not None and cancel.is_set():
+            raise JobCancelled(f"frame {seeds.index}: cancelled")
+
+    yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
+    recipe = inputs.city.updated(arrangement=seeds.arrangement)
     city = generate_city(recipe)
-    pose = sample_camera_poses(city, project.pose or PoseParams(), 1, seeds.pose)[0]
-    over = project.scene.oversample
-    width, height = project.sensor.cols * over, project.sensor.rows * over
-    variant = select_variant(project.render.variant)
+    pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
+    camera = inputs.camera
+    height, width = camera.shape
+    variant = select_variant(inputs.render.variant)
     qe_wl = np.arange(350.0, 1000.1, 5.0)
-    film = film_for(project.render, (qe_wl, np.asarray(channel_qe(project.sensor, qe_wl)).T))
-    optics, camera, lens_sensor = project.optics, None, None
-    if uses_full_lens_model(optics):
+    film = film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
+    fov = camera.hfov_deg
+    lens_camera, lens_sensor = None, None
+    if inputs.optics is not None and uses_full_lens_model(inputs.optics):
         from workbench.optics.formation.full_model import full_model_camera
         from workbench.render.lens_camera import lens_sensor_dict
-        if project.scene.fov_deg is not None:
-            camera = full_model_camera(optics, project.scene.distance_m, fov_deg=project.scene.fov_deg)
-        else:
-            camera = full_model_camera(optics, project.scene.distance_m,
-                                       sensor_width_mm=project.sensor.cols * project.sensor.pixel_pitch_um * 1e-3)
-        fov = camera.fov_deg
-        lens_sensor = lens_sensor_dict(camera.lens, {"width": width, "height": height},
-                                       pinhole_sensor(pose, fov)["to_world"], camera.sensor_width_mm,
+        lens_camera = full_model_camera(inputs.optics, camera)
+        lens_sensor = lens_sensor_dict(lens_camera.lens, {"width": width, "height": height},
+                                       pinhole_sensor(pose, fov)["to_world"], lens_camera.sensor_width_mm,
                                        weight="irradiance")
-    else:
-        fov = project.scene.fov_deg or camera_hfov_deg(project)
-    mi_scene, id_table = build_scene(city, pose, fov, width, height, film, project.render.daylight,
-                                     lens_sensor, max_depth=project.render.max_depth, world=project.render.world)
+    check()
+    mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
+                                     lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world)
+    yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
     labels = render_labels(mi_scene, id_table, width, height)
-    params = project.render.updated(seed=seeds.render)
+    params = inputs.render.updated(seed=seeds.render)
     meta = {"variant": variant, "fov_deg": fov, "city_seed": recipe.seed, "arrangement": recipe.arrangement,
             "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
                      "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
                      "meta": getattr(pose, "meta", {})}}
-    night = project.render.world.lighting == "night"
-    if camera is None and not night:    # the disc the directional sun cannot show
+    night = inputs.render.world.lighting == "night"
+    if lens_camera is None and not night:   # the disc the directional sun cannot show
         from workbench.render.sun_disc import sun_disc
-        disc = sun_disc(film, pose, fov, width, height, project.render.daylight, mi_scene=mi_scene)
+        disc = sun_disc(film, pose, fov, width, height, inputs.render.daylight, mi_scene=mi_scene)
         meta["sun_disc"] = disc.meta
     else:
         disc = None
@@ -157,27 +205,49 @@ def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None =
             scene.radiance_photons = disc.add_to(scene.radiance_photons)
         return scene
 
+    def rendered(job, start: float, span: float):
+        """Drive a render job, yielding its progress as [start, start + span] of this frame."""
+        while True:
+            try:
+                step = next(job)
+            except StopIteration as stop:
+                check()                         # a cancelled render returns its partial image
+                return stop.value
+            yield Progress(start + span * step.fraction, 1.0, f"frame {seeds.index}: {step.message}",
+                           preview=step.preview)
+
     if params.shot_noise_ratio is not None:
-        pilot = with_sun(run_job(render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
-                                             fov_deg=fov, name=f"frame {seeds.index} pilot")))
+        pilot = with_sun((yield from rendered(
+            render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
+                          fov_deg=fov, cancel=cancel, name=f"frame {seeds.index} pilot"), 0.1, 0.1)))
         pilot.depth_m = labels.depth_m
-        target = sensor_matched_error(project, CityRender(pilot, labels, camera, meta), params.shot_noise_ratio)
+        target = sensor_matched_error(inputs, CityRender(pilot, labels, lens_camera, meta, camera),
+                                      params.shot_noise_ratio)
         meta["shot_noise_target_rel_error"] = target
         params = params.updated(shot_noise_ratio=None, target_rel_error=target)
-    scene = with_sun(run_job(render_loaded(mi_scene, film, params, fov_deg=fov, name=f"frame {seeds.index}"),
-                           on_progress))
+    start = 0.2 if inputs.render.shot_noise_ratio is not None else 0.1
+    scene = with_sun((yield from rendered(
+        render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}"),
+        start, 1.0 - start)))
     scene.depth_m = labels.depth_m
     meta["spp"] = scene.meta.get("spp")
     meta["render"] = scene.meta
-    return CityRender(scene, labels, camera, meta)
+    return CityRender(scene, labels, lens_camera, meta, camera)
 
 
-def sensor_matched_error(project, render: CityRender, shot_noise_ratio: float) -> float:
+def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> CityRender:
+    """Render frame `seeds.index` of a city project (city_scene_job driven to the end)."""
+    from workbench.jobs import run_job
+    return run_job(city_scene_job(city_scene_inputs(project), seeds), on_progress)
+
+
+def sensor_matched_error(inputs: CitySceneInputs, render: CityRender, shot_noise_ratio: float) -> float:
     """Relative render error that is `shot_noise_ratio` × the photon shot noise 1/√N_e, with N_e
-    the mean electrons per pixel of the project's sensor at its exposure on this render."""
+    the mean electrons per pixel of the inputs' sensor at its exposure on this render."""
     from workbench.sensor import irradiance_to_signal_rate, resolve_exposure
-    rate = irradiance_to_signal_rate(city_optical_image(render, project), project.sensor)
-    exposure_s = float(np.mean(resolve_exposure(rate, project.sensor)))
+    oi = city_optical_image(render, inputs.optics, inputs.scene.adjust_illuminance_lux)
+    rate = irradiance_to_signal_rate(oi, inputs.sensor)
+    exposure_s = float(np.mean(resolve_exposure(rate, inputs.sensor)))
     mean_e = float(np.mean(rate, dtype=np.float64)) * exposure_s
     if not mean_e > 0:
         raise ValueError("render.shot_noise_ratio: the pilot render collects no electrons at this exposure; "
@@ -185,26 +255,27 @@ def sensor_matched_error(project, render: CityRender, shot_noise_ratio: float) -
     return float(min(shot_noise_ratio / np.sqrt(mean_e), 0.99))
 
 
-def city_optical_image(render: CityRender, project):
-    """Sensor-plane irradiance of a city render: the project's optics level on the pinhole
-    radiance, or the full lens camera's film as it is; then scene.adjust_illuminance_lux."""
-    from workbench.pipeline import form_optical_image, scale_to_mean_illuminance
+def city_optical_image(render: CityRender, optics, adjust_illuminance_lux: float | None = None):
+    """Sensor-plane irradiance of a city render: the optics level on the pinhole radiance (on the
+    render's camera geometry), or the full lens camera's film as it is; then the mean-illuminance
+    adjustment (scene.adjust_illuminance_lux)."""
+    from workbench.stages.optics import form_optical_image, scale_to_mean_illuminance
     film_meta = {k: render.scene.meta[k] for k in FILM_META_KEYS if k in render.scene.meta}
     if render.camera is None:
-        oi = form_optical_image(render.scene, project)
+        oi = form_optical_image(render.scene, optics, render.geometry)
         oi.meta.update(film_meta)
-        return oi
+        return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
     from workbench.optics.formation.full_model import full_model_optical_image
     oi = full_model_optical_image(render.scene.radiance_photons, render.scene.wavelengths_nm, render.camera,
-                                  project.optics, depth_m=render.labels.depth_m, meta=film_meta)
-    return scale_to_mean_illuminance(oi, project.scene.adjust_illuminance_lux)
+                                  optics, depth_m=render.labels.depth_m, meta=film_meta)
+    return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
 
 
 def render_city_frame(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> FrameData:
     """Render frame `seeds.index` of a city project to sensor irradiance with its labels
     (render_city_scene, then city_optical_image)."""
     render = render_city_scene(project, seeds, on_progress)
-    oi = city_optical_image(render, project)
+    oi = city_optical_image(render, project.optics, project.scene.adjust_illuminance_lux)
     meta = {**render.meta, "optics_model": oi.meta.get("model", project.optics.model),
             "sample_spacing_m": oi.sample_spacing_m, "focal_length_m": oi.focal_length_m,
             "f_number": oi.f_number}

@@ -20,17 +20,24 @@ class DaylightParams(Params):
     brightening toward the sun and the horizon, same horizontal irradiance) or 'overcast' (CIE
     overcast sky, no direct sun; `overcast_transmittance` × the clear-sky global irradiance)."""
 
-    sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0)
-    sun_azimuth_deg: float = Field(135.0, ge=0.0, lt=360.0)
-    time_of_day_h: float | None = Field(None, ge=0.0, le=24.0)
-    latitude_deg: float = Field(37.4, ge=-90.0, le=90.0)
-    day_of_year: int = Field(172, ge=1, le=366)
-    turbidity: float = Field(3.0, ge=1.0, le=10.0)
-    sun_scale: float = Field(1.0, ge=0.0, le=1e3)
-    sky_scale: float = Field(1.0, ge=0.0, le=1e3)
-    sun_visible: bool = True
-    sky_model: Literal["uniform", "perez", "overcast"] = "uniform"
-    overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0)
+    sun_elevation_deg: float = Field(45.0, gt=0.0, le=90.0, description="sun elevation above the horizon (deg); "
+                                                                        "city render daylight")
+    sun_azimuth_deg: float = Field(135.0, ge=0.0, lt=360.0, description="sun compass azimuth, 0 = north = +Y, "
+                                                                        "90 = east (deg); city render daylight")
+    time_of_day_h: float | None = Field(None, ge=0.0, le=24.0,
+                                        description="local solar time (h); when set it places the sun (the angles "
+                                                    "are ignored); city render daylight")
+    latitude_deg: float = Field(37.4, ge=-90.0, le=90.0, description="latitude for time_of_day_h (deg); city render")
+    day_of_year: int = Field(172, ge=1, le=366, description="day of the year for time_of_day_h; city render")
+    turbidity: float = Field(3.0, ge=1.0, le=10.0, description="Linke turbidity (2 very clear … 6+ hazy); "
+                                                               "city render daylight")
+    sun_scale: float = Field(1.0, ge=0.0, le=1e3, description="sun radiance multiplier (unitless); city render")
+    sky_scale: float = Field(1.0, ge=0.0, le=1e3, description="sky radiance multiplier (unitless); city render")
+    sun_visible: bool = Field(True, description="composite the 0.53° solar disc onto pinhole renders; city render")
+    sky_model: Literal["uniform", "perez", "overcast"] = Field(
+        "uniform", description="sky radiance distribution: uniform, Perez clear sky or CIE overcast; city render")
+    overcast_transmittance: float = Field(0.3, gt=0.0, le=1.0, description="overcast global irradiance as a "
+                                                                           "fraction of the clear sky's (0–1)")
 
     @model_validator(mode="after")
     def _sun_above_horizon(self) -> "DaylightParams":
@@ -53,13 +60,16 @@ class NightParams(Params):
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
     blackbody shape; urban skies are ~0.01–0.1 cd/m²)."""
 
-    lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = "hps"
-    lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6)
-    vehicle_lights: bool = True
-    headlight_kind: Literal["halogen", "led"] = "led"
-    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6)
-    taillight_cd: float = Field(10.0, gt=0.0, le=1e4)
-    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0)
+    lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
+                                                                                      "night render")
+    lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6, description="luminous flux per lamp (lm); None = the "
+                                                                         "kind's rated flux; night render")
+    vehicle_lights: bool = Field(True, description="vehicle head- and tail-lights on; night render")
+    headlight_kind: Literal["halogen", "led"] = Field("led", description="head-light spectrum; night render")
+    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6, description="head-light peak intensity (cd); night render")
+    taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
+    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
+                                                                          "night render")
 
 
 class FogParams(Params):
@@ -69,10 +79,10 @@ class FogParams(Params):
     `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
     Droplets ≫ λ, so σ is the same at every wavelength."""
 
-    visibility_m: float = Field(200.0, gt=1.0, le=1e5)
-    albedo: float = Field(0.98, ge=0.0, le=1.0)
-    phase_g: float = Field(0.85, gt=-1.0, lt=1.0)
-    height_m: float = Field(100.0, gt=1.0, le=1e4)
+    visibility_m: float = Field(200.0, gt=1.0, le=1e5, description="meteorological visibility (m); fog medium")
+    albedo: float = Field(0.98, ge=0.0, le=1.0, description="single-scattering albedo (0–1); fog medium")
+    phase_g: float = Field(0.85, gt=-1.0, lt=1.0, description="Henyey–Greenstein asymmetry (−1…1); fog medium")
+    height_m: float = Field(100.0, gt=1.0, le=1e4, description="fog layer depth over the city (m); fog medium")
 
 
 class WorldParams(Params):
@@ -81,10 +91,12 @@ class WorldParams(Params):
     surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
     reflection of the sky)."""
 
-    lighting: Literal["day", "night"] = "day"
-    night: NightParams = Field(default_factory=NightParams)
-    fog: FogParams | None = None
-    glass: Literal["diffuse", "dielectric"] = "diffuse"
+    lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
+                                                                 "(night); city render")
+    night: NightParams = Field(default_factory=NightParams, description="night lighting; city render")
+    fog: FogParams | None = Field(None, description="fog or haze; None = clear air; city render")
+    glass: Literal["diffuse", "dielectric"] = Field("diffuse", description="windows as dark diffuse surfaces or "
+                                                                           "thin glass panes; city render")
 
 
 class RenderParams(Params):
@@ -103,25 +115,39 @@ class RenderParams(Params):
     Wavelength range: `wavelength_min_nm`/`wavelength_max_nm`, or None to follow the sensor's QE
     (400–700 nm when no sensor is given); 'sensor' always uses the QE curves' own range."""
 
-    representation: Literal["bands", "basis", "sensor"] = "bands"
-    band_count: int = Field(16, ge=1, le=128)
-    basis_count: int = Field(6, ge=2, le=32)
-    output_step_nm: float = Field(10.0, gt=0.0, le=100.0)
-    wavelength_min_nm: float | None = Field(None, ge=350.0, le=1000.0)
-    wavelength_max_nm: float | None = Field(None, ge=350.0, le=1000.0)
-    spp: int | None = Field(64, ge=1, le=1 << 20)
-    target_rel_error: float | None = Field(None, gt=0.0, lt=1.0)
-    shot_noise_ratio: float | None = Field(None, gt=0.0, le=10.0)
-    error_metric: Literal["broadband", "per_channel"] = "broadband"
-    pilot_spp: int = Field(4, ge=1, le=256)
-    max_spp: int = Field(16384, ge=1, le=1 << 20)
-    max_depth: int = Field(6, ge=1, le=64)
-    chunk_spp: int = Field(16, ge=1, le=1 << 16)
-    preview_spp: int = Field(1, ge=1, le=1 << 16)
-    seed: int = Field(0, ge=0, lt=2**32)
-    variant: Literal["cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral"] | None = None
-    daylight: DaylightParams = Field(default_factory=DaylightParams)
-    world: WorldParams = Field(default_factory=WorldParams)
+    representation: Literal["bands", "basis", "sensor"] = Field(
+        "bands", description="spectral film: box bands, smooth basis functions or the sensor's own channel "
+                             "QE curves; city render")
+    band_count: int = Field(16, ge=1, le=128, description="box bands over the wavelength range (count); "
+                                                          "representation 'bands'")
+    basis_count: int = Field(6, ge=2, le=32, description="raised-cosine basis functions (count); "
+                                                         "representation 'basis'")
+    output_step_nm: float = Field(10.0, gt=0.0, le=100.0, description="output wavelength step (nm); "
+                                                                      "representation 'basis'")
+    wavelength_min_nm: float | None = Field(None, ge=350.0, le=1000.0,
+                                            description="render range start (nm); None follows the sensor's QE")
+    wavelength_max_nm: float | None = Field(None, ge=350.0, le=1000.0,
+                                            description="render range end (nm); None follows the sensor's QE")
+    spp: int | None = Field(64, ge=1, le=1 << 20, description="fixed samples per pixel (count); city render")
+    target_rel_error: float | None = Field(None, gt=0.0, lt=1.0,
+                                           description="relative RMS render error wanted (0–1), spp from a pilot "
+                                                       "render; city render")
+    shot_noise_ratio: float | None = Field(None, gt=0.0, le=10.0,
+                                           description="render noise as this fraction of the sensor's photon shot "
+                                                       "noise (unitless); city render through optics and sensor")
+    error_metric: Literal["broadband", "per_channel"] = Field(
+        "broadband", description="error of target_rel_error: channel sum or mean per channel; city render")
+    pilot_spp: int = Field(4, ge=1, le=256, description="samples per pixel of each pilot render (count)")
+    max_spp: int = Field(16384, ge=1, le=1 << 20, description="most samples per pixel an error target may ask (count)")
+    max_depth: int = Field(6, ge=1, le=64, description="longest light path (bounces); Mitsuba integrator")
+    chunk_spp: int = Field(16, ge=1, le=1 << 16, description="samples per pixel per chunk between progress "
+                                                             "and cancel checks (count)")
+    preview_spp: int = Field(1, ge=1, le=1 << 16, description="samples per pixel of the first preview chunk (count)")
+    seed: int = Field(0, ge=0, lt=2**32, description="render noise seed (a data-set frame derives its own)")
+    variant: Literal["cuda_ad_spectral", "llvm_ad_spectral", "scalar_spectral"] | None = Field(
+        None, description="Mitsuba variant; None picks the fastest available (render.variants)")
+    daylight: DaylightParams = Field(default_factory=DaylightParams, description="sun and sky; city render")
+    world: WorldParams = Field(default_factory=WorldParams, description="lighting, fog and glass; city render")
 
     @model_validator(mode="after")
     def _check(self) -> "RenderParams":

@@ -13,9 +13,9 @@ from workbench.params import Params
 class WavelengthParams(Params):
     """Wavelength sampling (nm), both ends included. 400–700 nm in 10 nm steps by default."""
 
-    start_nm: float = Field(400.0, ge=300.0, le=1100.0)
-    stop_nm: float = Field(700.0, ge=300.0, le=1100.0)
-    step_nm: float = Field(10.0, gt=0.0, le=200.0)
+    start_nm: float = Field(400.0, ge=300.0, le=1100.0, description="first wavelength (nm); chart scenes")
+    stop_nm: float = Field(700.0, ge=300.0, le=1100.0, description="last wavelength (nm); chart scenes")
+    step_nm: float = Field(10.0, gt=0.0, le=200.0, description="wavelength step (nm); chart scenes")
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -36,18 +36,30 @@ class SceneParams(Params):
     unless fov_deg is given. adjust_illuminance_lux rescales the optical image to a mean sensor
     illuminance (the paper's experiments use 1000 lux); None keeps the absolute radiometry."""
 
-    kind: Literal["uniform", "macbeth", "slanted_edge", "hdr_tunnel", "city"] = "macbeth"
-    illuminant: str = "D65"
-    mean_luminance_cd_m2: float = Field(100.0, gt=0.0, le=1e9)
-    distance_m: float = Field(10.0, gt=0.0, le=1e6)
-    fov_deg: float | None = Field(None, gt=0.0, lt=180.0)
-    oversample: int = Field(1, ge=1, le=8)
-    wavelengths: WavelengthParams = WavelengthParams()
-    adjust_illuminance_lux: float | None = Field(None, gt=0.0, le=1e7)
-    edge_angle_deg: float = Field(5.0, ge=-45.0, le=45.0)
-    edge_contrast: float = Field(0.8, gt=0.0, le=1.0)
-    hdr_exit_luminance_cd_m2: float = Field(20000.0, gt=0.0, le=1e9)
-    hdr_tunnel_luminance_cd_m2: float = Field(0.05, gt=0.0, le=1e6)
+    kind: Literal["uniform", "macbeth", "slanted_edge", "hdr_tunnel", "city"] = Field(
+        "macbeth", description="an analytic chart (scene.charts.CHARTS) or 'city' (rendered by Mitsuba); scene stage")
+    illuminant: str = Field("D65", description="illuminant name (spectra.illuminant_spd: D65, A, blackbody:T…); "
+                                               "uniform, macbeth, slanted_edge charts")
+    mean_luminance_cd_m2: float = Field(100.0, gt=0.0, le=1e9, description="mean scene luminance (cd/m²); uniform, "
+                                                                           "macbeth, slanted_edge charts")
+    distance_m: float = Field(10.0, gt=0.0, le=1e6, description="chart distance (m), and the focus distance when "
+                                                                "optics.focus_distance_m is None; scene stage, optics")
+    fov_deg: float | None = Field(None, gt=0.0, lt=180.0,
+                                  description="horizontal field of view (deg) the scene spans; None = the sensor "
+                                              "behind the optics (the camera geometry); scene stage")
+    oversample: int = Field(1, ge=1, le=8, description="scene samples per pixel along each axis (count): the "
+                                                       "optical-image spacing is pixel pitch / oversample; scene stage")
+    wavelengths: WavelengthParams = Field(WavelengthParams(), description="wavelength sampling (nm) of the charts")
+    adjust_illuminance_lux: float | None = Field(None, gt=0.0, le=1e7,
+                                                 description="rescale the optical image to this mean sensor "
+                                                             "illuminance (lux); None keeps the absolute "
+                                                             "radiometry; optics stage")
+    edge_angle_deg: float = Field(5.0, ge=-45.0, le=45.0, description="edge tilt from vertical (deg); slanted_edge chart")
+    edge_contrast: float = Field(0.8, gt=0.0, le=1.0, description="(bright − dark)/bright (0–1); slanted_edge chart")
+    hdr_exit_luminance_cd_m2: float = Field(20000.0, gt=0.0, le=1e9,
+                                            description="daylight exit luminance (cd/m²); hdr_tunnel chart")
+    hdr_tunnel_luminance_cd_m2: float = Field(0.05, gt=0.0, le=1e6,
+                                              description="tunnel wall luminance (cd/m²); hdr_tunnel chart")
 
     @field_validator("illuminant")
     @classmethod

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, create_model, field_validator, model_validator
 
 from workbench.params import Params
 
@@ -23,7 +23,8 @@ AutoExposureMethod = Literal["mean", "brightest", "percentile", "cfa"]
 
 
 class SensorParams(Params):
-    """Everything that defines a simulated image sensor.
+    """Everything that defines a simulated image sensor: the pixel response (the fields of
+    PixelResponseParams, what the noise-free signal rate reads) and exposure, noise and read-out.
 
     noise_flag (ISETCam's `noiseFlag`):
       -1  ideal: mean electrons only; no noise, no analog gain/offset, no clipping of volts
@@ -33,44 +34,65 @@ class SensorParams(Params):
        2  as 1 plus dark current, read noise, PRNU, DSNU and column FPN (the default).
     """
 
-    rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height)")
-    cols: int = Field(640, ge=1, le=65536, description="pixel columns (image width)")
-    pixel_pitch_um: float = Field(3.0, ge=0.3, le=100.0, description="pixel centre spacing (µm)")
-    fill_factor: float = Field(0.75, gt=0.0, le=1.0, description="photosensitive fraction of the pixel area")
-    conversion_gain_uV_per_e: float = Field(100.0, gt=0.0, le=1000.0, description="µV per electron")
-    voltage_swing_V: float = Field(1.0, gt=0.0, le=10.0, description="pixel output range (V)")
-    dark_voltage_V_per_s: float = Field(1e-3, ge=0.0, le=10.0, description="dark-current voltage rate (V/s)")
-    read_noise_V: float = Field(1e-3, ge=0.0, le=1.0, description="read noise σ (V)")
-    dsnu_sigma_V: float = Field(0.0, ge=0.0, le=1.0, description="dark-signal non-uniformity σ (V)")
-    prnu_sigma_pct: float = Field(0.0, ge=0.0, le=50.0, description="photo-response non-uniformity σ (%)")
-    column_fpn_offset_sigma_V: float = Field(0.0, ge=0.0, le=1.0, description="column offset σ (V)")
-    column_fpn_gain_sigma_pct: float = Field(0.0, ge=0.0, le=50.0, description="column gain σ (%)")
+    rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height); sensor geometry and signal stage")
+    cols: int = Field(640, ge=1, le=65536, description="pixel columns (image width); sensor geometry and signal stage")
+    pixel_pitch_um: float = Field(3.0, ge=0.3, le=100.0,
+                                  description="pixel centre spacing (µm); sets the sensor width, so the field of "
+                                              "view and the optical-image sample spacing (pitch / oversample)")
+    fill_factor: float = Field(0.75, gt=0.0, le=1.0,
+                               description="photosensitive fraction of the pixel area (0–1); signal stage")
+    conversion_gain_uV_per_e: float = Field(100.0, gt=0.0, le=1000.0,
+                                            description="conversion gain (µV per electron); sensor stage")
+    voltage_swing_V: float = Field(1.0, gt=0.0, le=10.0, description="pixel output range (V); sensor stage")
+    dark_voltage_V_per_s: float = Field(1e-3, ge=0.0, le=10.0,
+                                        description="dark-current voltage rate (V/s); sensor stage, noise_flag 2")
+    read_noise_V: float = Field(1e-3, ge=0.0, le=1.0, description="read noise σ (V); sensor stage, noise_flag 2")
+    dsnu_sigma_V: float = Field(0.0, ge=0.0, le=1.0,
+                                description="dark-signal non-uniformity σ (V); sensor stage, noise_flag 2")
+    prnu_sigma_pct: float = Field(0.0, ge=0.0, le=50.0,
+                                  description="photo-response non-uniformity σ (%); sensor stage, noise_flag 2")
+    column_fpn_offset_sigma_V: float = Field(0.0, ge=0.0, le=1.0,
+                                             description="column offset σ (V); sensor stage, noise_flag 2")
+    column_fpn_gain_sigma_pct: float = Field(0.0, ge=0.0, le=50.0,
+                                             description="column gain σ (%); sensor stage, noise_flag 2")
     analog_gain: float = Field(1.0, gt=0.0, le=1000.0,
-                               description="volts out = analog_gain × volts + analog_offset_V (ISETCam's gain divides)")
-    analog_offset_V: float = Field(0.0, ge=-10.0, le=10.0, description="black-level offset added after the gain (V)")
-    bit_depth: int = Field(8, ge=0, le=24, description="ADC bits; 0 = analog read-out in volts")
-    cfa_pattern: CfaPattern = Field("GRBG", description="2×2 colour-filter tile read row by row")
+                               description="volts out = analog_gain × volts + analog_offset_V (unitless; "
+                                           "ISETCam's gain divides); sensor stage")
+    analog_offset_V: float = Field(0.0, ge=-10.0, le=10.0,
+                                   description="black-level offset added after the gain (V); sensor stage")
+    bit_depth: int = Field(8, ge=0, le=24, description="ADC bits; 0 = analog read-out in volts; sensor stage")
+    cfa_pattern: CfaPattern = Field("GRBG", description="2×2 colour-filter tile read row by row; signal stage, ISP")
     filter_file: str | None = Field("sensors/bayer_dye_filters.csv",
-                                    description="colour-filter CSV under resources/ (columns named R,G,B,C,W); "
-                                                "None = no colour filters (MONO only)")
+                                    description="colour-filter transmittance CSV under resources/ (columns named "
+                                                "R,G,B,C,W); None = no colour filters (MONO only); signal stage")
     photodiode_qe_file: str | None = Field("sensors/silicon_photodiode_qe.csv",
-                                           description="photodiode QE CSV; None = QE 1 (ISETCam's default pixel)")
-    ir_cut_file: str | None = Field("sensors/ir_cut_650.csv", description="IR-cut filter CSV; None = no IR cut")
+                                           description="photodiode QE CSV under resources/; None = QE 1 "
+                                                       "(ISETCam's default pixel); signal stage")
+    ir_cut_file: str | None = Field("sensors/ir_cut_650.csv",
+                                    description="IR-cut filter transmittance CSV under resources/; None = no IR "
+                                                "cut; signal stage")
     regrid_method: Literal["area", "isetcam"] = Field(
-        "area", description="optical image → pixel grid: 'area' averages over each pixel (flux "
-                            "conserving); 'isetcam' = Gaussian pre-blur + bilinear (regridOI2ISA)")
+        "area", description="optical image → pixel grid when their spacings differ: 'area' averages over "
+                            "each pixel (flux conserving); 'isetcam' = Gaussian pre-blur + bilinear "
+                            "(regridOI2ISA); signal stage")
     exposure_s: float | list[list[float]] | None = Field(
         None, description="exposure (s): a number, a per-CFA-position tile (rows of the CFA tile), "
-                          "or None for auto-exposure")
-    auto_exposure_method: AutoExposureMethod = Field("mean", description="see AUTO_EXPOSURE_METHODS")
+                          "or None for auto-exposure; sensor stage")
+    auto_exposure_method: AutoExposureMethod = Field(
+        "mean", description="auto-exposure method (AUTO_EXPOSURE_METHODS) when exposure_s is None; sensor stage")
     auto_exposure_level: float = Field(0.4, gt=0.0, le=1.0,
-                                       description="target as a fraction of the swing (percentile fraction "
-                                                   "for 'percentile'); the paper's experiment uses mean 0.4")
-    ev_bias: float = Field(0.0, ge=-16.0, le=16.0, description="exposure bias: t = t0 · 2^ev_bias, t0 = exposure_s or the "
-                                                           "auto-exposure")
-    max_exposure_s: float = Field(10.0, gt=0.0, le=3600.0, description="longest exposure auto-exposure may pick (s)")
-    noise_flag: Literal[-1, 0, 1, 2] = Field(2, description="-1 ideal, 0 no noise, 1 shot noise, 2 all noise")
-    seed: int = Field(0, ge=0, le=2 ** 63 - 1, description="seed of the fixed patterns and of the temporal noise")
+                                       description="auto-exposure target as a fraction of the swing (0–1; the "
+                                                   "percentile fraction for 'percentile'); the paper's experiment "
+                                                   "uses mean 0.4; sensor stage")
+    ev_bias: float = Field(0.0, ge=-16.0, le=16.0,
+                           description="exposure bias (EV): t = t0 · 2^ev_bias, t0 = exposure_s or the "
+                                       "auto-exposure; sensor stage")
+    max_exposure_s: float = Field(10.0, gt=0.0, le=3600.0,
+                                  description="longest exposure auto-exposure may pick (s); sensor stage")
+    noise_flag: Literal[-1, 0, 1, 2] = Field(
+        2, description="-1 ideal, 0 no noise, 1 shot noise, 2 all noise (see the class doc); sensor stage")
+    seed: int = Field(0, ge=0, le=2 ** 63 - 1,
+                      description="seed of the fixed patterns and of the temporal noise; sensor stage")
 
     @field_validator("exposure_s")
     @classmethod
@@ -93,22 +115,15 @@ class SensorParams(Params):
         return v if v is None else check_spectrum_file(v)
 
     @model_validator(mode="after")
-    def _consistent(self):
+    def _pixels_and_filters(self):
         n = self.rows * self.cols
         if n > MAX_PIXELS:
             raise ValueError(
                 f"sensor of rows×cols = {self.rows}×{self.cols} = {n:,} pixels exceeds the simulation limit "
                 f"of {MAX_PIXELS:,} pixels; reduce rows/cols (simulate a crop or a binned sensor with a "
                 f"larger pixel_pitch_um)")
-        if abs(self.analog_offset_V) >= self.voltage_swing_V:
-            raise ValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
-                             f"voltage_swing_V = {self.voltage_swing_V} V")
         from workbench.sensor.cfa import cfa_layout
-        tile, names = cfa_layout(self.cfa_pattern)
-        if isinstance(self.exposure_s, list):
-            shape = (len(self.exposure_s), len(self.exposure_s[0]))
-            if shape != tile.shape:
-                raise ValueError(f"exposure_s tile has shape {shape}, the {self.cfa_pattern} CFA tile is {tile.shape}")
+        _, names = cfa_layout(self.cfa_pattern)
         needed = [c for c in names if c != "M"]
         if needed:
             if self.filter_file is None:
@@ -121,14 +136,38 @@ class SensorParams(Params):
                                  f"needed by cfa_pattern {self.cfa_pattern}")
         return self
 
+    @model_validator(mode="after")
+    def _consistent(self):
+        if abs(self.analog_offset_V) >= self.voltage_swing_V:
+            raise ValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
+                             f"voltage_swing_V = {self.voltage_swing_V} V")
+        from workbench.sensor.cfa import cfa_layout
+        tile, _ = cfa_layout(self.cfa_pattern)
+        if isinstance(self.exposure_s, list):
+            shape = (len(self.exposure_s), len(self.exposure_s[0]))
+            if shape != tile.shape:
+                raise ValueError(f"exposure_s tile has shape {shape}, the {self.cfa_pattern} CFA tile is {tile.shape}")
+        return self
+
     # Derived quantities -------------------------------------------------------------------
     @property
-    def conversion_gain_V_per_e(self) -> float:
-        return self.conversion_gain_uV_per_e * 1e-6
+    def pixel_response(self) -> "PixelResponseParams":
+        """Only the pixel-response fields: the signal stage's input (its cache key)."""
+        return PixelResponseParams.model_validate(self.model_dump(include=set(PIXEL_RESPONSE_FIELDS)))
 
     @property
     def pixel_area_m2(self) -> float:
         return (self.pixel_pitch_um * 1e-6) ** 2
+
+    @property
+    def sensor_size_m(self) -> tuple[float, float]:
+        """(height, width) of the pixel array (m)."""
+        p = self.pixel_pitch_um * 1e-6
+        return self.rows * p, self.cols * p
+
+    @property
+    def conversion_gain_V_per_e(self) -> float:
+        return self.conversion_gain_uV_per_e * 1e-6
 
     @property
     def full_well_e(self) -> float:
@@ -153,11 +192,28 @@ class SensorParams(Params):
         """Largest output code (2^bits − 1), or the swing (V) for an analog read-out."""
         return float(2 ** self.bit_depth - 1) if self.bit_depth else self.voltage_swing_V
 
+
+PIXEL_RESPONSE_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "cfa_pattern", "filter_file",
+                         "photodiode_qe_file", "ir_cut_file", "regrid_method")
+
+
+class _PixelResponse(Params):
+    """The pixel array and its spectral response: all the noise-free signal rate
+    (sensor.irradiance_to_signal_rate) reads, so it is that stage's input and cache key. Its fields are
+    SensorParams' PIXEL_RESPONSE_FIELDS (same types, ranges and descriptions)."""
+
     @property
-    def sensor_size_m(self) -> tuple[float, float]:
-        """(height, width) of the pixel array (m)."""
-        p = self.pixel_pitch_um * 1e-6
-        return self.rows * p, self.cols * p
+    def pixel_response(self) -> "PixelResponseParams":
+        return self
+
+    pixel_area_m2 = SensorParams.pixel_area_m2
+    sensor_size_m = SensorParams.sensor_size_m
+
+
+PixelResponseParams = create_model(
+    "PixelResponseParams", __base__=_PixelResponse, __module__=__name__,
+    **{name: (SensorParams.model_fields[name].annotation, SensorParams.model_fields[name])
+       for name in PIXEL_RESPONSE_FIELDS})
 
 
 SENSOR_PRESETS: dict[str, SensorParams] = {

@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from workbench.optics.types import OpticalImage
 from workbench.registry import Registry
 from workbench.sensor.cfa import cfa_layout, channel_qe
-from workbench.sensor.params import SensorParams
+from workbench.sensor.params import PixelResponseParams
 from workbench.units import band_widths_nm
 
 REGRID_METHODS: Registry = Registry("sensor.regrid_method", "regrid method")
@@ -89,8 +89,7 @@ def resample_matrix(n_src: int, src_spacing_m: float, n_dst: int, dst_spacing_m:
 
 
 @lru_cache(maxsize=32)
-def _weights_cached(params_key: str, wl_key: tuple[float, ...]) -> np.ndarray:
-    params = SensorParams.model_validate_json(params_key)
+def _weights_cached(params: PixelResponseParams, wl_key: tuple[float, ...]) -> np.ndarray:
     wl = np.asarray(wl_key)
     w = channel_qe(params, wl) * band_widths_nm(wl)[:, None] * params.pixel_area_m2 * params.fill_factor
     w = w.astype(np.float32)
@@ -98,14 +97,13 @@ def _weights_cached(params_key: str, wl_key: tuple[float, ...]) -> np.ndarray:
     return w
 
 
-def channel_weights(params: SensorParams, wavelengths_nm: np.ndarray) -> np.ndarray:
+def channel_weights(params: PixelResponseParams, wavelengths_nm: np.ndarray) -> np.ndarray:
     """(Nλ, K) float32 weights A·FF·QE_k·Δλ (m²·nm): irradiance @ weights = e⁻/s per channel."""
-    key = params.model_dump_json(include={"cfa_pattern", "filter_file", "photodiode_qe_file",
-                                          "ir_cut_file", "pixel_pitch_um", "fill_factor"})
-    return _weights_cached(key, tuple(np.asarray(wavelengths_nm, dtype=np.float64).ravel().tolist()))
+    return _weights_cached(params.pixel_response,
+                           tuple(np.asarray(wavelengths_nm, dtype=np.float64).ravel().tolist()))
 
 
-def film_channel_weights(oi: OpticalImage, params: SensorParams) -> np.ndarray:
+def film_channel_weights(oi: OpticalImage, params: PixelResponseParams) -> np.ndarray:
     """(K, K) weights for an optical image rendered with the sensor's own channels as the film
     (render representation 'sensor'): band k holds the QE_k-weighted mean irradiance, so pixel
     channel k collects A·FF·band_k·∫QE_k dλ."""
@@ -129,7 +127,7 @@ def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> 
     return out
 
 
-def irradiance_to_signal_rate(oi: OpticalImage, params: SensorParams, method: str | None = None) -> np.ndarray:
+def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, method: str | None = None) -> np.ndarray:
     """Mean photo-electron rate (e⁻/s) of every pixel, rows×cols float32, before any noise.
 
     Fast path when the optical image is already on the pixel grid (same spacing; same size, or

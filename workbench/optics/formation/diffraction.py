@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 
-from workbench.optics.formation import fourier, pinhole
+from workbench.errors import check_finite
+from workbench.optics.formation import fourier, geometry, pinhole
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
@@ -50,13 +51,15 @@ def blur_radius_samples(wavelengths_nm: np.ndarray, n_w: float, spacing_m: float
     return 40.0 * float(np.max(wavelengths_nm)) * 1e-9 * n_w / spacing_m
 
 
-def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                           camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Pinhole irradiance (camera equation, fall-off, distortion) blurred by the diffraction OTF.
 
     Padding mirrors the image (see fourier.py). Ringing below zero (from cutting the OTF at
     the sampling grid) is clipped to 0; meta['clipped_fraction'] says how many samples."""
-    oi = pinhole.radiance_to_irradiance(scene, params)
-    n_w = working_f_number(oi, params.focal_length_m)
+    g = geometry.scene_geometry(scene, params, camera)
+    oi = pinhole.radiance_to_irradiance(scene, params, g)
+    n_w = working_f_number(oi, g.focal_length_m)
     wl_m = oi.wavelengths_nm * 1e-9
     pad = fourier.pad_width(oi.shape, blur_radius_samples(oi.wavelengths_nm, n_w, oi.sample_spacing_m))
 
@@ -64,8 +67,8 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
         return diffraction_mtf(np.hypot(fy, fx), wl_m[c], n_w)
 
     irr, clipped = fourier.apply_otf(oi.irradiance_photons, oi.sample_spacing_m, otf, pad)
-    return OpticalImage(pinhole.check_finite("diffraction_limited", irr), oi.wavelengths_nm,
-                        oi.sample_spacing_m, params.focal_length_m, params.f_number, depth_m=oi.depth_m,
+    return OpticalImage(check_finite("optics diffraction_limited", irr).astype(np.float32), oi.wavelengths_nm,
+                        oi.sample_spacing_m, g.focal_length_m, params.f_number, depth_m=oi.depth_m,
                         meta={**oi.meta, "model": "diffraction_limited", "working_f_number": n_w,
                               "pad_samples": pad, "padding": "symmetric", "clipped_fraction": clipped})
 

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.optics.formation import diffraction, fourier, geometry, lens_setup, pinhole
+from workbench.errors import check_finite
+from workbench.optics.formation import diffraction, fourier, geometry, lens_setup
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial
 from workbench.optics.types import OpticalImage
@@ -44,29 +45,15 @@ class FullModelCamera:
         return self.f_number * self.image_distance_m / self.focal_length_m
 
 
-def full_model_camera(params, focus_distance_m: float, *, sensor_width_mm: float | None = None,
-                      fov_deg: float | None = None) -> FullModelCamera:
-    """The full model's camera for OpticsParams `params` (lens_file required): the lens prepared as
+def full_model_camera(params, camera: geometry.CameraGeometry) -> FullModelCamera:
+    """The full model's camera for OpticsParams `params` (lens_file required) on the camera
+    geometry `camera` (the project's: stages.geometry.project_geometry): the lens prepared as
     formation/ prepares it (scale_lens_to_focal_length, stop resized to f_number), focused on
-    params.focus_distance_m or else `focus_distance_m`. The sensor is `sensor_width_mm` wide, or
-    spans `fov_deg` (horizontal) at the image distance; give exactly one."""
-    if (sensor_width_mm is None) == (fov_deg is None):
-        raise ValueError("full_model_camera: give exactly one of sensor_width_mm or fov_deg")
-    effective = lens_setup.effective_params(params)
-    s_m = params.focus_distance_m if params.focus_distance_m is not None else float(focus_distance_m)
-    if not (s_m > 0):
-        raise ValueError(f"focus_distance_m={s_m}: must be > 0 (or inf)")
-    lens, _ = lens_setup.focused_lens(effective, s_m)
-    pdata = paraxial(lens)
-    f_m = pdata.efl_mm * 1e-3
-    d_m = geometry.image_distance_m(f_m, s_m)
-    if fov_deg is not None:
-        if not 0 < fov_deg < 180:
-            raise ValueError(f"fov_deg={fov_deg}: must be in (0, 180)")
-        sensor_width_mm = 2e3 * d_m * math.tan(math.radians(fov_deg) / 2.0)
-    if not (math.isfinite(sensor_width_mm) and sensor_width_mm > 0):
-        raise ValueError(f"sensor_width_mm={sensor_width_mm}: must be a finite number > 0")
-    return FullModelCamera(lens, float(sensor_width_mm), float(d_m), float(f_m), float(pdata.f_number), float(s_m))
+    camera.focus_distance_m; the sensor is camera.sensor_width_m wide at camera.image_distance_m."""
+    lens, _ = lens_setup.focused_lens(params, camera.focus_distance_m)
+    return FullModelCamera(lens, float(camera.sensor_width_m * 1e3), float(camera.image_distance_m),
+                           float(camera.focal_length_m), float(paraxial(lens).f_number),
+                           float(camera.focus_distance_m))
 
 
 def full_model_optical_image(irradiance_photons: np.ndarray, wavelengths_nm: np.ndarray,
@@ -91,6 +78,6 @@ def full_model_optical_image(irradiance_photons: np.ndarray, wavelengths_nm: np.
             "image_distance_m": camera.image_distance_m, "focus_distance_m": camera.focus_distance_m,
             "working_f_number": camera.working_f_number, "diffraction": params.raytrace_diffraction,
             "clipped_fraction": clipped, **(meta or {})}
-    return OpticalImage(pinhole.check_finite("full model", irr.astype(np.float32)),
+    return OpticalImage(check_finite("optics full model", irr).astype(np.float32),
                         np.asarray(wavelengths_nm, dtype=np.float64).copy(), dx, camera.focal_length_m,
                         camera.f_number, depth_m=depth_m, meta=info)

@@ -1,15 +1,17 @@
 """First-order image geometry and radiometry shared by every level of detail.
 
-Thin-lens conjugates, the sensor-plane sampling of a scene, ISETCam's camera equation, the
-off-axis fall-off and radial distortion. Lengths in metres unless a name says otherwise.
+The camera geometry (CameraGeometry: effective focal length, focus → image distance → field of
+view and sample spacing), thin-lens conjugates, ISETCam's camera equation, the off-axis
+fall-off and radial distortion. Lengths in metres unless a name says otherwise.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.optics.params import OpticsParams
+from workbench.optics.params import OpticsParams, fov_deg as _fov_deg
 from workbench.scene.types import Scene
 
 
@@ -25,11 +27,6 @@ def image_distance_m(focal_length_m: float, object_distance_m: float) -> float:
     return 1.0 / (1.0 / focal_length_m - 1.0 / object_distance_m)
 
 
-def focus_object_distance_m(scene: Scene, params: OpticsParams) -> float:
-    """The object distance in focus: params.focus_distance_m, else the scene distance."""
-    return params.focus_distance_m if params.focus_distance_m is not None else scene.distance_m
-
-
 def magnification(focal_length_m: float, object_distance_m: float) -> float:
     """Thin-lens lateral magnification m = −d_image/d_object (0 at infinity)."""
     if math.isinf(object_distance_m):
@@ -37,9 +34,80 @@ def magnification(focal_length_m: float, object_distance_m: float) -> float:
     return -image_distance_m(focal_length_m, object_distance_m) / object_distance_m
 
 
-def sample_spacing_m(fov_deg: float, width_samples: int, image_distance: float) -> float:
-    """Sensor-plane spacing of W samples spanning the horizontal field of view."""
-    return 2.0 * image_distance * math.tan(math.radians(fov_deg) / 2.0) / width_samples
+@dataclass(frozen=True)
+class CameraGeometry:
+    """The camera's first-order geometry: the one source every optics level, scene stage, the
+    full-lens render and the pipeline's cache keys read (DESIGN.md §3).
+
+    focal_length_m: effective focal length: the lens file's paraxial EFL when optics.lens_file
+        is set, else optics.focal_length_mm. focus_distance_m: object distance in focus (m).
+    image_distance_m: its thin-lens conjugate, the lens-to-sensor distance (m).
+    sensor_width_m: width the `shape` = (rows, cols) optical-image samples span on the sensor.
+    """
+
+    focal_length_m: float
+    focus_distance_m: float
+    image_distance_m: float
+    sensor_width_m: float
+    shape: tuple[int, int]
+
+    @property
+    def sample_spacing_m(self) -> float:
+        """Optical-image sample spacing on the sensor (m): pixel pitch / oversample for a project."""
+        return self.sensor_width_m / self.shape[1]
+
+    @property
+    def sensor_height_m(self) -> float:
+        return self.sample_spacing_m * self.shape[0]
+
+    @property
+    def hfov_deg(self) -> float:
+        """Horizontal field of view (deg) of the sensor width at the image distance."""
+        return _fov_deg(self.image_distance_m * 1e3, self.sensor_width_m * 1e3)
+
+    @property
+    def vfov_deg(self) -> float:
+        return _fov_deg(self.image_distance_m * 1e3, self.sensor_height_m * 1e3)
+
+    @property
+    def magnification(self) -> float:
+        return magnification(self.focal_length_m, self.focus_distance_m)
+
+
+def camera_geometry(params: OpticsParams, default_focus_m: float, shape: tuple[int, int], *,
+                    sensor_width_m: float | None = None, fov_deg: float | None = None) -> CameraGeometry:
+    """The geometry of `params` on `shape` = (rows, cols) samples: focused on
+    params.focus_distance_m, else `default_focus_m` (the scene distance); the samples span
+    `sensor_width_m`, or the horizontal `fov_deg` at the image distance (give exactly one)."""
+    from workbench.optics.formation.lens_setup import effective_focal_length_m
+    if (sensor_width_m is None) == (fov_deg is None):
+        raise ValueError("camera_geometry: give exactly one of sensor_width_m or fov_deg")
+    rows, cols = (int(shape[0]), int(shape[1]))
+    if rows < 1 or cols < 1:
+        raise ValueError(f"camera_geometry: shape must be at least 1×1 samples, got {shape}")
+    focus_m = params.focus_distance_m if params.focus_distance_m is not None else float(default_focus_m)
+    f_m = effective_focal_length_m(params)
+    d_m = image_distance_m(f_m, focus_m)
+    if fov_deg is not None:
+        if not 0 < fov_deg < 180:
+            raise ValueError(f"fov_deg={fov_deg}: must be in (0, 180) degrees")
+        sensor_width_m = 2.0 * d_m * math.tan(math.radians(fov_deg) / 2.0)
+    if not (math.isfinite(sensor_width_m) and sensor_width_m > 0):
+        raise ValueError(f"sensor_width_m={sensor_width_m}: must be a finite number > 0")
+    return CameraGeometry(float(f_m), float(focus_m), float(d_m),
+                          float(sensor_width_m), (rows, cols))
+
+
+def scene_geometry(scene: Scene, params: OpticsParams, camera: CameraGeometry | None = None) -> CameraGeometry:
+    """`camera` (the geometry the scene was sampled for) after checking that it fits the scene,
+    else the geometry of a scene sampled over scene.fov_deg, focused at the scene distance
+    unless params.focus_distance_m says otherwise."""
+    if camera is None:
+        return camera_geometry(params, scene.distance_m, scene.shape, fov_deg=scene.fov_deg)
+    if tuple(camera.shape) != tuple(scene.shape):
+        raise ValueError(f"camera geometry of {camera.shape[0]}×{camera.shape[1]} samples does not fit "
+                         f"the scene of {scene.shape[0]}×{scene.shape[1]}")
+    return camera
 
 
 def sample_positions_m(shape: tuple[int, int], spacing_m: float) -> tuple[np.ndarray, np.ndarray]:

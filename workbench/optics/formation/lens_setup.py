@@ -36,13 +36,22 @@ def prepared_lens(params: OpticsParams):
                           params.f_number)
 
 
+def effective_focal_length_m(params: OpticsParams) -> float:
+    """The focal length every level images with (m): the paraxial EFL of the prepared lens when
+    params.lens_file is set (equal to focal_length_mm when scale_lens_to_focal_length), else
+    params.focal_length_mm."""
+    if params.lens_file is None:
+        return params.focal_length_m
+    from workbench.optics.lens.paraxial import paraxial
+    return paraxial(prepared_lens(params)).efl_mm * 1e-3
+
+
 def effective_params(params: OpticsParams) -> OpticsParams:
-    """params with focal_length_mm replaced by the lens's paraxial focal length (when a lens is
-    set), so that every level images with the same first-order optics."""
+    """params with focal_length_mm replaced by effective_focal_length_m (the lens's paraxial
+    focal length when a lens is set)."""
     if params.lens_file is None or params.scale_lens_to_focal_length:
         return params
-    from workbench.optics.lens.paraxial import paraxial
-    return params.model_copy(update={"focal_length_mm": paraxial(prepared_lens(params)).efl_mm})
+    return params.model_copy(update={"focal_length_mm": effective_focal_length_m(params) * 1e3})
 
 
 FAR_FOCAL_LENGTHS = 1e4

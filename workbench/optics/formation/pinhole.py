@@ -5,31 +5,24 @@ import math
 
 import numpy as np
 
+from workbench.errors import check_finite
 from workbench.optics.formation import geometry
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
 
 
-def check_finite(stage: str, irradiance: np.ndarray) -> np.ndarray:
-    """Raise if a stage produced NaN/Inf; return the array as float32."""
-    if not np.all(np.isfinite(irradiance)):
-        raise FloatingPointError(f"optics '{stage}': irradiance has NaN/Inf (check the scene "
-                                 "radiance range and the optics parameters)")
-    return irradiance.astype(np.float32, copy=False)
-
-
-def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                           camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Sensor-plane irradiance (photons/s/m²/nm) of a pinhole camera, image upright.
 
     E = π T L / (1 + 4 N² (1 + |m|)²) × off-axis fall-off, m from the thin-lens law at the
-    focus distance (default the scene distance); samples spaced 2·d_image·tan(fov/2)/W."""
-    f_m = params.focal_length_m
-    s_m = geometry.focus_object_distance_m(scene, params)
-    d_img = geometry.image_distance_m(f_m, s_m)
-    m = geometry.magnification(f_m, s_m)
+    focus distance; focal length, image distance and sample spacing from `camera`
+    (geometry.scene_geometry: the scene's own field of view when None)."""
+    g = geometry.scene_geometry(scene, params, camera)
+    f_m, s_m, d_img, m = g.focal_length_m, g.focus_distance_m, g.image_distance_m, g.magnification
     rows, cols = scene.shape
-    dx = geometry.sample_spacing_m(scene.fov_deg, cols, d_img)
+    dx = g.sample_spacing_m
     gain = geometry.camera_equation_factor(params.f_number, m, params.transmittance)
     irr = scene.radiance_photons.astype(np.float64) * gain
     if params.off_axis == "cos4th":
@@ -38,7 +31,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
                                        dx * math.hypot(rows, cols))
         irr *= fall[..., None]
     irr = geometry.distort_image(irr, dx, d_img, params.distortion_k)
-    return OpticalImage(check_finite("pinhole", irr), scene.wavelengths_nm.copy(), dx, d_img,
+    return OpticalImage(check_finite("optics pinhole", irr).astype(np.float32), scene.wavelengths_nm.copy(), dx, d_img,
                         params.f_number, depth_m=scene.depth_m,
                         meta={"model": "pinhole", "image_distance_m": d_img, "magnification": m,
                               "focal_length_m": f_m})

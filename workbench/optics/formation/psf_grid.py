@@ -36,7 +36,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft, ndimage
 
-from workbench.optics.formation import fourier, geometry, lens_setup, pinhole, thin_lens
+from workbench.errors import check_finite
+from workbench.optics.formation import fourier, geometry, lens_setup, thin_lens
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
@@ -184,17 +185,16 @@ def _axial_depth_checked(scene: Scene, spacing_m: float, image_distance: float, 
     return z
 
 
-def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                           camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Irradiance through params.lens_file by a field/wavelength/depth PSF grid (see module doc)."""
     from workbench.optics.lens import paraxial
-    params = lens_setup.effective_params(params)
-    s_m = geometry.focus_object_distance_m(scene, params)
+    g = geometry.scene_geometry(scene, params, camera)
+    s_m, d_img, dx = g.focus_distance_m, g.image_distance_m, g.sample_spacing_m
     lens, obj_m = lens_setup.focused_lens(params, s_m)
     pdata = paraxial(lens)
-    d_img = geometry.image_distance_m(pdata.efl_mm * 1e-3, s_m)
     radiance = scene.radiance_photons.astype(np.float64)           # on the pinhole's grid
     rows, cols, n_bands = radiance.shape
-    dx = geometry.sample_spacing_m(scene.fov_deg, cols, d_img)
     x, y = geometry.sample_positions_m((rows, cols), dx)
     r_out = np.hypot(x, y)
     r_max = float(r_out.max()) * 1.0001
@@ -259,7 +259,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
         plane = fft.irfft2(acc[b], s=pshape, workers=-1)[pad:pad + rows, pad:pad + cols]
         clipped += int((plane < 0).sum())
         out[..., b] = np.maximum(plane, 0.0)
-    return OpticalImage(pinhole.check_finite("psf_grid", out), wl.copy(), dx, pdata.efl_mm * 1e-3,
+    return OpticalImage(check_finite("optics psf_grid", out).astype(np.float32), wl.copy(), dx, pdata.efl_mm * 1e-3,
                         float(pdata.f_number), depth_m=scene.depth_m,
                         meta={"model": "psf_grid", "image_distance_m": d_img, "lens": lens.name,
                               "zones_m": zones.tolist(), "psf_wavelengths_nm": nodes.tolist(),

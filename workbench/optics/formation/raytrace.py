@@ -24,7 +24,8 @@ import math
 
 import numpy as np
 
-from workbench.optics.formation import diffraction, fourier, geometry, lens_setup, pinhole
+from workbench.errors import check_finite
+from workbench.optics.formation import diffraction, fourier, geometry, lens_setup
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
 from workbench.scene.types import Scene
@@ -76,19 +77,17 @@ def _scene_lookup(radiance: np.ndarray, fov_deg: float, x_mm: np.ndarray, y_mm: 
     return np.where(inside[:, None], out, 0.0)
 
 
-def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                           camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Irradiance on the sensor by tracing rays through params.lens_file (see module doc)."""
     from workbench.optics.lens.paraxial import paraxial, sensor_z_mm
     from workbench.optics.lens.trace import trace_rays
 
-    params = lens_setup.effective_params(params)
-    s_m = geometry.focus_object_distance_m(scene, params)
-    lens, _ = lens_setup.focused_lens(params, s_m)
+    g = geometry.scene_geometry(scene, params, camera)
+    lens, _ = lens_setup.focused_lens(params, g.focus_distance_m)
     pdata = paraxial(lens)
-    f_m = pdata.efl_mm * 1e-3
-    d_img = geometry.image_distance_m(f_m, s_m)
+    f_m, d_img, dx = g.focal_length_m, g.image_distance_m, g.sample_spacing_m
     rows, cols = scene.shape
-    dx = geometry.sample_spacing_m(scene.fov_deg, cols, d_img)
     x, y = geometry.sample_positions_m((rows, cols), dx)
     px, py = -x.ravel() * 1e3, -y.ravel() * 1e3           # physical sensor points (inverted), mm
     radius = np.hypot(px, py)
@@ -149,7 +148,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
             irr[..., b:b + 1], frac = fourier.apply_otf(irr[..., b:b + 1], dx, lambda c, fy, fx: 1.0,
                                                        fourier.pad_width((rows, cols), kernel.shape[0]), kernel)
             clipped = max(clipped, frac)
-    return OpticalImage(pinhole.check_finite("raytrace", irr), wl_all.copy(), dx, float(f_m), float(pdata.f_number),
+    return OpticalImage(check_finite("optics raytrace", irr).astype(np.float32), wl_all.copy(), dx, float(f_m), float(pdata.f_number),
                         depth_m=scene.depth_m,
                         meta={"model": "raytrace", "image_distance_m": float(d_img), "lens": lens.name,
                               "rays_per_sample": n, "dispersive": dispersive,

@@ -17,7 +17,9 @@ meta['auto'].
 from __future__ import annotations
 
 import math
+import threading
 import time
+from collections import OrderedDict
 
 import numpy as np
 
@@ -33,7 +35,8 @@ PROBE_BANDS = 5
 REFERENCE_RAYS = 256
 WAVE_REGIME_SPOTS = 2.0
 CACHE_SIZE = 32
-_CACHE: dict = {}          # selection per (params, budget, sampling, worst depth, wavelengths)
+_CACHE: OrderedDict = OrderedDict()   # LRU: selection per (params, budget, camera, worst depth, wavelengths)
+_CACHE_LOCK = threading.Lock()
 
 
 def _probe_wavelengths(wavelengths_nm: np.ndarray) -> np.ndarray:
@@ -41,28 +44,30 @@ def _probe_wavelengths(wavelengths_nm: np.ndarray) -> np.ndarray:
     return wavelengths_nm[idx.astype(int)]
 
 
-def _worst_depth_m(scene: Scene, params: OpticsParams, spacing_m: float, d_img: float) -> float:
+def _worst_depth_m(scene: Scene, f_number: float, camera: geometry.CameraGeometry) -> float:
     """The scene depth (axial, m) with the largest circle of confusion."""
-    s_m = geometry.focus_object_distance_m(scene, params)
-    z = thin_lens.axial_depth_m(scene, spacing_m, d_img)
-    coc = thin_lens.circle_of_confusion_m(z, params.focal_length_m, params.f_number, s_m)
+    z = thin_lens.axial_depth_m(scene, camera.sample_spacing_m, camera.image_distance_m)
+    coc = thin_lens.circle_of_confusion_m(z, camera.focal_length_m, f_number, camera.focus_distance_m)
     return float(z.flat[int(np.argmax(coc))])
 
 
-def _probe(scene: Scene, params: OpticsParams) -> tuple[Scene, OpticsParams, dict]:
+def _probe(scene: Scene, params: OpticsParams,
+           camera: geometry.CameraGeometry) -> tuple[Scene, OpticsParams, geometry.CameraGeometry, dict]:
+    """A PROBE_SIZE² slanted edge at the worst depth on the scene's sample spacing and focus: the
+    probe scene, its optics (no distortion), its camera geometry and what it was made from."""
     from workbench.scene.charts import slanted_edge_scene
-    s_m = geometry.focus_object_distance_m(scene, params)
-    d_img = geometry.image_distance_m(params.focal_length_m, s_m)
-    dx = geometry.sample_spacing_m(scene.fov_deg, scene.shape[1], d_img)
-    z_worst = _worst_depth_m(scene, params, dx, d_img)
-    fov = math.degrees(2 * math.atan(PROBE_SIZE * dx / 2 / d_img))
-    probe = slanted_edge_scene(angle_deg=5.0, contrast=0.8, size=(PROBE_SIZE, PROBE_SIZE), fov_deg=fov,
-                               distance_m=z_worst, wavelengths_nm=_probe_wavelengths(scene.wavelengths_nm))
-    probe_params = params.model_copy(update={"focus_distance_m": s_m, "distortion_k": ()})
-    coc = float(thin_lens.circle_of_confusion_m(np.array([z_worst]), params.focal_length_m,
+    dx, d_img, s_m = camera.sample_spacing_m, camera.image_distance_m, camera.focus_distance_m
+    z_worst = _worst_depth_m(scene, params.f_number, camera)
+    probe_params = params.model_copy(update={"distortion_k": ()})
+    probe_camera = geometry.camera_geometry(probe_params, s_m, (PROBE_SIZE, PROBE_SIZE),
+                                            sensor_width_m=PROBE_SIZE * dx)
+    probe = slanted_edge_scene(angle_deg=5.0, contrast=0.8, size=(PROBE_SIZE, PROBE_SIZE),
+                               fov_deg=probe_camera.hfov_deg, distance_m=z_worst,
+                               wavelengths_nm=_probe_wavelengths(scene.wavelengths_nm))
+    coc = float(thin_lens.circle_of_confusion_m(np.array([z_worst]), camera.focal_length_m,
                                                 params.f_number, s_m)[0])
-    return probe, probe_params, {"sample_spacing_um": dx * 1e6, "image_distance_m": d_img,
-                                 "worst_depth_m": z_worst, "worst_coc_um": coc * 1e6}
+    return probe, probe_params, probe_camera, {"sample_spacing_um": dx * 1e6, "image_distance_m": d_img,
+                                               "worst_depth_m": z_worst, "worst_coc_um": coc * 1e6}
 
 
 def reference_level(has_lens: bool, geometry_info: dict, field: dict) -> tuple[str, str]:
@@ -85,10 +90,10 @@ def reference_level(has_lens: bool, geometry_info: dict, field: dict) -> tuple[s
     return "diffraction_limited", "no lens file and no defocus"
 
 
-def _field_checks(scene: Scene, params: OpticsParams, info: dict) -> dict:
+def _field_checks(scene: Scene, params: OpticsParams, camera: geometry.CameraGeometry, info: dict) -> dict:
     """Corner illumination, distortion and blur of the lens against the lens-free levels."""
     from workbench.optics.lens import distortion, paraxial, relative_illumination, spot_diagram
-    lens, _ = lens_setup.focused_lens(params, geometry.focus_object_distance_m(scene, params))
+    lens, _ = lens_setup.focused_lens(params, camera.focus_distance_m)
     pdata = paraxial(lens)
     rows, cols = scene.shape
     dx, d_img = info["sample_spacing_um"] * 1e-6, info["image_distance_m"]
@@ -96,7 +101,7 @@ def _field_checks(scene: Scene, params: OpticsParams, info: dict) -> dict:
     theta = math.degrees(math.atan(r_c / d_img))
     wl = float(np.median(scene.wavelengths_nm))
     ri = float(relative_illumination(lens, [r_c * 1e3], wl)[0])
-    m = geometry.magnification(params.focal_length_m, geometry.focus_object_distance_m(scene, params))
+    m = camera.magnification
     cos4 = float(geometry.cos4th_falloff(np.array(r_c), d_img, params.f_number, m, 2 * r_c)) \
         if params.off_axis == "cos4th" else 1.0
     dist = distortion(lens, [theta], wl)
@@ -123,12 +128,13 @@ def _field_checks(scene: Scene, params: OpticsParams, info: dict) -> dict:
             "corner_mtf50_error_estimate": 1 - sigma_dl / sigma_lens}
 
 
-def _run(level: str, scene: Scene, params: OpticsParams) -> tuple[OpticalImage, float]:
+def _run(level: str, scene: Scene, params: OpticsParams,
+         camera: geometry.CameraGeometry) -> tuple[OpticalImage, float]:
     p = params.model_copy(update={"model": level})
     if level == "raytrace":
         p = p.model_copy(update={"rays_per_sample": max(params.rays_per_sample, REFERENCE_RAYS)})
     t0 = time.perf_counter()
-    oi = OPTICS_MODELS[level](scene, p)
+    oi = OPTICS_MODELS[level](scene, p, camera)
     return oi, time.perf_counter() - t0
 
 
@@ -142,23 +148,27 @@ def compare_to_reference(candidate: np.ndarray, reference: np.ndarray) -> dict:
             "mtf50_error": abs(m_c - m_r) / m_r if m_r > 0 and math.isfinite(m_c) else float("inf")}
 
 
-def select_level(scene: Scene, params: OpticsParams, budget: ErrorBudget | None = None) -> tuple[str, dict]:
+def select_level(scene: Scene, params: OpticsParams, budget: ErrorBudget | None = None,
+                 camera: geometry.CameraGeometry | None = None) -> tuple[str, dict]:
     """The cheapest level whose error against the full model is within `budget` (default
-    params.budget), and a report: per-level time/errors on the probe, field checks, reasons."""
+    params.budget), and a report: per-level time/errors on the probe, field checks, reasons.
+    `camera`: the geometry the scene was sampled for (geometry.scene_geometry when None)."""
     budget = budget or params.budget
-    params = lens_setup.effective_params(params)
-    probe, probe_params, info = _probe(scene, params)
-    key = (params.model_dump_json(exclude={"model"}), budget.model_dump_json(), scene.shape,
-           round(info["sample_spacing_um"], 9), round(info["worst_depth_m"], 9), tuple(probe.wavelengths_nm))
-    if key in _CACHE:
-        return _CACHE[key]
-    field = _field_checks(scene, params, info) if params.lens_file else {}
+    camera = geometry.scene_geometry(scene, params, camera)
+    probe, probe_params, probe_camera, info = _probe(scene, params, camera)
+    key = (params.model_dump_json(exclude={"model"}), budget.model_dump_json(), camera,
+           round(info["worst_depth_m"], 9), tuple(probe.wavelengths_nm))
+    with _CACHE_LOCK:
+        if key in _CACHE:
+            _CACHE.move_to_end(key)
+            return _CACHE[key]
+    field = _field_checks(scene, params, camera, info) if params.lens_file else {}
     reference, reference_why = reference_level(params.lens_file is not None, info, field)
-    ref_oi, ref_time = _run(reference, probe, probe_params)
+    ref_oi, ref_time = _run(reference, probe, probe_params, probe_camera)
     rows = []
     chosen = reference
     for level in LEVELS_BY_COST[:LEVELS_BY_COST.index(reference)]:
-        oi, seconds = _run(level, probe, probe_params)
+        oi, seconds = _run(level, probe, probe_params, probe_camera)
         row = {"level": level, "time_s": seconds,
                **compare_to_reference(oi.irradiance_photons, ref_oi.irradiance_photons)}
         reasons = []
@@ -191,16 +201,19 @@ def select_level(scene: Scene, params: OpticsParams, budget: ErrorBudget | None 
            f"no cheaper level met the budget; using the full model '{reference}'")
     report = {"chosen": chosen, "reference": reference, "reference_why": reference_why, "why": why, "probe": info, "field": field,
               "levels": rows, "budget": budget.model_dump()}
-    if len(_CACHE) >= CACHE_SIZE:
-        _CACHE.pop(next(iter(_CACHE)))
-    _CACHE[key] = (chosen, report)
+    with _CACHE_LOCK:
+        _CACHE[key] = (chosen, report)
+        while len(_CACHE) > CACHE_SIZE:
+            _CACHE.popitem(last=False)
     return chosen, report
 
 
-def auto_radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def auto_radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                                camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Run the level `select_level` picks; meta['auto'] holds its report."""
-    level, report = select_level(scene, params)
-    oi = OPTICS_MODELS[level](scene, params.model_copy(update={"model": level}))
+    camera = geometry.scene_geometry(scene, params, camera)
+    level, report = select_level(scene, params, camera=camera)
+    oi = OPTICS_MODELS[level](scene, params.model_copy(update={"model": level}), camera)
     oi.meta["auto"] = report
     return oi
 

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from scipy.special import j1
 
+from workbench.errors import check_finite
 from workbench.optics.formation import diffraction, fourier, geometry, pinhole
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
@@ -113,11 +114,12 @@ def axial_depth_m(scene: Scene, spacing_m: float, image_distance: float) -> np.n
     return np.asarray(scene.depth_m, dtype=np.float64) * image_distance / np.sqrt(image_distance ** 2 + x * x + y * y)
 
 
-def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
+def radiance_to_irradiance(scene: Scene, params: OpticsParams,
+                           camera: geometry.CameraGeometry | None = None) -> OpticalImage:
     """Pinhole irradiance, then per depth layer defocus × diffraction OTF filtering."""
-    oi = pinhole.radiance_to_irradiance(scene, params)
-    f_m, d_img = params.focal_length_m, oi.meta["image_distance_m"]
-    s_m = geometry.focus_object_distance_m(scene, params)
+    g = geometry.scene_geometry(scene, params, camera)
+    oi = pinhole.radiance_to_irradiance(scene, params, g)
+    f_m, d_img, s_m = g.focal_length_m, g.image_distance_m, g.focus_distance_m
     z = axial_depth_m(scene, oi.sample_spacing_m, d_img)
     if np.any(z <= f_m):
         raise ValueError(f"thin lens: scene depths must exceed the focal length {f_m} m; "
@@ -152,7 +154,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams) -> OpticalImage:
         blurred, frac = fourier.apply_otf(part, oi.sample_spacing_m, otf, pad, kernel)
         total += blurred
         clipped = max(clipped, frac)
-    return OpticalImage(pinhole.check_finite("thin_lens", total), oi.wavelengths_nm, oi.sample_spacing_m,
+    return OpticalImage(check_finite("optics thin_lens", total).astype(np.float32), oi.wavelengths_nm, oi.sample_spacing_m,
                         f_m, params.f_number, depth_m=oi.depth_m,
                         meta={**oi.meta, "model": "thin_lens", "focus_distance_m": s_m,
                               "layers": n_layers, "coc_m": coc.tolist(), "working_f_number": n_w,

@@ -39,26 +39,28 @@ MIN_LOT_M = 20.0
 class CityRecipe(Params):
     """Everything that determines a generated city; the same recipe gives the same city."""
 
-    seed: int = Field(0, ge=0, description="seed of streets, buildings and placements")
-    arrangement: int = Field(0, ge=0, description="placement index: changes objects, not buildings")
-    blocks_x: int = Field(2, ge=1, le=20, description="blocks along +X")
-    blocks_y: int = Field(2, ge=1, le=20, description="blocks along +Y")
-    block_size_m: float = Field(100.0, gt=0, le=500.0, description="block side, sidewalks included")
-    lane_width_m: float = Field(3.5, ge=2.5, le=5.0)
-    lanes_per_direction: int = Field(1, ge=1, le=3)
-    sidewalk_width_m: float = Field(4.0, ge=2.0, le=12.0)
-    curb_height_m: float = Field(0.15, ge=0.0, le=0.3, description="sidewalk top above the road")
-    ground_margin_m: float = Field(30.0, ge=0.0, le=500.0, description="grass beyond the outer streets")
-    building_height_min_m: float = Field(8.0, ge=3.0, le=400.0)
-    building_height_max_m: float = Field(40.0, ge=3.0, le=400.0)
-    n_cars: int = Field(16, ge=0, le=2000)
-    n_pedestrians: int = Field(24, ge=0, le=5000)
-    n_buses: int = Field(2, ge=0, le=200)
-    n_trucks: int = Field(1, ge=0, le=200)
-    n_trees: int = Field(24, ge=0, le=5000)
-    n_lamps: int = Field(16, ge=0, le=5000)
-    n_benches: int = Field(8, ge=0, le=5000)
-    n_mailboxes: int = Field(4, ge=0, le=5000)
+    seed: int = Field(0, ge=0, description="seed of streets, buildings and placements; city generator")
+    arrangement: int = Field(0, ge=0, description="placement index: changes objects, not buildings (a data-set "
+                                                  "frame sets its own); city generator")
+    blocks_x: int = Field(2, ge=1, le=20, description="blocks along +X (count); city layout")
+    blocks_y: int = Field(2, ge=1, le=20, description="blocks along +Y (count); city layout")
+    block_size_m: float = Field(100.0, gt=0, le=500.0, description="block side, sidewalks included (m); city layout")
+    lane_width_m: float = Field(3.5, ge=2.5, le=5.0, description="lane width (m); city layout, camera poses")
+    lanes_per_direction: int = Field(1, ge=1, le=3, description="lanes each way (count); city layout")
+    sidewalk_width_m: float = Field(4.0, ge=2.0, le=12.0, description="sidewalk width (m); city layout, placement")
+    curb_height_m: float = Field(0.15, ge=0.0, le=0.3, description="sidewalk top above the road (m); city geometry")
+    ground_margin_m: float = Field(30.0, ge=0.0, le=500.0, description="grass beyond the outer streets (m); "
+                                                                      "city geometry")
+    building_height_min_m: float = Field(8.0, ge=3.0, le=400.0, description="lowest building (m); city buildings")
+    building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
+    n_cars: int = Field(16, ge=0, le=2000, description="cars per arrangement (count); placement")
+    n_pedestrians: int = Field(24, ge=0, le=5000, description="pedestrians per arrangement (count); placement")
+    n_buses: int = Field(2, ge=0, le=200, description="buses per arrangement (count); placement")
+    n_trucks: int = Field(1, ge=0, le=200, description="trucks per arrangement (count); placement")
+    n_trees: int = Field(24, ge=0, le=5000, description="trees per arrangement (count); placement")
+    n_lamps: int = Field(16, ge=0, le=5000, description="street lamps per arrangement (count); placement")
+    n_benches: int = Field(8, ge=0, le=5000, description="benches per arrangement (count); placement")
+    n_mailboxes: int = Field(4, ge=0, le=5000, description="mailboxes per arrangement (count); placement")
 
     @model_validator(mode="after")
     def _check_consistent(self) -> "CityRecipe":
@@ -97,21 +99,28 @@ class PoseParams(Params):
     'manual': manual_position_xy_m at height_m above the road, manual_* angles; manual_pan_deg
     is the absolute yaw about +Z from +X (the `CameraPose` convention)."""
 
-    mode: Literal["random", "target", "manual"] = "random"
-    height_m: float = Field(1.5, gt=0.0, le=50.0, description="camera height above the road")
-    pan_range_deg: tuple[float, float] = (-10.0, 10.0)
-    tilt_range_deg: tuple[float, float] = (-5.0, 5.0)
-    roll_range_deg: tuple[float, float] = (-5.0, 5.0)
-    lateral_jitter_m: float = Field(0.3, ge=0.0, le=1.0, description="offset from the lane centre")
-    target_classes: tuple[str, ...] = ("car", "bus", "truck", "pedestrian")
-    target_distance_range_m: tuple[float, float] = (8.0, 12.0)
+    mode: Literal["random", "target", "manual"] = Field("random", description="how poses are chosen (see the "
+                                                                             "class doc); camera poses")
+    height_m: float = Field(1.5, gt=0.0, le=50.0, description="camera height above the road (m); camera poses")
+    pan_range_deg: tuple[float, float] = Field((-10.0, 10.0), description="(low, high) pan jitter (deg); "
+                                                                          "random and target poses")
+    tilt_range_deg: tuple[float, float] = Field((-5.0, 5.0), description="(low, high) tilt (deg); random and "
+                                                                         "target poses")
+    roll_range_deg: tuple[float, float] = Field((-5.0, 5.0), description="(low, high) roll (deg); random and "
+                                                                         "target poses")
+    lateral_jitter_m: float = Field(0.3, ge=0.0, le=1.0, description="offset from the lane centre (m); camera poses")
+    target_classes: tuple[str, ...] = Field(("car", "bus", "truck", "pedestrian"),
+                                            description="object classes a target pose aims at; target poses")
+    target_distance_range_m: tuple[float, float] = Field((8.0, 12.0), description="(low, high) camera-to-target "
+                                                                                  "distance (m); target poses")
     max_target_bearing_deg: float = Field(45.0, gt=0.0, le=180.0,
-                                          description="target direction vs lane direction")
-    manual_position_xy_m: tuple[float, float] | None = None
-    manual_pan_deg: float = Field(0.0, ge=-360.0, le=360.0)
-    manual_tilt_deg: float = Field(0.0, ge=-90.0, le=90.0)
-    manual_roll_deg: float = Field(0.0, ge=-180.0, le=180.0)
-    seed: int = Field(0, ge=0)
+                                          description="target direction vs lane direction (deg); target poses")
+    manual_position_xy_m: tuple[float, float] | None = Field(None, description="(x, y) camera position (m); "
+                                                                               "manual pose")
+    manual_pan_deg: float = Field(0.0, ge=-360.0, le=360.0, description="yaw about +Z from +X (deg); manual pose")
+    manual_tilt_deg: float = Field(0.0, ge=-90.0, le=90.0, description="tilt, up positive (deg); manual pose")
+    manual_roll_deg: float = Field(0.0, ge=-180.0, le=180.0, description="roll (deg); manual pose")
+    seed: int = Field(0, ge=0, description="pose sampling seed (a data-set frame derives its own); camera poses")
 
     @model_validator(mode="after")
     def _check_ranges(self) -> "PoseParams":
