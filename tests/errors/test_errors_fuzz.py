@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 import torch
-from errors_fuzz import CHART_SAMPLES, check_document, check_lens_file, lens_files, project_texts
+from errors_fuzz import CHART_SAMPLES, SAMPLES, check_document, check_lens_file, lens_files, project_texts
 from hypothesis import HealthCheck, given, settings
 
 FAST = settings(max_examples=60, deadline=None, derandomize=True, database=None,
@@ -26,6 +26,11 @@ def _one_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+
+def test_the_check_really_simulates_an_unmutated_sample(tmp_path):
+    for name in CHART_SAMPLES:
+        assert check_document(json.dumps(SAMPLES[name]), tmp_path) == "simulated", name
 
 
 @FAST
