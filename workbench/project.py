@@ -102,6 +102,8 @@ def parameter_error(exc: ValidationError, source: str | None = None, prefix: str
     first = errors[0]
     field = _field_path(((prefix,) if prefix else ()) + tuple(first["loc"]))
     allowed = first["msg"].removeprefix("Value error, ").removeprefix("Assertion failed, ")
+    if allowed.startswith("Input should be "):           # pydantic's wording → ours ("must be a finite number")
+        allowed = "must be " + allowed.removeprefix("Input should be ")
     given = first.get("input")
     cause = (first.get("ctx") or {}).get("error")
     if isinstance(cause, ParameterError):        # raised by a validator: its field may be absolute

@@ -62,6 +62,10 @@ def test_bench_pipeline_json(capsys):
     for key in ("scene_ms", "optics_ms", "signal_ms", "sensor_ms", "isp_ms",
                 "sensor+isp_from_cached_irradiance_ms", "peak_traced_MB"):
         assert row[key] > 0
+    for stage in ("scene", "optics", "signal", "sensor", "isp"):
+        assert row[f"{stage}_cpu_ms"] > 0
+    # the live path is signal + sensor + ISP: it costs more CPU than its ISP step alone
+    assert row["sensor+isp_from_cached_irradiance_cpu_ms"] > row["isp_cpu_ms"]
 
 
 def test_bench_city_json(capsys):

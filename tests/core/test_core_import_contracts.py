@@ -1,6 +1,7 @@
-"""DESIGN.md §2 in CI: the import contracts in pyproject.toml ([tool.importlinter]: layers, Qt only
-in workbench.gui, Mitsuba only in workbench.render, no cycles inside a core package) hold, and the
-core imports and runs with Qt unavailable (as napari tests its own split)."""
+"""DESIGN.md §2 in CI: the import contracts in pyproject.toml ([tool.importlinter]: layers, no cycle
+between top-level packages or inside a core package, Qt only in workbench.gui, Mitsuba only in
+workbench.render) hold, and the core imports and runs with Qt unavailable (as napari tests its
+own split)."""
 from __future__ import annotations
 
 import os

@@ -175,7 +175,7 @@ def lens_files(draw) -> tuple[str, bytes, list[str]]:
         surf[field] = draw(st.one_of(NASTY, st.sampled_from([0, 0.0, -3.0, "UNOBTAINIUM", "1.2/-5"])))
         applied.append(f"surface.{field}")
         text = json.dumps(doc)
-    for _ in range(draw(st.integers(1, 3))):
+    for _ in range(draw(st.integers(0 if applied else 1, 3))):
         op = draw(st.sampled_from(["token", "token", "truncate", "binary", "duplicate_line"]))
         tokens = text.split(" ")
         if op == "token" and tokens:

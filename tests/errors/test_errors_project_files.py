@@ -78,9 +78,13 @@ def test_error_never_echoes_file_contents(tmp_path):
 
 
 @pytest.mark.parametrize("path,value,allowed", [
-    (("sensor", "exposure_s"), float("nan"), "nan"),
-    (("optics", "f_number"), float("nan"), "nan"),
-    (("experiment", "ev_biases", 1), float("nan"), "nan"),
+    (("sensor", "exposure_s"), float("nan"), "finite"),
+    (("optics", "f_number"), float("nan"), "must be a finite number"),
+    (("optics", "focus_distance_m"), float("inf"), "finite"),
+    (("experiment", "ev_biases", 1), float("nan"), "must be a finite number"),
+    (("sensor", "rows"), True, "valid integer"),
+    (("sensor", "rows"), "120", "valid integer"),
+    (("sensor", "exposure_s"), "0.01", "valid number"),
     (("experiment", "ev_biases", 1), 99.0, "less than or equal to 16"),
     (("experiment", "ev_biases"), [], "at least 1"),
     (("experiment", "auto_exposure_method"), "magic", "mean"),
