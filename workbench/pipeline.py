@@ -141,8 +141,8 @@ class Pipeline:
     """Cached stages over a project. Call set_project() after edits (from any thread); run() or
     run_job() recomputes what changed, on a snapshot of the project taken when it starts.
 
-    recomputed lists the stages the latest call (a run or a stage getter) computed so far;
-    stage_times_s holds each stage's latest compute time (s)."""
+    recomputed lists the stages the latest run computed so far (a stage getter adds the stages it
+    computes); stage_times_s holds each stage's latest compute time (s)."""
 
     def __init__(self, project: Project, scene: Scene | None = None):
         self._lock = threading.RLock()
@@ -202,16 +202,17 @@ class Pipeline:
             record.append(stage)
         return value
 
-    def _job(self, upto: str, cancel: CancelToken | None) -> Job[dict]:
+    def _job(self, upto: str, cancel: CancelToken | None, new_run: bool = True) -> Job[dict]:
         """Run the stages up to `upto` on one snapshot; yields Progress (done/total in stages,
         a render's own progress and preview inside the scene stage); returns {stage: result}."""
         if upto not in STAGES:
             raise ValueError(f"upto must be one of {STAGES}, got {upto!r}")
         snap = self.snapshot()
         stages = STAGES[:STAGES.index(upto) + 1]
-        record: list[str] = []                 # this call's recomputed stages, as they finish
-        with self._lock:
-            self.recomputed = record
+        with self._lock:                       # recomputed stages, as they finish
+            if new_run:
+                self.recomputed = []
+            record = self.recomputed
         results: dict[str, object] = {}
         for i, stage in enumerate(stages):
             if cancel is not None:
@@ -232,7 +233,7 @@ class Pipeline:
         return results
 
     def _run_to(self, stage: str):
-        return run_job(self._job(stage, None))[stage]
+        return run_job(self._job(stage, None, new_run=False))[stage]
 
     def scene_stage_result(self):
         """The scene stage's result: the Scene of a chart or fixed scene, or the CityRender of a

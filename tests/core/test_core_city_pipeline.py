@@ -64,3 +64,21 @@ def test_a_stored_sensor_channel_frame_feeds_the_sensor_like_the_live_pipeline(t
     stored, _ = read_frame(tmp_path / "f.npz")
     rate = irradiance_to_signal_rate(frame_optical_image(stored), project.sensor)
     np.testing.assert_allclose(rate, live, rtol=1e-3)                 # float16 storage: ≤ 2^-11
+
+
+def test_the_city_render_is_a_nested_job_with_previews_that_stops_at_the_cancel_token():
+    from workbench.jobs import CancelToken, JobCancelled
+    pipe = Pipeline(tiny_city(spp=8, chunk_spp=2, preview_spp=2))
+    token, steps = CancelToken(), []
+    job = pipe.run_job(token)
+    with pytest.raises(JobCancelled):
+        for step in job:
+            steps.append(step)
+            if step.preview is not None:
+                assert step.preview.shape[:2] == (48, 64) and 0 < step.fraction < 1 / 5
+                token.cancel()                      # the render stops at its next chunk
+    previews = [s for s in steps if s.preview is not None]
+    assert len(previews) == 1 and previews[0].message.startswith("scene: frame 0: 2/8 spp")
+    assert pipe.recomputed == []                     # the partial render was not stored
+    result = pipe.run()
+    assert pipe.recomputed[0] == "scene" and result.scene.meta["spp"] == 8

@@ -49,8 +49,8 @@ def assert_like_fresh(pipe, project):
     np.testing.assert_array_equal(got.isp.srgb, fresh.isp.srgb)
 
 
-@pytest.mark.parametrize("section, changes", [("sensor", dict(analog_gain=2.0)),
-                                              ("optics", dict(f_number=8.0)),
+@pytest.mark.parametrize("section, changes", [("sensor", dict(ev_bias=1.0)),
+                                              ("optics", dict(off_axis="none")),
                                               ("isp", dict(demosaic="malvar2004"))])
 def test_an_edit_during_a_run_never_stores_a_result_under_another_key(project_a, edit_during_scene,
                                                                       section, changes):
@@ -66,7 +66,7 @@ def test_an_edit_during_a_run_never_stores_a_result_under_another_key(project_a,
 
 
 def test_a_job_returns_the_snapshot_it_started_with(project_a, edit_during_scene):
-    project_b = edit(project_a, "sensor", analog_gain=2.0)
+    project_b = edit(project_a, "sensor", ev_bias=1.0)
     pipe = Pipeline(project_a)
     edit_during_scene["edit"] = lambda: pipe.set_project(project_b)
     result = pipe.run()
@@ -79,7 +79,7 @@ def test_a_job_returns_the_snapshot_it_started_with(project_a, edit_during_scene
 
 
 def test_runs_from_two_threads_agree_with_fresh_pipelines(project_a):
-    projects = [edit(project_a, "sensor", analog_gain=g) for g in (1.0, 1.5, 2.0, 3.0)]
+    projects = [edit(project_a, "sensor", ev_bias=ev) for ev in (-1.0, 0.0, 0.5, 1.0)]
     pipe, errors = Pipeline(projects[0]), []
 
     def worker(i):

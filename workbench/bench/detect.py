@@ -22,7 +22,7 @@ NETWORKS = ("mobile", "resnet18")
 def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
     from workbench.detect.representations import REPRESENTATIONS, network_input
     from workbench.isp import sensor_image_to_srgb
-    from workbench.pipeline import form_optical_image, make_scene
+    from workbench.pipeline import Pipeline
     from workbench.project import load_project
     from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
 
@@ -30,7 +30,7 @@ def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
     pitch = base.sensor.pixel_pitch_um * base.sensor.cols / cols       # same field of view at every size
     project = base.updated(sensor=base.sensor.updated(rows=rows, cols=cols, pixel_pitch_um=pitch),
                            scene=base.scene.updated(kind="macbeth"))
-    oi = form_optical_image(make_scene(project), project)
+    oi = Pipeline(project).optical_image()
     rate = irradiance_to_signal_rate(oi, project.sensor)
     rng = np.random.default_rng(0)
     t = resolve_exposure(rate, project.sensor)

@@ -157,10 +157,9 @@ def _bench_scene(name: str, scene: Scene, ref_rays: int, fast_rays: int, has_edg
 
 
 def _plot(rows: list[dict], out_dir: str) -> str:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(12, 4.8))                   # its own Agg canvas: no pyplot, no global backend
+    axes = fig.subplots(1, 2)
     for ax, key, label in ((axes[0], "rel_rms_error", "relative RMS error"), (axes[1], "mtf50_error", "MTF50 error")):
         for scene in dict.fromkeys(r["scene"] for r in rows):
             pts = [r for r in rows if r["scene"] == scene and math.isfinite(r["warm_time_s"])
@@ -180,7 +179,6 @@ def _plot(rows: list[dict], out_dir: str) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return str(path)
 
 

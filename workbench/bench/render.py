@@ -215,11 +215,10 @@ def bench_render(args) -> BenchResult:
 
 
 def _plot(rows: list[dict], out: str) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     os.makedirs(out, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))                      # its own Agg canvas: no pyplot, no global backend
+    ax = fig.subplots()
     for key in sorted({(r["res"], r["repr"]) for r in rows}):
         sel = [r for r in rows if (r["res"], r["repr"]) == key]
         ax.loglog([r["time_s"] for r in sel], [max(r["err_broadband"], 1e-4) for r in sel], "o-", label=" ".join(key))
@@ -228,4 +227,3 @@ def _plot(rows: list[dict], out: str) -> None:
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(out, "bench_render.png"), dpi=120)
-    plt.close(fig)

@@ -81,10 +81,8 @@ def keep_box(ann: dict, image_rows: int) -> bool:
 
 def _check_same_frames(project, rendered, manifest_path: Path) -> None:
     """ParameterError unless `project` makes the same frames as `rendered` (the data set's)."""
-    from workbench.render.dataset import FRAME_PROJECT_SECTIONS, FRAME_SENSOR_FIELDS
-    mine, theirs = project.model_dump(mode="json"), rendered.model_dump(mode="json")
-    differ = [k for k in FRAME_PROJECT_SECTIONS if mine.get(k) != theirs.get(k)]
-    differ += [f"sensor.{k}" for k in FRAME_SENSOR_FIELDS if mine["sensor"].get(k) != theirs["sensor"].get(k)]
+    from workbench.render.city_frame import frame_input_differences
+    differ = frame_input_differences(project, rendered)
     if differ:
         raise ParameterError("project", project.name, f"a project that renders the frames of {manifest_path.parent} "
                              f"('{rendered.name}'); these settings differ: {', '.join(differ)}")

@@ -157,8 +157,8 @@ class CityView(QWidget):
                             f"pan {pose.pan_deg:.1f}°")
 
     def _hfov_deg(self) -> float:
-        from workbench.pipeline import camera_hfov_deg
-        return float(self.project.scene.fov_deg or camera_hfov_deg(self.project))
+        from workbench.stages.geometry import project_geometry
+        return project_geometry(self.project).hfov_deg
 
     def _redraw_city(self, reset_view: bool = False) -> None:
         if self.city is None:

@@ -7,7 +7,7 @@ frame 0 as its scene stage; data sets (dataset.py) render many.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Callable
 
 import numpy as np
@@ -99,8 +99,6 @@ def city_scene_inputs(project) -> CitySceneInputs:
     """What rendering a city frame of `project` reads (CitySceneInputs)."""
     from workbench.scene.city.recipe import CityRecipe, PoseParams
     from workbench.stages.geometry import project_geometry
-    if project.scene.kind != "city":
-        raise ValueError(f"scene.kind is '{project.scene.kind}'; rendering a frame needs scene.kind 'city'")
     pilot = project.render.shot_noise_ratio is not None
     return CitySceneInputs(project.seed, project.scene, project.city or CityRecipe(), project.pose or PoseParams(),
                            project.render, project.sensor.pixel_response, project_geometry(project),
@@ -111,6 +109,19 @@ def city_scene_inputs(project) -> CitySceneInputs:
 def city_frame_inputs(project) -> CityFrameInputs:
     """What a stored frame of `project` reads (CityFrameInputs): its data-set fingerprint."""
     return CityFrameInputs(city_scene_inputs(project), project.optics, project.scene.adjust_illuminance_lux)
+
+
+INPUT_NAMES = {"seed": "seed", "scene": "scene", "city": "city", "pose": "pose", "render": "render",
+               "pixels": "sensor pixel response", "camera": "camera geometry", "optics": "optics",
+               "sensor": "sensor", "adjust_illuminance_lux": "scene.adjust_illuminance_lux"}
+
+
+def frame_input_differences(project, other) -> list[str]:
+    """What differs between the frame inputs of two projects (empty: they make the same frames)."""
+    a, b = city_frame_inputs(project), city_frame_inputs(other)
+    names = [f.name for f in fields(CitySceneInputs) if getattr(a.render, f.name) != getattr(b.render, f.name)]
+    names += [n for n in ("optics", "adjust_illuminance_lux") if getattr(a, n) != getattr(b, n) and n not in names]
+    return [INPUT_NAMES[n] for n in names]
 
 
 @dataclass
@@ -162,6 +173,8 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
         if cancel is not None and cancel.is_set():
             raise JobCancelled(f"frame {seeds.index}: cancelled")
 
+    if inputs.scene.kind != "city":
+        raise ValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
     yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
     recipe = inputs.city.updated(arrangement=seeds.arrangement)
     city = generate_city(recipe)

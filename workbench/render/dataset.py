@@ -19,7 +19,6 @@ error ≤ 2^-25 · 2^k below that. 'float32' stores the array as rendered (no er
 """
 from __future__ import annotations
 
-import hashlib
 import inspect
 import io
 import json
@@ -39,7 +38,7 @@ from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jo
 from workbench.compute.folder_lock import hold_folder_lock
 from workbench.errors import InputFileError, OutputPathError, ParameterError
 from workbench.jobs import CancelToken, Progress
-from workbench.render.city_frame import FrameData, FrameSeeds, frame_seeds, render_city_frame
+from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
 DATASET_FORMAT = "camera-workbench-dataset"
@@ -161,22 +160,12 @@ def code_version() -> str:
     return __version__
 
 
-# What a frame depends on: these project sections, and of the sensor only what sets the field of
-# view and the wavelength range (exposure, noise, ISP and experiment settings do not matter).
-FRAME_PROJECT_SECTIONS = ("seed", "scene", "city", "pose", "optics", "render")
-FRAME_SENSOR_FIELDS = ("rows", "cols", "pixel_pitch_um", "cfa_pattern", "filter_file",
-                       "photodiode_qe_file", "ir_cut_file")
-
-
 def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> str:
-    """Digest of everything a frame depends on except its index (so sets can grow)."""
-    doc = project.model_dump(mode="json")
-    inputs = {k: doc.get(k) for k in FRAME_PROJECT_SECTIONS}
-    inputs["sensor"] = {k: doc.get("sensor", {}).get(k) for k in FRAME_SENSOR_FIELDS}
-    text = json.dumps({"inputs": inputs, "dtype": irradiance_dtype,
-                       "renderer": f"{renderer.__module__}.{renderer.__qualname__}",
-                       "frame_version": FRAME_VERSION}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
+    """Digest of everything a frame reads (city_frame.city_frame_inputs: the render's inputs, the
+    optics and the illuminance adjustment) except its index, so sets can grow."""
+    from workbench.stages.keys import digest
+    return digest(city_frame_inputs(project), irradiance_dtype, f"{renderer.__module__}.{renderer.__qualname__}",
+                  FRAME_VERSION)
 
 
 def atomic_write_json(path: Path, obj) -> None:

@@ -50,12 +50,14 @@ def build_chart(name: str, lens: Lens, max_field: float) -> Figure:
 def select_for_project(project) -> tuple[str, dict, str]:
     """(chosen level, the selector's report, a note on the scene it judged) for the project."""
     from workbench.optics.formation.selector import select_level
-    from workbench.pipeline import make_scene
+    from workbench.stages.geometry import project_geometry
+    from workbench.stages.scene import chart_scene
     note = ""
     if project.scene.kind == "city":
         project = project.updated(scene=project.scene.updated(kind="slanted_edge"))
         note = "judged on a slanted edge at the scene distance (a city frame is rendered, not drawn)"
-    level, report = select_level(make_scene(project), project.optics)
+    camera = project_geometry(project)
+    level, report = select_level(chart_scene(project.scene, camera), project.optics, camera=camera)
     return level, report, note
 
 

@@ -7,6 +7,8 @@ boxes; nothing here needs Mitsuba.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from workbench.optics.lens.analysis import _rear_rays, rear_pupil_box
@@ -15,8 +17,7 @@ from workbench.optics.lens.model import Lens
 from workbench.optics.lens.trace import trace_rays
 
 N_BINS = 32
-
-_BOX_CACHE: dict[tuple, tuple] = {}
+BOX_CACHE_SIZE = 32       # prepared lenses (a focus edit makes a new one): the cache stays bounded
 
 ELLIPSE_MARGIN = 0.98   # a bin samples its box's inscribed ellipse when no light passes outside 0.98 of it
 
@@ -42,10 +43,12 @@ def pupil_bins(lens: Lens, max_radius_mm: float, n_bins: int = N_BINS,
     """Exit-pupil boxes per radial bin of the film: (edges (n+1,), boxes (n, 4) as x0, x1, y0, y1
     on the rear-vertex plane for film points on +y, an all-zero box where no ray passes; ellipse
     (n,) bool: the bin may sample the box's inscribed ellipse instead (π/4 of the area, so fewer
-    rays die; checked at the bin's edges and centre). Cached."""
-    key = (lens, round(max_radius_mm, 9), n_bins, wavelength_nm)
-    if key in _BOX_CACHE:
-        return _BOX_CACHE[key]
+    rays die; checked at the bin's edges and centre). Cached (the BOX_CACHE_SIZE latest)."""
+    return _pupil_bins(lens, round(float(max_radius_mm), 9), int(n_bins), float(wavelength_nm))
+
+
+@lru_cache(maxsize=BOX_CACHE_SIZE)
+def _pupil_bins(lens: Lens, max_radius_mm: float, n_bins: int, wavelength_nm: float):
     edges = np.linspace(0.0, max_radius_mm * 1.0001, n_bins + 1)
     at = [rear_pupil_box(lens, float(h), wavelength_nm) for h in edges]
     boxes = np.zeros((n_bins, 4))
@@ -57,5 +60,6 @@ def pupil_bins(lens: Lens, max_radius_mm: float, n_bins: int = N_BINS,
                         min(b[2] for b in have), max(b[3] for b in have))
             ellipse[i] = _ellipse_holds_pupil(lens, (edges[i], (edges[i] + edges[i + 1]) / 2, edges[i + 1]),
                                               boxes[i], wavelength_nm)
-    _BOX_CACHE[key] = (edges, boxes, ellipse)
+    for a in (edges, boxes, ellipse):
+        a.flags.writeable = False          # shared by every caller
     return edges, boxes, ellipse

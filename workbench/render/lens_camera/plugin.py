@@ -7,6 +7,8 @@ looks up when Mitsuba loads the dict; each instance keeps its own prepared data.
 from __future__ import annotations
 
 import itertools
+import threading
+from collections import OrderedDict
 import math
 
 import numpy as np
@@ -19,8 +21,10 @@ from workbench.render.lens_camera.kernels import index_expr, is_dispersive, trac
 
 PLUGIN_NAME = "workbench_lens"
 
+CAMERA_CACHE_SIZE = 32
 _LENSES: dict[str, dict] = {}       # key → prepared lens data, looked up by the plugin
-_KEYS: dict[tuple, str] = {}
+_KEYS: OrderedDict[tuple, str] = OrderedDict()   # camera → key, the CAMERA_CACHE_SIZE latest
+_CACHE_LOCK = threading.Lock()
 _counter = itertools.count()
 _registered: set[str] = set()
 
@@ -156,7 +160,11 @@ def lens_sensor_dict(lens: Lens, film_dict: dict, to_world, sensor_width_mm: flo
         scale = 1.0 / e0
     pdata = paraxial(lens)
     ident = (lens, width_mm, height_mm, n_bins, dispersive, float(scale))
-    key = _KEYS.setdefault(ident, f"lens{next(_counter)}")   # the same camera reuses its entry
+    with _CACHE_LOCK:                     # the same camera reuses its entry; the oldest go
+        key = _KEYS.pop(ident, None) or f"lens{next(_counter)}"
+        _KEYS[ident] = key
+        while len(_KEYS) > CAMERA_CACHE_SIZE:
+            _LENSES.pop(_KEYS.popitem(last=False)[1], None)
     _LENSES[key] = {
         "lens": lens, "dispersive": dispersive, "width_mm": width_mm, "height_mm": height_mm,
         "max_radius_mm": float(edges[-1]), "n_bins": n_bins,
