@@ -113,8 +113,10 @@ def _signal(pixels, oi):
 
 def _sensor(sensor, upstream):
     from workbench.sensor import resolve_exposure, signal_rate_to_sensor_image
+    from workbench.sensor.signal import colour_wavelengths_nm
     oi, rate = upstream
-    image = signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), wavelengths_nm=oi.wavelengths_nm)
+    image = signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor),
+                                        wavelengths_nm=colour_wavelengths_nm(oi))
     check_finite("sensor", image.dn)
     return image
 

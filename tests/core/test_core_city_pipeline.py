@@ -82,3 +82,18 @@ def test_the_city_render_is_a_nested_job_with_previews_that_stops_at_the_cancel_
     assert pipe.recomputed == []                     # the partial render was not stored
     result = pipe.run()
     assert pipe.recomputed[0] == "scene" and result.scene.meta["spp"] == 8
+
+
+def test_sensor_channel_render_gets_the_sensors_colour_matrix():
+    # A render in the sensor's own channels has 3 "bands" that are not wavelengths; the ISP must
+    # still fit the sensor's colour matrix on the sensor's spectral grid (oracle: the same fit
+    # made directly from the sensor's QE), not give a grey image.
+    from workbench.isp.color import fit_sensor_to_xyz
+    from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, channel_qe
+    project = tiny_city(24, 32, representation="sensor")
+    isp = Pipeline(project).run().isp
+    assert isp.colour_fit is not None and not any("grey" in n for n in isp.notes), isp.notes
+    direct = fit_sensor_to_xyz(channel_qe(project.sensor, SENSOR_SPECTRAL_GRID_NM), SENSOR_SPECTRAL_GRID_NM,
+                               project.isp.max_condition)
+    np.testing.assert_allclose(isp.colour_fit.matrix, direct.matrix, rtol=1e-9)
+    assert np.abs(isp.srgb[..., 0] - isp.srgb[..., 2]).max() > 0.05          # not grey

@@ -25,6 +25,7 @@ def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
     from workbench.pipeline import Pipeline
     from workbench.project import load_project
     from workbench.sensor import irradiance_to_signal_rate, resolve_exposure, signal_rate_to_sensor_image
+    from workbench.sensor.signal import colour_wavelengths_nm
 
     base = load_project("paper_camera")
     pitch = base.sensor.pixel_pitch_um * base.sensor.cols / cols       # same field of view at every size
@@ -36,7 +37,7 @@ def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
     t = resolve_exposure(rate, project.sensor)
 
     def capture():
-        return signal_rate_to_sensor_image(rate, project.sensor, t, rng, wavelengths_nm=oi.wavelengths_nm)
+        return signal_rate_to_sensor_image(rate, project.sensor, t, rng, wavelengths_nm=colour_wavelengths_nm(oi))
     image = capture()
     isp = sensor_image_to_srgb(image, project.isp)
     sensor_ms = median_times_ms(capture, repeats).wall_ms

@@ -46,6 +46,7 @@ class Frame:
     project: Project
     irradiance_photons: np.ndarray
     wavelengths_nm: np.ndarray
+    colour_wavelengths_nm: np.ndarray      # where the sensor records its QE for the colour fit
     irradiance_rgb: np.ndarray
     raw_dn: np.ndarray
     max_dn: float
@@ -81,6 +82,7 @@ class FrameBuilder:
 
     def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float) -> Frame:
         from workbench.previews import channels_to_rgb, irradiance_preview
+        from workbench.sensor.signal import colour_wavelengths_nm
         oi = pipe.optical_image()
         img = pipe.sensor_image()
         isp = pipe.isp_result()
@@ -90,6 +92,7 @@ class FrameBuilder:
         level, reason = _optics_level(oi, project)
         return Frame(project=project, irradiance_photons=oi.irradiance_photons,
                      wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=self._irr_rgb,
+                     colour_wavelengths_nm=colour_wavelengths_nm(oi),
                      raw_dn=img.dn, max_dn=float(img.max_dn), cfa_tile=np.asarray(img.cfa_tile),
                      channel_names=list(img.channel_names), linear=isp.linear,
                      linear_rgb=np.clip(channels_to_rgb(isp.linear, list(isp.channel_names)), 0, 1).astype(np.float32),

@@ -245,7 +245,7 @@ class MainWindow(QMainWindow):
         self.optics_label.setToolTip(frame.optics_reason or "the project's optics level")
         sweep = self.editors.get("Exposure sweep")
         if sweep is not None and not frame.preview and "signal" in frame.recomputed:
-            sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.wavelengths_nm)
+            sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.colour_wavelengths_nm)
 
     def _show_inspected(self, text: str) -> None:
         self.statusBar().showMessage(text, 4000)

@@ -70,7 +70,7 @@ def take(out: Path, results: Path | None, size=(240, 320)) -> list[Path]:
         sweep.resize(1300, 700)
         sweep.show()
         frame = win.previews.frame
-        sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.wavelengths_nm)
+        sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.colour_wavelengths_nm)
         done = []
         sweep.sweep_finished.connect(done.append)
         sweep.run()

@@ -167,7 +167,7 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     from workbench.render.spectral import film_for, render_loaded
     from workbench.render.variants import select_variant
     from workbench.scene.city import generate_city, sample_camera_poses
-    from workbench.sensor.cfa import channel_qe
+    from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, channel_qe
 
     def check():
         if cancel is not None and cancel.is_set():
@@ -182,7 +182,7 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     camera = inputs.camera
     height, width = camera.shape
     variant = select_variant(inputs.render.variant)
-    qe_wl = np.arange(350.0, 1000.1, 5.0)
+    qe_wl = SENSOR_SPECTRAL_GRID_NM
     film = film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
     fov = camera.hfov_deg
     lens_camera, lens_sensor = None, None

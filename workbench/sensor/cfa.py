@@ -10,6 +10,10 @@ from workbench.spectra import load_spectrum_csv
 # Channel letters in their canonical order; a pattern's channel_names keep this order.
 _CANONICAL = ("R", "G", "B", "C", "W", "M")
 
+# The grid (nm) on which the sensor's spectral curves are sampled where no spectrum of the scene
+# sets one: the film of a render in the sensor's own channels, and the ISP's colour fit for it.
+SENSOR_SPECTRAL_GRID_NM = np.arange(350.0, 1000.1, 5.0)
+
 
 def cfa_layout(pattern: str) -> tuple[np.ndarray, list[str]]:
     """(tile, channel_names) of a CFA pattern name.

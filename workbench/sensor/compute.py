@@ -8,7 +8,7 @@ from workbench.sensor.auto_exposure import resolve_exposure
 from workbench.sensor.expose import signal_rate_to_sensor_image
 from workbench.sensor.image import SensorImage
 from workbench.sensor.params import SensorParams
-from workbench.sensor.signal import irradiance_to_signal_rate
+from workbench.sensor.signal import colour_wavelengths_nm, irradiance_to_signal_rate
 
 
 def irradiance_to_sensor_image(oi: OpticalImage, params: SensorParams, seed: int | None = None) -> SensorImage:
@@ -19,6 +19,6 @@ def irradiance_to_sensor_image(oi: OpticalImage, params: SensorParams, seed: int
     rate = irradiance_to_signal_rate(oi, params)
     exposure_s = resolve_exposure(rate, params)
     rng = np.random.default_rng([params.seed if seed is None else seed, 2])
-    image = signal_rate_to_sensor_image(rate, params, exposure_s, rng, wavelengths_nm=oi.wavelengths_nm)
+    image = signal_rate_to_sensor_image(rate, params, exposure_s, rng, wavelengths_nm=colour_wavelengths_nm(oi))
     image.meta["mean_signal_rate_e_per_s"] = float(rate.mean(dtype=np.float64))
     return image

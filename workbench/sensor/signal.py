@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from workbench.optics.types import OpticalImage
 from workbench.registry import Registry
-from workbench.sensor.cfa import cfa_layout, channel_qe
+from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, cfa_layout, channel_qe
 from workbench.sensor.params import PixelResponseParams
 from workbench.units import band_widths_nm
 
@@ -101,6 +101,17 @@ def channel_weights(params: PixelResponseParams, wavelengths_nm: np.ndarray) -> 
     """(Nλ, K) float32 weights A·FF·QE_k·Δλ (m²·nm): irradiance @ weights = e⁻/s per channel."""
     return _weights_cached(params.pixel_response,
                            tuple(np.asarray(wavelengths_nm, dtype=np.float64).ravel().tolist()))
+
+
+def colour_wavelengths_nm(oi: OpticalImage) -> np.ndarray:
+    """Wavelengths (nm) at which a SensorImage records its channels' QE for the ISP's colour fit.
+
+    A spectral optical image's own wavelengths; for a render in the sensor's own channels (render
+    representation 'sensor', whose bands are channels, not wavelengths) the grid the film was
+    made on, SENSOR_SPECTRAL_GRID_NM — otherwise the fit would see three wavelengths and fail."""
+    if oi.meta.get("representation") == "sensor":
+        return SENSOR_SPECTRAL_GRID_NM
+    return np.asarray(oi.wavelengths_nm, dtype=np.float64)
 
 
 def film_channel_weights(oi: OpticalImage, params: PixelResponseParams) -> np.ndarray:
