@@ -1,22 +1,31 @@
-"""A matplotlib Figure in a Qt widget, for the analysis charts (not the live image panes)."""
+"""Matplotlib charts in Qt widgets (not the live image panes): a live canvas, or an image of a\nchart rendered on a worker thread."""
 from __future__ import annotations
 
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QImage, QPixmap
+from PySide6.QtWidgets import QLabel
 
 
 class ChartCanvas(FigureCanvasQTAgg):
-    """FigureCanvasQTAgg owning its Figure; `redraw(draw)` clears the figure, calls draw(fig), draws."""
+    """FigureCanvasQTAgg owning its Figure; `redraw(draw)` clears the figure, calls draw(fig), draws.
+
+    A hidden canvas (a tab not in front) defers the Agg draw to its next paint, so an edit does not
+    rasterise charts nobody sees on the GUI thread."""
 
     def __init__(self, parent=None, figsize=(5.0, 3.0)):
         super().__init__(Figure(figsize=figsize, layout="constrained"))
         self.setParent(parent)
         self.setMinimumSize(240, 160)
+        self._stale = False
 
     def redraw(self, draw) -> None:
         self.figure.clear()
         draw(self.figure)
-        self.draw_idle()
+        self._request_draw()
 
     def set_figure(self, fig: Figure) -> None:
         """Show a Figure built elsewhere (e.g. on a worker thread), sized to this widget."""
@@ -25,4 +34,50 @@ class ChartCanvas(FigureCanvasQTAgg):
         fig.set_size_inches(self.width() * ratio / fig.dpi, self.height() * ratio / fig.dpi, forward=False)
         self.figure = fig
         fig.set_canvas(self)
-        self.draw_idle()
+        self._request_draw()
+
+    def _request_draw(self) -> None:
+        if self.isVisible():
+            self.draw_idle()
+        else:
+            self._stale = True
+
+    def paintEvent(self, event) -> None:
+        if self._stale:
+            self._stale = False
+            FigureCanvasAgg.draw(self)
+        super().paintEvent(event)
+
+
+def render_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.ndarray:
+    """draw(fig) on a fresh Agg figure of width_px×height_px → H×W×4 uint8 (safe on a worker thread:
+    no pyplot, no Qt)."""
+    fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
+    draw(fig)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba()).copy()
+
+
+class ChartImage(QLabel):
+    """A chart rasterised elsewhere (render_rgba on a worker), so the GUI thread only blits pixels;
+    shows a hint text until the first chart arrives."""
+
+    def __init__(self, hint: str, parent=None):
+        super().__init__(hint, parent)
+        self.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.setWordWrap(True)
+        self.setMinimumSize(240, 160)
+        self.setStyleSheet("background: white; color: #666;")
+
+    def size_px(self) -> tuple[int, int]:
+        """The device-pixel size to render the next chart at."""
+        ratio = self.devicePixelRatioF()
+        return round(max(self.width(), 240) * ratio), round(max(self.height(), 160) * ratio)
+
+    def show_rgba(self, rgba: np.ndarray) -> None:
+        rgba = np.ascontiguousarray(rgba)
+        h, w, _ = rgba.shape
+        pixmap = QPixmap.fromImage(QImage(rgba.data, w, h, 4 * w, QImage.Format.Format_RGBA8888).copy())
+        pixmap.setDevicePixelRatio(self.devicePixelRatioF())
+        self.setPixmap(pixmap)

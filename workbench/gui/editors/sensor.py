@@ -26,6 +26,11 @@ def spectrum_files() -> list[str]:
     return sorted(f"sensors/{p.name}" for p in (RESOURCES / "sensors").glob("*.csv"))
 
 
+def qe_inputs(params: SensorParams) -> tuple:
+    """The fields the QE chart depends on: a change elsewhere (gain, exposure, noise) keeps the chart."""
+    return (params.cfa_pattern, params.filter_file, params.photodiode_qe_file, params.ir_cut_file)
+
+
 def draw_qe(fig, params: SensorParams, wavelengths_nm: np.ndarray = QE_WAVELENGTHS_NM) -> None:
     """Effective QE per CFA channel (solid), the colour filters (dotted), the photodiode QE and the
     IR-cut transmittance (dashed)."""
@@ -90,6 +95,7 @@ class SensorEditor(QWidget):
         self._params = SensorParams()
         self._seed = 0
         self._worker = None
+        self._qe_key: tuple | None = None
         self.emva_result: dict | None = None
 
         self.presets = QComboBox(self)
@@ -158,7 +164,9 @@ class SensorEditor(QWidget):
         self.summary.setText(f"{p.cols}×{p.rows} px, {p.pixel_pitch_um:g} µm; full well {p.full_well_e:,.0f} e⁻, "
                              f"read noise {p.read_noise_e:.3g} e⁻, {p.bit_depth or 'analog'}"
                              f"{' bit' if p.bit_depth else ''}")
-        self.qe_chart.redraw(lambda fig: draw_qe(fig, p))
+        if qe_inputs(p) != self._qe_key:
+            self._qe_key = qe_inputs(p)
+            self.qe_chart.redraw(lambda fig: draw_qe(fig, p))
 
     def _form_edited(self, changes: dict) -> None:
         self._params = self.form.params()

@@ -16,7 +16,7 @@ from superqt.utils import create_worker
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.ev_sweep import EVPoint, draw_ev_sweep, ev_sweep_job, ev_values
-from workbench.gui.mplcanvas import ChartCanvas
+from workbench.gui.mplcanvas import ChartImage, render_rgba
 from workbench.jobs import CancelToken, JobCancelled
 
 
@@ -33,6 +33,13 @@ def _range_of(evs: list[float]) -> tuple[float, float, float]:
     steps = np.diff(evs)
     step = float(steps[0]) if steps.size and np.allclose(steps, steps[0]) and steps[0] > 0 else 1.0
     return float(evs[0]), float(evs[-1]), step
+
+
+def sweep_and_chart(project, signal_rate_e_per_s, wavelengths_nm, evs, token, chart_px: tuple[int, int]):
+    """The sweep job, then its chart rasterised (RGBA) on the same worker thread:
+    yields Progress, returns (points, chart)."""
+    points = yield from ev_sweep_job(project, signal_rate_e_per_s, wavelengths_nm, evs, token)
+    return points, render_rgba(lambda fig: draw_ev_sweep(fig, points), *chart_px)
 
 
 class SweepPanel(QWidget):
@@ -72,10 +79,8 @@ class SweepPanel(QWidget):
         self.thumbnails.setWrapping(False)                  # one row, scrolled sideways
         self.thumbnails.setMovement(QListView.Movement.Static)
         self.thumbnails.setMinimumHeight(150)
-        self.chart = ChartCanvas(self)
-        self.chart.redraw(lambda fig: fig.text(0.5, 0.5, "Run the sweep: mean level, clipped fraction and SNR "
-                                                        "against EV appear here", ha="center", va="center",
-                                               color="0.4"))
+        self.chart = ChartImage("Run the sweep: mean level, clipped fraction and SNR against EV appear here",
+                                self)
 
         controls = QHBoxLayout()
         for text, spin in (("EV from", self.start), ("to", self.stop), ("step", self.step)):
@@ -150,8 +155,8 @@ class SweepPanel(QWidget):
             return
         self._token = CancelToken()
         rate, wl = self._frame
-        self._worker = create_worker(ev_sweep_job, self._project, rate, wl, evs, self._token,
-                                     _start_thread=False, _ignore_errors=True)
+        self._worker = create_worker(sweep_and_chart, self._project, rate, wl, evs, self._token,
+                                     self.chart.size_px(), _start_thread=False, _ignore_errors=True)
         self._worker.yielded.connect(self._progress)
         self._worker.returned.connect(self._returned)
         self._worker.errored.connect(self._errored)
@@ -171,7 +176,8 @@ class SweepPanel(QWidget):
         self.progress.setValue(int(p.done))
         self.status.setText(p.message)
 
-    def _returned(self, points: list[EVPoint]) -> None:
+    def _returned(self, result: tuple[list[EVPoint], np.ndarray]) -> None:
+        points, chart_rgba = result
         if self._token is not None and self._token.cancelled:
             self.status.setText("sweep cancelled")
             self.sweep_cancelled.emit()
@@ -182,7 +188,7 @@ class SweepPanel(QWidget):
             item = QListWidgetItem(QIcon(rgb_pixmap(p.thumbnail)),
                                    f"EV {p.ev:+g}\n{p.exposure_s * 1e3:.3g} ms, {100 * p.fraction_clipped:.0f} % clip")
             self.thumbnails.addItem(item)
-        self.chart.redraw(lambda fig: draw_ev_sweep(fig, points))
+        self.chart.show_rgba(chart_rgba)
         self.status.setText(f"{len(points)} exposures, EV {points[0].ev:+g} … {points[-1].ev:+g}")
         self.sweep_finished.emit(self.results)
 
