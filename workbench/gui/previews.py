@@ -75,7 +75,8 @@ class PreviewPane(QWidget):
 
     def set_clip_mask(self, mask: np.ndarray | None) -> None:
         if mask is None or not mask.any():
-            self.clip_overlay.clear()
+            if self.clip_overlay.image is not None:     # clear() re-lays the view out: only when shown
+                self.clip_overlay.clear()
             return
         rgba = np.zeros(mask.shape + (4,), np.uint8)
         rgba[mask] = CLIP_RGBA
