@@ -129,7 +129,8 @@ def _temp_name(target_name: str) -> str:
     return f".{target_name}.{os.getpid()}.{secrets.token_hex(4)}{_TMP_SUFFIX}"
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process with this id exists (one we may not signal counts as alive)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -155,7 +156,7 @@ def remove_stale_temporaries(folder: Path, target_name: str) -> list[Path]:
         if len(middle) != 2 or not middle[0].isdigit() or len(middle[1]) != 8:
             continue
         pid = int(middle[0])
-        if pid == os.getpid() or _pid_alive(pid):
+        if pid == os.getpid() or pid_alive(pid):
             continue
         try:
             os.unlink(entry.path)
@@ -173,11 +174,16 @@ def _write_all(fd: int, data: bytes) -> None:
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
-    """Write text (UTF-8) to path atomically and return the file written.
+    """Write text (UTF-8) to path atomically (atomic_write_bytes) and return the file written."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write bytes to path whole or not at all and return the file written.
 
     A symbolic link is written through (its target is replaced, the link stays); an existing file
     keeps its permission bits (and owner where allowed); a new file gets 0666 less the umask. The
-    text goes to a temporary file in the same folder, is flushed to disk and renamed over the
+    data go to a temporary file in the same folder, is flushed to disk and renamed over the
     target; temporaries that a killed writer left behind are removed on the next save."""
     given = Path(path)
     target = Path(os.path.realpath(given))
@@ -212,7 +218,7 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
                 except OSError:
                     pass
                 os.fchmod(fd, stat.S_IMODE(st.st_mode))
-            _write_all(fd, text.encode("utf-8"))
+            _write_all(fd, data)
             os.fsync(fd)
         finally:
             os.close(fd)

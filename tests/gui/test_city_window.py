@@ -24,6 +24,8 @@ def city_window(qtbot):
     from workbench.gui.document import Document
     from workbench.gui.main_window import MainWindow
     win = MainWindow(Document(small_city_project()))
+    win.frames_seen = []                     # connected at once: the first render starts with the window
+    win.live.frameReady.connect(win.frames_seen.append)
     win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
     qtbot.addWidget(win)
     win.show()
@@ -38,8 +40,7 @@ def full_frame_of(win, project):
 
 def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_window, qtbot, grab):
     win = city_window
-    frames = []
-    win.live.frameReady.connect(frames.append)
+    frames = win.frames_seen
     qtbot.waitUntil(lambda: win.city_view.city is not None, timeout=TIMEOUT_MS)
     qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
     view = grab(win.city_view.plotter.interactor).astype(float)

@@ -96,3 +96,12 @@ def test_log_file_is_written_where_asked(tmp_path):
                   env={**os.environ, "WORKBENCH_LOG_DIR": str(tmp_path / "logs")})
     assert result.returncode == 0, result.stderr
     assert "lens info dgauss.50mm" in (tmp_path / "logs" / "workbench.log").read_text()
+
+
+def test_project_file_type_extension_round_trips(tmp_path):
+    from workbench.project import load_project, save_project
+    project = load_project("paper_camera")
+    path = tmp_path / "camera.cwproj"
+    save_project(project, path)
+    assert load_project(path) == project
+    assert "camera-workbench-project" in path.read_text()[:256]      # the MIME magic's match

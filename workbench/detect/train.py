@@ -12,6 +12,7 @@ or on a cluster through workbench.compute's run_jobs.
 """
 from __future__ import annotations
 
+import io
 import itertools
 import json
 import logging
@@ -110,20 +111,13 @@ def learning_rate(peak: float, progress: float, warmup_fraction: float) -> float
 
 
 def save_checkpoint(path: str | Path, state: dict) -> None:
-    """torch.save to a temporary file beside `path`, fsync, then rename over it."""
+    """torch.save the state, then write it whole or not at all (files.atomic_write_bytes)."""
     import torch
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            torch.save({"format": CHECKPOINT_FORMAT, **state}, fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+
+    from workbench.files import atomic_write_bytes
+    buf = io.BytesIO()
+    torch.save({"format": CHECKPOINT_FORMAT, **state}, buf)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def load_checkpoint(path: str | Path) -> dict | None:

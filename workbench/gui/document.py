@@ -15,7 +15,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
 from workbench.errors import ParameterError, WorkbenchError
-from workbench.files import atomic_write_text
+from workbench.files import atomic_write_text, pid_alive
 from workbench.gui.paths import autosave_dir
 from workbench.project import PROJECTS_DIR, Project, load_project, project_from_dict, save_project
 from workbench.scene.city.recipe import CityRecipe, PoseParams
@@ -55,16 +55,6 @@ class _EditCommand(QUndoCommand):
 
     def undo(self) -> None:
         self._doc._set_project(self._before)
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class Document(QObject):
@@ -209,6 +199,6 @@ def find_recoverable() -> list[Path]:
             pid = int(json.loads(f.read_text(encoding="utf-8")).get("pid", 0))
         except (OSError, ValueError, AttributeError):
             continue
-        if pid and not _pid_alive(pid):
+        if pid and not pid_alive(pid):
             found.append(f)
     return sorted(found, key=lambda f: f.stat().st_mtime, reverse=True)

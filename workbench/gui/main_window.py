@@ -311,7 +311,7 @@ class MainWindow(QMainWindow):
 
     def open_dialog(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open project", str(self._dialog_dir()),
-                                              "Workbench projects (*.json);;All files (*)")
+                                              "Workbench projects (*.cwproj *.json);;All files (*)")
         if path:
             self.open_path(path)
 
@@ -332,7 +332,7 @@ class MainWindow(QMainWindow):
     def save_as_dialog(self) -> bool:
         path, _ = QFileDialog.getSaveFileName(self, "Save project as",
                                               str(self._dialog_dir() / f"{self.document.project.name}.json"),
-                                              "Workbench projects (*.json)")
+                                              "Workbench projects (*.cwproj *.json)")
         return self.save_to(path) if path else False
 
     def _dialog_dir(self) -> Path:

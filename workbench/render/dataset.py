@@ -37,6 +37,7 @@ import numpy as np
 from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
 from workbench.errors import InputFileError, OutputPathError, ParameterError
+from workbench.files import atomic_write_bytes
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
@@ -99,25 +100,9 @@ def encode_frame(data: FrameData, header: dict, dtype: str) -> bytes:
     return buf.getvalue()
 
 
-def write_bytes_atomic(path: str | os.PathLike, payload: bytes) -> None:
-    """Write payload to path whole or not at all: temporary name beside it, fsync, os.replace."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(payload)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
 def write_frame(path: str | os.PathLike, data: FrameData, header: dict, dtype: str) -> None:
-    """Write one frame atomically (encode_frame, then write_bytes_atomic)."""
-    write_bytes_atomic(path, encode_frame(data, header, dtype))
+    """Write one frame atomically (encode_frame, then files.atomic_write_bytes)."""
+    atomic_write_bytes(path, encode_frame(data, header, dtype))
 
 
 def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameData, dict]:
@@ -283,7 +268,7 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
                                "rendering " + ", ".join(f"frame {i} {100 * f:.0f} %" for i, f in sorted(running.items())))
                 continue
             job, rec = item
-            write_bytes_atomic(frame_path(out, job.index), rec.payload)
+            atomic_write_bytes(frame_path(out, job.index), rec.payload)
             rendered.append(job.index)
             running.pop(job.index, None)
             yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
