@@ -40,6 +40,7 @@ def wait_frame(qtbot, win, shown_before: int) -> None:
         return (win.previews.frames_shown > shown_before and f is not None and not f.preview
                 and f.project == win.document.project and not win.live.busy)
     qtbot.waitUntil(done, timeout=FRAME_TIMEOUT_MS)
+    win.previews.refresh_histograms()         # without waiting for their timer: the whole frame is shown
 
 
 def test_window_opens_and_all_four_panes_draw_real_pixels(window, grab):
@@ -68,6 +69,17 @@ def test_isp_edit_recomputes_isp_only_and_sensor_edit_sensor_and_isp(window, qtb
     window.apply_edit("sensor", {"read_noise_V": 0.004})
     wait_frame(qtbot, window, shown)
     assert window.previews.frame.recomputed == ["sensor", "isp"]
+
+
+def test_histograms_follow_the_image_shortly_after_a_frame(window, qtbot):
+    from workbench.gui.previews import HISTOGRAM_DELAY_MS
+    shown = window.previews.frames_shown
+    window.apply_edit("sensor", {"ev_bias": 1.0})
+    qtbot.waitUntil(lambda: window.previews.frames_shown > shown, timeout=FRAME_TIMEOUT_MS)
+    qtbot.wait(3 * HISTOGRAM_DELAY_MS)
+    for name, pane in window.previews.panes.items():
+        x, y = pane.image.getHistogram()
+        assert np.array_equal(pane.histogram.plot.yData, y), f"pane {name} shows a stale histogram"
 
 
 def test_undo_returns_the_exact_previous_image(window, qtbot, grab):

@@ -3,13 +3,14 @@
 The panes share one zoom/pan (linked view boxes); a pixel inspector under each pane shows the value
 and unit under the cursor (photons/s/m²/nm summed over bands or at one band for irradiance, DN and
 the pixel's CFA colour for raw, channel values for linear and sRGB); clipped pixels (raw at the
-largest code) can be highlighted in red on the raw, linear and sRGB panes.
+largest code) can be highlighted in red on the raw, linear and sRGB panes. The images are painted
+as soon as a frame arrives; the histograms follow HISTOGRAM_DELAY_MS after the last frame.
 """
 from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout,
                                QWidget)
 
@@ -19,6 +20,9 @@ PANES = ("irradiance", "raw", "linear", "srgb")
 TITLES = {"irradiance": "Irradiance (sensor plane)", "raw": "Raw (mosaic, DN)",
           "linear": "Linear (demosaiced)", "srgb": "sRGB (full ISP)"}
 CLIP_RGBA = (255, 0, 0, 200)
+# The histograms follow the images this long after the newest frame (restarted by each frame), so
+# the new pixels are painted first and a burst of edits recomputes each histogram once.
+HISTOGRAM_DELAY_MS = 60
 
 
 class PreviewPane(QWidget):
@@ -39,6 +43,8 @@ class PreviewPane(QWidget):
         self.viewbox.addItem(self.clip_overlay)
         self.histogram = pg.HistogramLUTItem(image=self.image, fillHistogram=True)
         self.histogram.setMaximumWidth(90)
+        self.image.sigImageChanged.disconnect(self.histogram.imageChanged)   # refreshed by refresh_histogram
+        self._histogram_stale = False
         self.view_widget.addItem(self.histogram, row=0, col=1)
         self.title = QLabel(f"<b>{TITLES[name]}</b>")
         self.inspector = QLabel("—")
@@ -69,9 +75,16 @@ class PreviewPane(QWidget):
         first = self._shape is None or self._shape != array.shape[:2]
         self.image.setImage(array, autoLevels=False, levels=levels)
         self.histogram.setLevels(*levels)
+        self._histogram_stale = True
         if first:
             self._shape = array.shape[:2]
             self.viewbox.autoRange(padding=0)
+
+    def refresh_histogram(self) -> None:
+        """Recompute the histogram of the image shown, if it changed since the last refresh."""
+        if self._histogram_stale:
+            self._histogram_stale = False
+            self.histogram.imageChanged()
 
     def set_clip_mask(self, mask: np.ndarray | None) -> None:
         if mask is None or not mask.any():
@@ -115,6 +128,10 @@ class PreviewPanes(QWidget):
             pane.view_widget.scene().sigMouseMoved.connect(lambda pos, n=name: self._mouse_moved(n, pos))
         self.panes["irradiance"].band.currentIndexChanged.connect(lambda _i: self._refresh_inspectors())
         self._last_px: tuple[int, int] | None = None
+        self._histogram_timer = QTimer(self)
+        self._histogram_timer.setSingleShot(True)
+        self._histogram_timer.setInterval(HISTOGRAM_DELAY_MS)
+        self._histogram_timer.timeout.connect(self.refresh_histograms)
 
     # -- images ----------------------------------------------------------------------------
     def show_frame(self, frame) -> None:
@@ -136,7 +153,13 @@ class PreviewPanes(QWidget):
             combo.blockSignals(False)
         self._update_clip()
         self._refresh_inspectors()
+        self._histogram_timer.start()
         self.frames_shown += 1
+
+    def refresh_histograms(self) -> None:
+        """Bring every pane's histogram up to the image it shows (normally run by a timer after a frame)."""
+        for pane in self.panes.values():
+            pane.refresh_histogram()
 
     def clipped_mask(self) -> np.ndarray | None:
         if self.frame is None:
