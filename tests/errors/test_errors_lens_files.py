@@ -6,37 +6,14 @@ from pathlib import Path
 
 import pytest
 
+from errors_fuzz import ZMX
+
 from workbench.cli import main
 from workbench.errors import InputFileError, ParameterError
 from workbench.optics.lens.io import LENS_DIR, load_lens, save_lens
 from workbench.project import PROJECTS_DIR, project_from_dict
 
 DGAUSS = json.loads((LENS_DIR / "dgauss.50mm.json").read_text())
-ZMX = """VERS 190513 80 123457 L123457
-UNIT MM X W X CM MR CPMM
-SURF 0
-  TYPE STANDARD
-  DISZ INFINITY
-SURF 1
-  TYPE STANDARD
-  CURV 0.02
-  DISZ 5
-  GLAS N-BK7 1 0 1.5168 64.17 0 0 0 0 0 0
-  DIAM 10
-SURF 2
-  STOP
-  TYPE STANDARD
-  DISZ 2
-  DIAM 8
-SURF 3
-  TYPE EVENASPH
-  CURV -0.01
-  PARM 2 1e-5
-  DISZ 80
-  DIAM 10
-SURF 4
-  TYPE STANDARD
-"""
 DAT = "# r t n d\n40 5 1.5168 20\n0 2 0 16\n-40 80 1 20\n"
 
 
