@@ -46,6 +46,9 @@ def test_dataset_command_runs_and_resumes(tmp_path, monkeypatch, capsys):
     assert second["rendered"] == 1 and second["reused"] == 2
     manifest = json.loads((tmp_path / "d" / "manifest.json").read_text())
     assert len(manifest["frames"]) == 3 and manifest["irradiance"]["dtype"] == "float16"
+    stats = json.loads((tmp_path / "d" / "statistics.json").read_text())   # written as the set finishes
+    assert stats["frames"] == 3 and stats["objects"] == sum(f["objects"] for f in manifest["frames"])
+    assert (tmp_path / "d" / "statistics.png").is_file()
     assert main(["dataset", str(tmp_path / "p.json"), "--frames", "0", "--out", str(tmp_path / "e")]) == 2
 
 

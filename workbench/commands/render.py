@@ -36,6 +36,10 @@ def register(sub) -> None:
     add_compute_options(p)
     p.set_defaults(func=cmd_dataset)
 
+    p = sub.add_parser("dataset-stats", help="write statistics.json and statistics.png of a data-set folder")
+    p.add_argument("folder", help="data-set folder (made by `workbench dataset`)")
+    p.set_defaults(func=cmd_dataset_stats)
+
 
 def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
     """PIL image of an sRGB preview with the visible boxes and class names of `classes` drawn."""
@@ -128,4 +132,17 @@ def cmd_dataset(args) -> int:
     print(json.dumps({"out": str(result.out_dir), "frames": result.frames,
                       "rendered": len(result.rendered), "reused": len(result.reused),
                       "coco": str(result.coco_path), "manifest": str(result.manifest_path)}, indent=1))
+    return 0
+
+
+def cmd_dataset_stats(args) -> int:
+    from workbench.errors import WorkbenchError
+    from workbench.render.dataset import write_folder_statistics
+
+    try:
+        json_path, png_path = write_folder_statistics(args.folder)
+    except WorkbenchError as exc:
+        print(f"workbench dataset-stats: error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps({"statistics": str(json_path), "plot": str(png_path)}))
     return 0

@@ -40,6 +40,7 @@ from workbench.errors import InputFileError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
+from workbench.render.dataset_stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
 DATASET_FORMAT = "camera-workbench-dataset"
@@ -331,14 +332,16 @@ def scan_frames(out: Path, frames: int) -> tuple[list[int], list[str]]:
 
 
 def remove_index(out: Path) -> None:
-    """Remove coco.json and manifest.json: they must never claim a frame that is not on disk."""
-    for name in ("coco.json", "manifest.json"):
+    """Remove coco.json, manifest.json and the statistics: they must never claim a frame that is
+    not on disk."""
+    for name in ("coco.json", "manifest.json", STATS_NAME, PLOT_NAME):
         (out / name).unlink(missing_ok=True)
 
 
 def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dtype: str, renderer):
-    """Write coco.json and manifest.json from the frames on disk (a job step: yields Progress)."""
-    yield Progress(frames, frames, "writing coco.json and manifest.json")
+    """Write coco.json, manifest.json and the statistics (dataset_stats) from the frames on disk
+    (a job step: yields Progress)."""
+    yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []
     for i in range(frames):
         path = frame_path(out, i)
@@ -366,5 +369,22 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
                        "note": IRRADIANCE_NOTE},
         "coco": coco_path.name, "written_utc": datetime.now(timezone.utc).isoformat(),
     }
+    write_statistics(out, [labels for _, labels in coco_frames])
     atomic_write_json(manifest_path, manifest)
     return manifest_path, coco_path
+
+
+def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
+    """Write statistics.json and statistics.png of the frames now in a data-set folder (finished or
+    not); InputFileError when the folder has no frames folder or a frame cannot be read."""
+    out = Path(out_dir)
+    if not (out / FRAMES_DIR).is_dir():
+        raise InputFileError(out, f"is not a data-set folder (no {FRAMES_DIR}/ folder in it)")
+    labels = []
+    for path in sorted((out / FRAMES_DIR).iterdir()):
+        if FRAME_NAME.fullmatch(path.name) and path.is_file():
+            try:
+                labels.append(read_frame(path, irradiance=False)[0].labels)
+            except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+                raise InputFileError(path, f"cannot be read as a frame ({type(exc).__name__}: {exc})") from None
+    return write_statistics(out, labels)
