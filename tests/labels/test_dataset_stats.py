@@ -99,4 +99,7 @@ def test_dataset_stats_command(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["statistics"].endswith("statistics.json")
     assert main(["dataset-stats", str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "missing" in err and "not a data-set folder" in err
+    assert err.count("\n") == 0 and "missing" in err and "does not exist" in err
+    (tmp_path / "empty").mkdir()
+    assert main(["dataset-stats", str(tmp_path / "empty")]) == 2
+    assert "not a data-set folder" in capsys.readouterr().err

@@ -378,6 +378,8 @@ def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
     """Write statistics.json and statistics.png of the frames now in a data-set folder (finished or
     not); InputFileError when the folder has no frames folder or a frame cannot be read."""
     out = Path(out_dir)
+    if not out.is_dir():
+        raise InputFileError(out, "does not exist or is not a folder; give a data-set folder")
     if not (out / FRAMES_DIR).is_dir():
         raise InputFileError(out, f"is not a data-set folder (no {FRAMES_DIR}/ folder in it)")
     labels = []
