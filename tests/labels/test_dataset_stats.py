@@ -55,6 +55,11 @@ def test_statistics_equal_hand_counts():
     # distances 12, 4, 25, 70, 500 m in bins [0,5,10,15,20,30,50,75,100,150,200]; 500 → last bin
     assert s["distance_m"]["counts"] == [1, 0, 1, 0, 1, 0, 1, 0, 0, 1]
     assert s["distance_m"]["median"] == 25.0
+    interest = s["objects_of_interest"]                 # car and pedestrian are both of interest
+    assert interest["objects"] == 5 and interest["visible_per_frame_histogram"] == [1, 1, 0, 1]
+    cars = dataset_statistics(FRAMES, classes_of_interest=("car",))["objects_of_interest"]
+    assert cars["visible_per_frame_histogram"] == [2, 0, 1] and cars["visible_per_frame_mean"] == 2 / 3
+    assert (cars["objects"], cars["fully_occluded_fraction"]) == (3, 1 / 3)
 
 
 def test_empty_data_set_gives_zeros_not_nan():

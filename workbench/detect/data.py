@@ -41,8 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from workbench.errors import InputFileError, ParameterError
+from workbench.render.dataset_stats import CLASSES_OF_INTEREST
 
-DETECT_CLASSES = ("car", "pedestrian", "bus", "truck")
+DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
 MIN_BOX_HEIGHT_FRAC = 25.0 / 375.0
 MIN_BOX_WIDTH_PX = 4
 MAX_OCCLUSION = 0.8

@@ -20,6 +20,8 @@ from workbench.files import atomic_write_bytes, atomic_write_text
 STATS_NAME, PLOT_NAME = "statistics.json", "statistics.png"
 BOX_HEIGHT_EDGES_PX = (0, 8, 16, 32, 64, 128, 256, 512, 1024)
 DISTANCE_EDGES_M = (0, 5, 10, 15, 20, 30, 50, 75, 100, 150, 200)
+# The road users a detector is trained on; "objects of interest per frame" counts these only.
+CLASSES_OF_INTEREST = ("car", "pedestrian", "bus", "truck")
 
 
 def _hist(values: np.ndarray, edges: Sequence[float]) -> list[int]:
@@ -49,11 +51,18 @@ def _rates(objs: list) -> dict:
     }
 
 
-def dataset_statistics(frames: Sequence) -> dict:
-    """Statistics of a data set given each frame's labels.Labels (or any object with .objects)."""
+def _visible_per_frame(per_frame: list[list]) -> np.ndarray:
+    return np.array([sum(o.visible_px > 0 for o in f) for f in per_frame], dtype=np.int64)
+
+
+def dataset_statistics(frames: Sequence, classes_of_interest: Sequence[str] = CLASSES_OF_INTEREST) -> dict:
+    """Statistics of a data set given each frame's labels.Labels (or any object with .objects);
+    `objects_of_interest` repeats the per-frame counts and rates for `classes_of_interest` alone."""
     per_frame = [list(f.objects) for f in frames]
+    interest = [[o for o in f if o.class_name in classes_of_interest] for f in per_frame]
+    visible_interest = _visible_per_frame(interest)
     objs = [o for f in per_frame for o in f]
-    visible_per_frame = np.array([sum(o.visible_px > 0 for o in f) for f in per_frame], dtype=np.int64)
+    visible_per_frame = _visible_per_frame(per_frame)
     heights_px = np.array([o.bbox_xywh[3] for o in objs if o.visible_px > 0], dtype=np.float64)
     dist_m = np.array([o.distance_m for o in objs], dtype=np.float64)
     classes = sorted({o.class_name for o in objs})
@@ -64,6 +73,10 @@ def dataset_statistics(frames: Sequence) -> dict:
         "visible_objects_per_frame_mean": _ratio(visible_per_frame.sum(), len(per_frame)),
         "visible_objects_per_frame_histogram": np.bincount(visible_per_frame).astype(int).tolist(),
         "per_class": {c: _rates([o for o in objs if o.class_name == c]) for c in classes},
+        "objects_of_interest": {
+            "classes": list(classes_of_interest), **_rates([o for f in interest for o in f]),
+            "visible_per_frame_mean": _ratio(visible_interest.sum(), len(per_frame)),
+            "visible_per_frame_histogram": np.bincount(visible_interest).astype(int).tolist()},
         "box_height_px": {"edges": list(BOX_HEIGHT_EDGES_PX), "counts": _hist(heights_px, BOX_HEIGHT_EDGES_PX),
                           "median": float(np.median(heights_px)) if heights_px.size else 0.0},
         "distance_m": {"edges": list(DISTANCE_EDGES_M), "counts": _hist(dist_m, DISTANCE_EDGES_M),
@@ -74,11 +87,13 @@ def dataset_statistics(frames: Sequence) -> dict:
 def draw_statistics(stats: dict, fig) -> None:
     """Draw objects per frame, objects per class and the two histograms on a matplotlib Figure."""
     ax1, ax2, ax3, ax4 = fig.subplots(1, 4)
-    counts = stats["visible_objects_per_frame_histogram"]
+    from matplotlib.ticker import MaxNLocator
+    interest = stats["objects_of_interest"]
+    counts = interest["visible_per_frame_histogram"]
     ax1.bar(range(len(counts)), counts)
-    ax1.set_xticks(range(len(counts)))
-    ax1.set(xlabel="visible objects in a frame", ylabel="frames",
-            title=f"{stats['frames']} frames, mean {stats['visible_objects_per_frame_mean']:.2f}")
+    ax1.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax1.set(xlabel=f"visible {'/'.join(interest['classes'])} in a frame", ylabel="frames",
+            title=f"{stats['frames']} frames, mean {interest['visible_per_frame_mean']:.2f}")
     names = list(stats["per_class"])
     ax2.barh(names, [stats["per_class"][c]["visible_objects"] for c in names], label="visible")
     ax2.barh(names, [stats["per_class"][c]["objects"] - stats["per_class"][c]["visible_objects"] for c in names],
