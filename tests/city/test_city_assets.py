@@ -103,3 +103,13 @@ def test_overhead_parts_clear_the_tallest_vehicle():
         a = build_asset("lamp", n)
         v = np.concatenate([v for v, _ in a.parts.values()])
         assert v[v[:, 0] > 0.3, 2].min() > tallest + 1.0   # the arm over the road
+
+
+def test_detail_level_falls_back_to_simple_builders_and_refuses_unknown_levels():
+    from workbench.scene.city.assets import DETAILED_BUILDERS
+
+    for cls in VARIANTS:
+        if cls not in DETAILED_BUILDERS:
+            assert variant_names(cls, "detailed") == variant_names(cls)
+    with pytest.raises(ValueError, match="asset detail 'fancy'"):
+        variant_names("car", "fancy")

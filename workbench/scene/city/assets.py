@@ -351,20 +351,33 @@ def _variants() -> dict[str, dict[str, tuple]]:
 
 
 VARIANTS = _variants()
+DETAIL_LEVELS = ("simple", "detailed")
+# Detailed builders by class: {class: {variant: (builder, *args)}}; a class not listed here is
+# built by its simple builder at every detail level.
+DETAILED_BUILDERS: dict[str, dict[str, tuple]] = {}
 
 
-def variant_names(class_name: str) -> tuple[str, ...]:
-    """Names of the variants of one asset class (e.g. 'car')."""
+def _table(class_name: str, detail: str) -> dict[str, tuple]:
+    if detail not in DETAIL_LEVELS:
+        raise ValueError(f"asset detail '{detail}' is not one of {', '.join(DETAIL_LEVELS)}")
     if class_name not in VARIANTS:
         raise ValueError(f"no assets of class '{class_name}'; classes: {', '.join(VARIANTS)}")
-    return tuple(VARIANTS[class_name])
+    if detail == "detailed" and class_name in DETAILED_BUILDERS:
+        return DETAILED_BUILDERS[class_name]
+    return VARIANTS[class_name]
+
+
+def variant_names(class_name: str, detail: str = "simple") -> tuple[str, ...]:
+    """Names of the variants of one asset class (e.g. 'car') at a detail level."""
+    return tuple(_table(class_name, detail))
 
 
 @lru_cache(maxsize=None)
-def build_asset(class_name: str, variant: str) -> Asset:
-    """The (cached) asset of a class and variant, in local coordinates."""
-    names = variant_names(class_name)
-    if variant not in names:
-        raise ValueError(f"unknown {class_name} variant '{variant}'; known: {', '.join(names)}")
-    fn, *args = VARIANTS[class_name][variant]
+def build_asset(class_name: str, variant: str, detail: str = "simple") -> Asset:
+    """The (cached) asset of a class and variant at a detail level, in local coordinates."""
+    table = _table(class_name, detail)
+    if variant not in table:
+        raise ValueError(f"unknown {class_name} variant '{variant}' at detail '{detail}'; known: "
+                         f"{', '.join(table)}")
+    fn, *args = table[variant]
     return fn(*args)

@@ -89,10 +89,10 @@ def _to_world(p: Placement) -> np.ndarray:
 
 
 def _placed_object(p: Placement) -> tuple[str, list[Mesh], np.ndarray, dict]:
-    asset = build_asset(p.class_name, p.variant)
+    asset = build_asset(p.class_name, p.variant, p.detail)
     meshes = [Mesh(g.place(m.vertices, p.heading_deg, p.position_m), m.faces, m.material)
               for m in asset.meshes(p.paint)]
-    meta = {"variant": p.variant, "position_m": p.position_m.copy(), "heading_deg": p.heading_deg,
+    meta = {"variant": p.variant, "detail": p.detail, "position_m": p.position_m.copy(), "heading_deg": p.heading_deg,
             "size_m": (asset.length_m, asset.width_m, asset.height_m), "paint": p.paint,
             "lane_index": p.lane_index, "to_world": _to_world(p)}
     return p.class_name, meshes, p.footprint_xy, meta

@@ -37,6 +37,7 @@ class Placement:
     footprint_xy: np.ndarray     # 4×2
     paint: str | None = None
     lane_index: int | None = None
+    detail: str = "simple"       # CityRecipe.asset_detail the variant was drawn at
 
 
 class Occupancy:
@@ -79,12 +80,12 @@ def _curb_spot(layout: CityLayout, rng, inset_m: float):
 
 
 def _place_furniture(kind: str, n: int, field: str, inset_m, layout: CityLayout, occ: Occupancy,
-                     rng, z_m: float) -> list[Placement]:
-    names = variant_names(kind)
+                     rng, z_m: float, detail: str) -> list[Placement]:
+    names = variant_names(kind, detail)
     out = []
     for k in range(n):
         variant = names[int(rng.integers(len(names)))]
-        a = build_asset(kind, variant)
+        a = build_asset(kind, variant, detail)
         for _ in range(MAX_TRIES):
             xy, heading = _curb_spot(layout, rng, inset_m(a))
             ground, overhead = _furniture_rects(kind, a, xy, heading)
@@ -96,7 +97,7 @@ def _place_furniture(kind: str, n: int, field: str, inset_m, layout: CityLayout,
         occ.add(ground, "ground")
         if overhead is not None:
             occ.add(overhead, "overhead")
-        out.append(Placement(kind, variant, np.array([xy[0], xy[1], z_m]), heading, ground))
+        out.append(Placement(kind, variant, np.array([xy[0], xy[1], z_m]), heading, ground, detail=detail))
     return out
 
 
@@ -112,9 +113,9 @@ def _furniture_rects(kind: str, a, xy, heading):
 
 
 def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, paints,
-                    jitter_deg: float) -> list[Placement]:
+                    jitter_deg: float, detail: str) -> list[Placement]:
     """Vehicles in `lanes`, along the travel direction ± jitter_deg, inside their segment."""
-    names = variant_names(kind)
+    names = variant_names(kind, detail)
     weights = np.array(list(paints.values())) if isinstance(paints, dict) else None
     paint_names = list(paints)
     lengths = np.array([ln.length_m for ln in lanes]) - 2 * LANE_END_CLEARANCE_M
@@ -124,7 +125,7 @@ def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, p
     out = []
     for k in range(n):
         variant = names[int(rng.integers(len(names)))]
-        a = build_asset(kind, variant)
+        a = build_asset(kind, variant, detail)
         paint = paint_names[int(rng.choice(len(paint_names), p=weights / weights.sum()))] \
             if weights is not None else paint_names[int(rng.integers(len(paint_names)))]
         for _ in range(MAX_TRIES):
@@ -141,18 +142,19 @@ def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, p
             raise _fail(kind, k, n, field, "enlarge the city (blocks_x, blocks_y, lanes_per_direction)")
         occ.add(rect, "ground")
         out.append(Placement(kind, variant, np.array([xy[0], xy[1], 0.0]), heading, rect, paint,
-                             lane.index))
+                             lane.index, detail))
     return out
 
 
-def _place_pedestrians(n: int, layout: CityLayout, occ: Occupancy, rng, z_m: float) -> list[Placement]:
-    names = variant_names("pedestrian")
+def _place_pedestrians(n: int, layout: CityLayout, occ: Occupancy, rng, z_m: float,
+                       detail: str) -> list[Placement]:
+    names = variant_names("pedestrian", detail)
     strips = layout.sidewalk_rects
     area = (strips[:, 2] - strips[:, 0]) * (strips[:, 3] - strips[:, 1])
     out = []
     for k in range(n):
         variant = names[int(rng.integers(len(names)))]
-        a = build_asset("pedestrian", variant)
+        a = build_asset("pedestrian", variant, detail)
         r = 0.5 * max(a.length_m, a.width_m)
         for _ in range(MAX_TRIES):
             x0, y0, x1, y1 = strips[int(rng.choice(len(strips), p=area / area.sum()))]
@@ -164,7 +166,8 @@ def _place_pedestrians(n: int, layout: CityLayout, occ: Occupancy, rng, z_m: flo
         else:
             raise _fail("pedestrian", k, n, "n_pedestrians", "enlarge the city")
         occ.add(rect, "ground")
-        out.append(Placement("pedestrian", variant, np.array([xy[0], xy[1], z_m]), heading, rect))
+        out.append(Placement("pedestrian", variant, np.array([xy[0], xy[1], z_m]), heading, rect,
+                             detail=detail))
     return out
 
 
@@ -199,18 +202,18 @@ def place_objects(recipe: CityRecipe, layout: CityLayout, building_rects: list[n
     occ = Occupancy()
     for rect in building_rects:
         occ.add(rect, "overhead")
-    z = layout.curb_height_m
-    out = _place_furniture("tree", recipe.n_trees, "n_trees", lambda a: 0.9, layout, occ, rng, z)
-    out += _place_furniture("lamp", recipe.n_lamps, "n_lamps", lambda a: 0.5, layout, occ, rng, z)
-    out += _place_furniture("mailbox", recipe.n_mailboxes, "n_mailboxes", lambda a: 0.7, layout, occ, rng, z)
+    z, d = layout.curb_height_m, recipe.asset_detail
+    out = _place_furniture("tree", recipe.n_trees, "n_trees", lambda a: 0.9, layout, occ, rng, z, d)
+    out += _place_furniture("lamp", recipe.n_lamps, "n_lamps", lambda a: 0.5, layout, occ, rng, z, d)
+    out += _place_furniture("mailbox", recipe.n_mailboxes, "n_mailboxes", lambda a: 0.7, layout, occ, rng, z, d)
     out += _place_furniture("bench", recipe.n_benches, "n_benches",
-                            lambda a: layout.sidewalk_width_m - 0.5 - a.length_m / 2, layout, occ, rng, z)
+                            lambda a: layout.sidewalk_width_m - 0.5 - a.length_m / 2, layout, occ, rng, z, d)
     kerb = tuple(ln for ln in layout.lanes if ln.rank == recipe.lanes_per_direction - 1)
     out += _place_vehicles("bus", recipe.n_buses, "n_buses", kerb, occ, rng,
-                           BUS_PAINTS, HEAVY_HEADING_JITTER_DEG)
+                           BUS_PAINTS, HEAVY_HEADING_JITTER_DEG, d)
     out += _place_vehicles("truck", recipe.n_trucks, "n_trucks", kerb, occ, rng,
-                           CAR_PAINTS, HEAVY_HEADING_JITTER_DEG)
+                           CAR_PAINTS, HEAVY_HEADING_JITTER_DEG, d)
     out += _place_vehicles("car", recipe.n_cars, "n_cars", layout.lanes, occ, rng,
-                           CAR_PAINTS, CAR_HEADING_JITTER_DEG)
-    out += _place_pedestrians(recipe.n_pedestrians, layout, occ, rng, z)
+                           CAR_PAINTS, CAR_HEADING_JITTER_DEG, d)
+    out += _place_pedestrians(recipe.n_pedestrians, layout, occ, rng, z, d)
     return out

@@ -53,6 +53,9 @@ class CityRecipe(Params):
                                                                       "city geometry")
     building_height_min_m: float = Field(8.0, ge=3.0, le=400.0, description="lowest building (m); city buildings")
     building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
+    asset_detail: Literal["simple", "detailed"] = Field(
+        "simple", description="object geometry: 'simple' (the original low-detail assets) or 'detailed' (the "
+                              "builders registered in scene.city.assets.DETAILED_BUILDERS); city generator")
     n_cars: int = Field(16, ge=0, le=2000, description="cars per arrangement (count); placement")
     n_pedestrians: int = Field(24, ge=0, le=5000, description="pedestrians per arrangement (count); placement")
     n_buses: int = Field(2, ge=0, le=200, description="buses per arrangement (count); placement")
