@@ -89,7 +89,8 @@ class WorldParams(Params):
     """Scene features beyond geometry, each switchable: `lighting` 'day' (render.daylight) or
     'night' (`night`); `fog` (None = clear air); `glass` 'diffuse' (windows as dark Lambertian
     surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
-    reflection of the sky)."""
+    reflection of the sky); `paint` 'diffuse' (paints Lambertian, as before) or 'clearcoat' (every
+    'paint_*' material under a glossy n = 1.5 clear coat: scene_builder.PAINT_COAT_*)."""
 
     lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
                                                                  "(night); city render")
@@ -97,6 +98,8 @@ class WorldParams(Params):
     fog: FogParams | None = Field(None, description="fog or haze; None = clear air; city render")
     glass: Literal["diffuse", "dielectric"] = Field("diffuse", description="windows as dark diffuse surfaces or "
                                                                            "thin glass panes; city render")
+    paint: Literal["diffuse", "clearcoat"] = Field("diffuse", description="vehicle paints Lambertian or under a "
+                                                                          "glossy clear coat; city render")
 
 
 class RenderParams(Params):
