@@ -1,6 +1,5 @@
 """Procedural city: recipe → City (streets, buildings, vehicles, people, furniture with spectral
 materials) and camera poses. See recipe.py for the parameters and CLASS_IDS for the labels."""
-from workbench.scene.city import assets as _assets, vehicles as _vehicles
 from workbench.scene.city.assets import build_asset, variant_names
 from workbench.scene.city.generate import generate_city
 from workbench.scene.city.layout import CityLayout, Lane
@@ -8,8 +7,6 @@ from workbench.scene.city.materials import MATERIAL_WAVELENGTHS_NM, city_materia
 from workbench.scene.city.poses import pose_basis, sample_camera_poses
 from workbench.scene.city.recipe import BACKGROUND_ID, CLASS_IDS, CityRecipe, PoseParams
 from workbench.scene.city.types import CameraPose, City, CityObject, Material, Mesh
-
-_assets.DETAILED_BUILDERS.update(_vehicles.detailed_builders())
 
 __all__ = [
     "BACKGROUND_ID", "CLASS_IDS", "CameraPose", "City", "CityLayout", "CityObject", "CityRecipe",
