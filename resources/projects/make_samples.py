@@ -84,7 +84,9 @@ def main() -> None:
         city.updated(
             name="city_fog",
             description="The city in fog of 150 m visibility (extinction 3.912/150 per m, albedo 0.98, forward "
-                        "scattering g = 0.85) in a 60 m deep layer, under an overcast sky.",
+                        "scattering g = 0.85) in a 60 m deep layer, under an overcast sky; Koschmieder's law per pixel "
+                        "with a measured in-scattering profile (fog.model 'volumetric' renders the medium itself, "
+                        "~10^3 times the cost).",
             render=RenderParams(daylight=day.updated(sky_model="overcast"),
                                 world=WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0)))),
     ]

@@ -47,9 +47,10 @@ def _depth(e1, e2):
     return -res.fun
 
 
-@pytest.mark.parametrize("seed", [0, 7])
-def test_no_interpenetration(seed):
-    city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40))
+@pytest.mark.parametrize("seed,detail", [(0, "simple"), (7, "simple"), (3, "detailed")])
+def test_no_interpenetration(seed, detail):
+    city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40,
+                                    asset_detail=detail))
     pieces = _pieces(city)
     ids = np.array([p[0] for p in pieces])
     z = np.array([[p[1], p[2]] for p in pieces])
