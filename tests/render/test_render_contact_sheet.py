@@ -10,8 +10,8 @@ from PIL import Image
 from workbench.cli import main
 from workbench.project import load_project
 from workbench.render import city_frame
-from workbench.render.contact_sheet import (CAPTION_LINES, CLASS_COLOURS, GAP_PX, LINE_PX, SheetTile, compose_sheet,
-                                            write_contact_sheet)
+from workbench.render.contact_sheet import (BACKGROUND, CAPTION_LINES, CLASS_COLOURS, GAP_PX, LINE_PX, TEXT,
+                                            SheetTile, compose_sheet, to_palette, write_contact_sheet)
 from workbench.render.labels import Labels, ObjectLabel
 
 W, H = 48, 36
@@ -92,6 +92,24 @@ def test_boxes_are_scaled_from_the_label_grid_and_kept_boxes_drawn_thicker():
     assert len(tile_px - {car, ped, (128, 128, 128)}) == 0     # the tree is no road user
 
 
+def test_palette_sheet_keeps_the_overlay_colours_exact():
+    rng = np.random.default_rng(0)
+    z = np.zeros((H, W))
+    boxes = [_label(k + 1, name, (4 + 10 * k, 4, 8, 20)) for k, name in enumerate(CLASS_COLOURS)]
+    tiles = [SheetTile(rng.uniform(0, 1, (H, W, 3)), Labels(z, z, z.astype(np.int32), z.astype(np.int32), boxes, {}),
+                       ["noise"]) for _ in range(2)]
+    sheet, _ = compose_sheet(tiles, 2, "title")
+    exact = [*CLASS_COLOURS.values(), TEXT, BACKGROUND]
+    small = to_palette(sheet, 16, exact)
+    assert small.mode == "P" and len(small.getcolors()) <= 16
+    rgb, ref = np.asarray(small.convert("RGB")), np.asarray(sheet)
+    for c in exact:                                  # every pixel of an exact colour keeps it
+        at = np.all(ref == c, axis=-1)
+        assert (at.any() or c == TEXT) and np.all(rgb[at] == c)      # small text is all anti-aliased
+    with pytest.raises(ValueError):
+        to_palette(sheet, 6, exact)
+
+
 def test_a_failed_render_leaves_no_sheet(tmp_path, monkeypatch, capsys):
     out = tmp_path / "cs.png"
     out.write_bytes(b"an older sheet")
@@ -112,7 +130,8 @@ def test_a_failed_render_leaves_no_sheet(tmp_path, monkeypatch, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cs.png"]      # no JSON, no temporary
 
 
-@pytest.mark.parametrize("flag, value", [("--spp", "0"), ("--frames-per-scene", "0"), ("--width", "2")])
+@pytest.mark.parametrize("flag, value", [("--spp", "0"), ("--frames-per-scene", "0"), ("--width", "2"),
+                                         ("--colours", "6"), ("--colours", "257")])
 def test_bad_options_are_refused(tmp_path, flag, value, capsys):
     assert main(["contact-sheet", "city_day_clear_sky", "--out", str(tmp_path / "cs.png"), flag, value]) == 2
     assert flag in capsys.readouterr().err and not any(tmp_path.iterdir())

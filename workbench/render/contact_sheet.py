@@ -140,6 +140,22 @@ def compose_sheet(tiles: Sequence[SheetTile], columns: int, title: str,
     return sheet, layout
 
 
+def to_palette(sheet, colours: int, exact: Sequence[tuple[int, int, int]]):
+    """The sheet as a palette image of `colours` entries (a PNG about a third the size of an RGB
+    one for noisy frames): a median-cut palette of the sheet, no dithering, plus the `exact`
+    colours, every pixel mapped to its nearest entry, so overlays in those colours stay exact."""
+    from PIL import Image
+    exact = list(dict.fromkeys(tuple(c) for c in exact))
+    if not len(exact) < colours <= 256:
+        raise ValueError(f"a palette of {colours} colours must hold the {len(exact)} exact ones and more, "
+                         "and at most 256")
+    adaptive = sheet.quantize(colors=colours - len(exact), method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    entries = adaptive.getpalette()[:3 * (colours - len(exact))] + [v for c in exact for v in c]
+    reference = Image.new("P", (1, 1))
+    reference.putpalette(entries + entries[:3] * (256 - len(entries) // 3))    # pad with a used entry
+    return sheet.quantize(palette=reference, dither=Image.Dither.NONE)
+
+
 def sheet_project(project, width: int, height: int, spp: int):
     """The project at width × height (sensor binned: pixel pitch × cols / width, same horizontal
     field of view) rendered at a fixed `spp`."""
@@ -212,13 +228,14 @@ def camera_tile(project, index: int, renderer: Callable | None = None, keep: Kee
 
 def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str | Path, *, width: int = 320,
                         height: int = 240, spp: int = 32, columns: int = 4, renderer: Callable | None = None,
-                        keep: KeepRule | None = None,
+                        keep: KeepRule | None = None, colours: int | None = None,
                         on_tile: Callable[[int, int, SheetTile], None] | None = None) -> tuple[Path, Path]:
     """Render frames 0 … frames_per_scene − 1 of each city project (camera_tile, at width × height,
     fixed spp: sheet_project), compose them (compose_sheet) and write the PNG and a JSON record
     beside it (same name, .json), each atomically and only once every frame has rendered: a
     failed render writes nothing. keep: which boxes are drawn 2 px wide (module docstring);
-    on_tile(k, total, tile) is called after each frame."""
+    colours: store a palette PNG of that many colours (to_palette; class, text and background
+    colours exact) instead of RGB; on_tile(k, total, tile) is called after each frame."""
     import io
 
     from workbench.files import atomic_write_bytes, atomic_write_text
@@ -228,6 +245,8 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
         raise OutputPathError(out_png, "must name a .png file")
     if frames_per_scene < 1:
         raise ValueError(f"frames_per_scene must be ≥ 1, got {frames_per_scene}")
+    if colours is not None and not len(CLASS_COLOURS) + 2 < colours <= 256:
+        raise ValueError(f"colours must lie in {len(CLASS_COLOURS) + 3}…256, got {colours}")
     sized = [sheet_project(p, width, height, spp) for p in projects]
     total = len(sized) * frames_per_scene
     tiles, t0 = [], time.perf_counter()
@@ -240,11 +259,13 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
     title = (f"{total} frames, {width}x{height}, {spp} spp (fixed, so noise differs by scene), through each "
              f"project's lens, sensor and ISP")
     sheet, layout = compose_sheet(tiles, columns, title, keep=keep)
+    if colours is not None:
+        sheet = to_palette(sheet, colours, [*CLASS_COLOURS.values(), TEXT, BACKGROUND])
     buf = io.BytesIO()
     sheet.save(buf, format="PNG", optimize=True)
     record = {"png": out_png.name, "width": width, "height": height, "spp": spp,
               "frames_per_scene": frames_per_scene, "projects": [p.name for p in sized],
-              "columns": layout.columns, "sheet_size_wh": list(layout.size_wh), "wall_s": round(wall_s, 1),
+              "columns": layout.columns, "palette_colours": colours, "sheet_size_wh": list(layout.size_wh), "wall_s": round(wall_s, 1),
               "sensor_binning": "pixel pitch × cols / width: the project's horizontal field of view",
               "tiles": [{**t.record, "origin_xy": list(layout.tile_origin(k))} for k, t in enumerate(tiles)]}
     json_path = out_png.with_suffix(".json")
