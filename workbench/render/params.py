@@ -92,7 +92,8 @@ class WorldParams(Params):
     reflection of the sky); `materials` 'uniform' (one spectrum per material, as before) or
     'procedural' (asphalt, concrete, brick, stucco, sandstone and grass as texture-weighted blends
     of analytic spectra, scene/city/surfaces.py), with `wet_road_fraction` of the road under
-    puddles."""
+    puddles; `paint` 'diffuse' (paints Lambertian, as before) or 'clearcoat' (every 'paint_*'
+    material under a glossy n = 1.5 clear coat: scene_builder.PAINT_COAT_*)."""
 
     lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
                                                                  "(night); city render")
@@ -105,6 +106,8 @@ class WorldParams(Params):
                                                                          "bricks, soil, puddles); city render")
     wet_road_fraction: float = Field(0.05, ge=0.0, le=1.0, description="road area under puddles with procedural "
                                                                       "materials (0–1); city render")
+    paint: Literal["diffuse", "clearcoat"] = Field("diffuse", description="vehicle paints Lambertian or under a "
+                                                                          "glossy clear coat; city render")
 
 
 class RenderParams(Params):

@@ -3,7 +3,8 @@
 Every mesh becomes one Mitsuba shape with the id `<class>_<instance>_<k>`; the id table maps
 each id (`shape.id()`) to its ShapeLabel. Materials are Lambertian with the city's explicit
 spectral reflectance (0 outside its samples, so it must cover the film's range, NIR included),
-except window glass with WorldParams.glass 'dielectric' (a thin dielectric pane), and with
+except window glass with WorldParams.glass 'dielectric' (a thin dielectric pane), paints with
+WorldParams.paint 'clearcoat' (a rough dielectric coat over the spectral base), and with
 WorldParams.materials 'procedural' the surfaces of scene/city/surfaces.py: `blendbsdf`s of those
 Lambertian spectra weighted by baked scalar textures (single-channel raw bitmaps repeated over
 planar texture coordinates in metres), wet layers as a smooth water coat (`plastic`, n = 1.33).
@@ -86,6 +87,16 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior
 
 GLASS_MATERIALS = ("glass_dark",)
 GLASS_IOR = 1.52         # soda-lime window glass (dispersion < 1 % over 400–1000 nm: ignored)
+# Automotive clear coat: an acrylic/polyurethane layer of n ≈ 1.5 over the coloured base coat
+# (normal-incidence reflectance ((n−1)/(n+1))² = 4 %). Günther et al. 2005 ("Efficient
+# acquisition and realistic rendering of car paint", VMV) model it as a smooth Fresnel dielectric
+# over the base; we give it a small GGX roughness α = 0.02 (our choice, at the glossy end of
+# 0.02–0.1) so the directional sun can glint off it. Mitsuba's roughplastic loses energy as α
+# grows (mitsuba3 issue #1155): under a uniform sky a ρ = 0.5 base reads 1.4 % low at α = 0.02,
+# 3 % at 0.05 and 19 % at 0.2 against the closed form L(R + ρ(1 − R)) (tests/render/test_render_paint.py).
+PAINT_PREFIX = "paint_"
+PAINT_COAT_IOR = 1.5
+PAINT_COAT_ALPHA = 0.02
 
 
 def _spectrum(material: Material, film_range_nm: tuple[float, float]) -> dict:
@@ -103,16 +114,25 @@ def _spectrum(material: Material, film_range_nm: tuple[float, float]) -> dict:
     return {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
 
 
-def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False):
+def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False,
+          paint: str = "diffuse"):
     """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
     pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
     glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
-    reflectance) for window quads mounted on façades and bus/truck bodies."""
+    reflectance) for window quads mounted on façades and bus/truck bodies. Paints ('paint_*')
+    with paint='clearcoat': `roughplastic` (GGX α = PAINT_COAT_ALPHA, n = PAINT_COAT_IOR) over
+    the paint's reflectance, with the linear internal-scattering model (nonlinear = false)."""
+    if paint not in ("diffuse", "clearcoat"):
+        raise ValueError(f"paint must be 'diffuse' or 'clearcoat', got {paint!r}")
     spectrum = _spectrum(material, film_range_nm)
     if glass == "dielectric" and material.name in GLASS_MATERIALS:
         if pane:
             return mi.load_dict({"type": "thindielectric", "int_ior": GLASS_IOR, "ext_ior": 1.0})
         return mi.load_dict({"type": "plastic", "int_ior": GLASS_IOR, "ext_ior": 1.0,
+                             "diffuse_reflectance": spectrum})
+    if paint == "clearcoat" and material.name.startswith(PAINT_PREFIX):
+        return mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": PAINT_COAT_ALPHA,
+                             "int_ior": PAINT_COAT_IOR, "ext_ior": 1.0, "nonlinear": False,
                              "diffuse_reflectance": spectrum})
     return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
 
@@ -211,7 +231,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             if key not in bsdfs:
                 bsdfs[key] = (surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
                               if m.material in surfaces else
-                              _bsdf(mi, city.materials[m.material], rng, world.glass, key[1]))
+                              _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint))
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
