@@ -14,7 +14,7 @@ import numpy as np
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium
-from workbench.render.lamps import night_emitters
+from workbench.render.lamps import night_emitters, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.types import CameraPose, City
 
@@ -108,7 +108,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         sensor_channels), which also fix the wavelength range every spectrum must cover.
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
-    world: lighting (day: `daylight`; night: lamps.night_emitters), fog (fog.py: a medium box
+    world: lighting (day: `daylight`; night: lamps.night_emitters; a tunnel's luminaires either
+        way: lamps.tunnel_emitters), fog (fog.py: a medium box
         whose id maps to None in the id table = background) and glass (WorldParams); None = day,
         clear air, diffuse glass.
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
@@ -125,7 +126,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     cam["film"] = film_srfs.mitsuba_film(width, height)
     cam["sampler"] = {"type": "independent", "sample_count": 1}
     world = WorldParams() if world is None else world
-    lights = night_emitters(city, world.night) if world.lighting == "night" else daylight_emitters(daylight)
+    if world.lighting == "night":
+        lights = {**night_emitters(city, world.night), **tunnel_emitters(city)}
+    else:              # a tunnel's luminaires burn by day too; they weigh as much as the sun
+        lights = {**daylight_emitters(daylight), **tunnel_emitters(city, sampling_weight=1.0)}
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
