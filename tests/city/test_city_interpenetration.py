@@ -47,11 +47,12 @@ def _depth(e1, e2):
     return -res.fun
 
 
-@pytest.mark.parametrize("seed,tunnel", [(0, None), (7, None),
-                                         (3, TunnelParams(street_index=1, length_m=84.0))])
-def test_no_interpenetration(seed, tunnel):
+@pytest.mark.parametrize("seed,detail,tunnel", [(0, "simple", None), (7, "simple", None), (3, "detailed", None),
+                                                (5, "simple", TunnelParams(street_index=1, length_m=84.0))])
+def test_no_interpenetration(seed, detail, tunnel):
     """(With a tunnel: trees and lamps stay out from under its roof, vehicles and people fit inside.)"""
-    city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40, tunnel=tunnel))
+    city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40,
+                                    asset_detail=detail, tunnel=tunnel))
     pieces = _pieces(city)
     ids = np.array([p[0] for p in pieces])
     z = np.array([[p[1], p[2]] for p in pieces])

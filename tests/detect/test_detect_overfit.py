@@ -1,6 +1,7 @@
 """A built-in net overfits 8 tiny images (coloured boxes on noise) to AP@0.5 > 0.95: the head, loss,
 decoder and evaluator work together, on RGB input (stride 1) and on the packed RGGB mosaic of the
-same images (stride 2, boxes still decoded at stride 4 of the image). One torch thread, ~25 s each."""
+same images (stride 2, boxes still decoded at stride 4 of the image), and under bf16 autocast (the
+CUDA mixed-precision path, run on the CPU). One torch thread, ~25 s each."""
 import numpy as np
 import pytest
 import torch
@@ -9,6 +10,7 @@ from workbench.detect.centernet import centernet_loss, collate_targets, decode, 
 from workbench.detect.evaluate import evaluate_map
 from workbench.detect.models import build_detector
 from workbench.detect.representations import pack_raw
+from workbench.detect.train import autocast, autocast_dtype
 
 SIZE_PX = 64
 STEPS = 120
@@ -38,8 +40,8 @@ def _rggb_packed(rgb: torch.Tensor) -> torch.Tensor:
     return torch.from_numpy(np.stack([pack_raw(m, "RGGB") for m in mosaics]))
 
 
-@pytest.mark.parametrize("representation", ["srgb", "raw"])
-def test_mobile_overfits_eight_images(representation):
+@pytest.mark.parametrize("representation, precision", [("srgb", "fp32"), ("raw", "fp32"), ("srgb", "bf16")])
+def test_mobile_overfits_eight_images(representation, precision):
     torch.set_num_threads(1)
     torch.manual_seed(0)
     x, truth = _tiny_images(np.random.default_rng(0))
@@ -49,15 +51,19 @@ def test_mobile_overfits_eight_images(representation):
     net = build_detector("mobile", x.shape[1], 3, input_stride=2 if representation == "raw" else 1)
     opt = torch.optim.AdamW(net.parameters(), lr=3e-3, weight_decay=1e-4)
     schedule = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=3e-3, total_steps=STEPS, pct_start=0.1)
+    dtype = autocast_dtype("cpu", precision)
     net.train()
     for _ in range(STEPS):
-        loss, _ = centernet_loss(net(x), targets)
+        with autocast("cpu", dtype):
+            out = net(x)
+        loss, _ = centernet_loss({k: v.float() for k, v in out.items()}, targets)
         opt.zero_grad()
         loss.backward()
         opt.step()
         schedule.step()
     net.eval()
-    with torch.no_grad():
-        detections = decode(net(x))
+    with torch.no_grad(), autocast("cpu", dtype):
+        out = net(x)
+    detections = decode({k: v.float() for k, v in out.items()})
     result = evaluate_map(detections, truth, ["red", "green", "blue"])
     assert result.mean_ap > 0.95, result.ap

@@ -7,8 +7,9 @@ import pytest
 import torch
 
 from workbench.detect.data import DetectionDataset
-from workbench.detect.train import (DetectionJob, TrainConfig, choose_threads, learning_rate, load_checkpoint,
-                                    run_detection_job, save_checkpoint, train_detector)
+from workbench.detect.train import (DetectionJob, TrainConfig, autocast_dtype, choose_threads, learning_rate,
+                                    load_checkpoint, pick_device, run_detection_job, save_checkpoint,
+                                    train_detector)
 from workbench.errors import InputFileError, ParameterError
 from workbench.jobs import CancelToken, JobCancelled
 
@@ -128,3 +129,42 @@ def test_testing_through_loader_workers_gives_the_same_map(synthetic_dir, tmp_pa
     results = [evaluate_detector(model, DetectionView(ds, ds.indices("test"), "srgb", (1.0,)), ds.class_names,
                                  batch_size=3, workers=w) for w in (0, 2)]
     assert results[0]["map"] == results[1]["map"] and results[0]["ap"] == results[1]["ap"]
+
+
+def test_precision_is_bf16_only_where_the_device_supports_it(monkeypatch):
+    assert autocast_dtype("cpu", "auto") is None and autocast_dtype("cpu", "fp32") is None
+    assert autocast_dtype("cpu", "bf16") is torch.bfloat16
+    monkeypatch.setattr(torch.cuda, "is_bf16_supported", lambda *a, **k: True)
+    assert autocast_dtype("cuda", "auto") is torch.bfloat16 and autocast_dtype("cuda", "fp32") is None
+    monkeypatch.setattr(torch.cuda, "is_bf16_supported", lambda *a, **k: False)      # e.g. a V100 or T4
+    assert autocast_dtype("cuda", "auto") is None
+    with pytest.raises(ParameterError, match="precision"):
+        autocast_dtype("cpu", "fp16")
+    with pytest.raises(ParameterError, match="precision"):
+        TrainConfig(**{**TINY, "precision": "half"})
+
+
+def test_auto_device_takes_a_gpu_when_torch_sees_one(monkeypatch):
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert pick_device("auto") == "cpu"
+    with pytest.raises(ParameterError, match="no CUDA GPU"):
+        pick_device("cuda")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert pick_device("auto") == "cuda" and pick_device("cpu") == "cpu"
+
+
+def test_bf16_mixed_precision_trains_and_tests_like_float32(synthetic_dir, tmp_path):
+    """The CUDA mixed-precision path of a whole run (bf16 autocast in training and testing, float32
+    loss and decoding), run on the CPU: same data order and initial weights, so the loss curves
+    agree to within bf16's rounding (8 mantissa bits) and every figure stays finite (that bf16
+    training learns is test_detect_overfit's)."""
+    runs = {}
+    for precision in ("fp32", "bf16"):
+        config = TrainConfig(**{**TINY, "precision": precision})
+        job = DetectionJob(key=precision, dataset_dir=str(synthetic_dir), config=config,
+                           checkpoint=str(tmp_path / f"{precision}.pt"), test_evs=(0.0,))
+        runs[precision] = run_detection_job(job)
+    fp32, bf16 = (np.array([h["loss"] for h in runs[p]["train"]["history"]]) for p in ("fp32", "bf16"))
+    assert np.all(np.isfinite(bf16)) and bf16.shape == fp32.shape == (2,)
+    np.testing.assert_allclose(bf16, fp32, rtol=0.05)
+    assert runs["bf16"]["config"]["precision"] == "bf16" and np.isfinite(runs["bf16"]["tests"][0]["map"])

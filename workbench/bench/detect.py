@@ -5,7 +5,9 @@ Rows of two kinds, at 320×240 and 640×480 (--quick: 320×240 only):
            signal of the paper camera's Macbeth chart (what a data view does per frame; raw needs no ISP);
   network  forward+backward (one training step without the optimiser) and inference (eval mode,
            no grad) ms per image at batch 4, for each built-in net on sRGB (3×H×W) and packed-raw
-           (4×H/2×W/2) input; on the CPU with torch.set_num_threads(1), and on CUDA too when present.
+           (4×H/2×W/2) input; on the CPU with torch.set_num_threads(1), and on CUDA too when present,
+           at the precision training uses there (train.autocast_dtype(device, 'auto'): bf16 autocast
+           on a bf16-capable GPU), with training images per second.
 """
 from __future__ import annotations
 
@@ -57,6 +59,9 @@ def _network_rows(rows: int, cols: int, repeats: int, device: str) -> list[dict]
 
     from workbench.detect.centernet import centernet_loss, collate_targets, encode_targets
     from workbench.detect.models import build_detector
+    from workbench.detect.train import autocast, autocast_dtype
+
+    dtype = autocast_dtype(device, "auto")
 
     def sync():
         if device == "cuda":
@@ -75,18 +80,22 @@ def _network_rows(rows: int, cols: int, repeats: int, device: str) -> list[dict]
             def train_step():
                 net.train()
                 net.zero_grad(set_to_none=True)
-                centernet_loss(net(x), targets)[0].backward()
+                with autocast(device, dtype):
+                    y = net(x)
+                centernet_loss({k: v.float() for k, v in y.items()}, targets)[0].backward()
                 sync()
 
             def infer():
                 net.eval()
-                with torch.no_grad():
+                with torch.no_grad(), autocast(device, dtype):
                     net(x)
                 sync()
             train, infer_t = median_times_ms(train_step, repeats), median_times_ms(infer, repeats)
             out.append({"kind": "network", "size": f"{cols}x{rows}", "what": f"{name} {rep}", "device": device,
+                        "precision": "bf16" if dtype is not None else "fp32",
                         "params_M": sum(p.numel() for p in net.parameters()) / 1e6,
                         "train_ms_per_image": train.wall_ms / BATCH, "infer_ms_per_image": infer_t.wall_ms / BATCH,
+                        "train_images_per_s": 1e3 * BATCH / train.wall_ms,
                         "train_cpu_ms_per_image": train.cpu_ms / BATCH, "infer_cpu_ms_per_image": infer_t.cpu_ms / BATCH})
     return out
 

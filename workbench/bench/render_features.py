@@ -3,7 +3,7 @@
 Every case renders the same city view through the camera's three channels (sensor film) with
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
-lamps + vehicle lights). For each: the broadband noise constant c from two independent seeds
+lamps + vehicle lights), procedural materials. For each: the broadband noise constant c from two independent seeds
 (σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and
 the time of that frame extrapolated from two renders as t = a + b·spp (warm; scene build and
 the first JIT trace excluded).
@@ -28,7 +28,8 @@ def feature_cases():
             ("overcast", day.updated(sky_model="overcast"), WorldParams()),
             ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0))),
             ("glass dielectric", day, WorldParams(glass="dielectric")),
-            ("night (HPS, vehicle lights)", day, WorldParams(lighting="night"))]
+            ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
+            ("materials procedural", day, WorldParams(materials="procedural"))]
 
 
 def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spps: tuple[int, int]) -> list[dict]:

@@ -3,8 +3,11 @@
 AdamW with a linear warm-up then a cosine decay to zero, over a budget of epochs or of wall-clock
 minutes (the schedule then follows elapsed time); checkpoints at every epoch end, written atomically
 (temporary file + rename) and read with torch.load(weights_only=True), so a killed run resumes at
-its last finished epoch with the same data order and sensor noise. CUDA with bf16 autocast when a
-GPU is present (the loss is always computed in float32).
+its last finished epoch with the same data order and sensor noise. Precision (`autocast_dtype`):
+'auto' = bf16 autocast on a CUDA GPU that supports bf16 (Ampere and later), float32 elsewhere;
+'bf16' asks for it on any device (on the CPU it runs the same mixed-precision path, which is how
+it is tested without a GPU); 'fp32' never. The loss is always computed in float32. bf16 has
+float32's exponent range, so no loss scaling is needed; float16 (which would need it) is not used.
 
 A run is one independent job: `run_detection_job(DetectionJob)` is a module-level function of
 plain, picklable data that returns a plain result dict, so it runs in-process, in a process pool
@@ -57,6 +60,27 @@ def pick_device(device: str) -> str:
     return "cuda" if device in ("auto", "cuda") and torch.cuda.is_available() else "cpu"
 
 
+PRECISIONS = ("auto", "fp32", "bf16")
+
+
+def autocast_dtype(device: str, precision: str):
+    """torch.bfloat16 when a run on `device` ('cpu' | 'cuda') should use bf16 autocast, else None."""
+    import torch
+    if precision not in PRECISIONS:
+        raise ParameterError("precision", precision, "one of " + ", ".join(map(repr, PRECISIONS)))
+    if precision == "bf16":
+        return torch.bfloat16
+    if precision == "auto" and device == "cuda" and torch.cuda.is_bf16_supported():
+        return torch.bfloat16
+    return None
+
+
+def autocast(device: str, dtype):
+    """The autocast context for a run (a no-op one when dtype is None)."""
+    import torch
+    return torch.autocast(device_type=device, dtype=dtype or torch.bfloat16, enabled=dtype is not None)
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """One training run. epochs or minutes (exactly one) is the budget; lr is AdamW's peak
@@ -79,7 +103,7 @@ class TrainConfig:
     augment: bool = True
     threads: int | None = None
     device: str = "auto"
-    amp: bool = True
+    precision: str = "auto"
     loader_workers: int = 0
     cache_mb: float = 1024.0
     eval_batch_size: int = 8
@@ -96,6 +120,8 @@ class TrainConfig:
             raise ParameterError("batch_size", self.batch_size, "an integer ≥ 1")
         if not 0.0 <= self.warmup_fraction < 1.0:
             raise ParameterError("warmup_fraction", self.warmup_fraction, "a fraction in [0, 1)")
+        if self.precision not in PRECISIONS:
+            raise ParameterError("precision", self.precision, "one of " + ", ".join(map(repr, PRECISIONS)))
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), sort_keys=True)
@@ -226,7 +252,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                                                                "this run starts from are missing or unfinished")
         model.load_state_dict(base["model"])
     done = bool(state and state.get("done"))
-    use_amp = config.amp and device == "cuda"
+    amp_dtype = autocast_dtype(device, config.precision)
     model.train()
     def epoch_numbers():
         return itertools.count(epoch) if budget_s is not None else range(epoch, config.epochs)
@@ -249,7 +275,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
             hw = tuple(x.shape[-2:]) if config.representation != "raw" else (x.shape[-2] * 2, x.shape[-1] * 2)
             enc = _encode_batch(targets, num_classes, hw, device)
             x = x.to(device, non_blocking=True)
-            with torch.autocast(device_type="cuda", dtype=torch.bfloat16, enabled=use_amp):
+            with autocast(device, amp_dtype):
                 out = model(x)
             loss, _ = centernet_loss({k: v.float() for k, v in out.items()}, enc)
             opt.zero_grad(set_to_none=True)
@@ -291,9 +317,10 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
 
 
 def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_size: int = 8,
-                      with_curves: bool = False, workers: int = 0) -> dict:
+                      with_curves: bool = False, workers: int = 0, precision: str = "auto") -> dict:
     """VOC all-point AP@0.5 per class and mAP on a view (ignored boxes handled as in
-    workbench.detect.data; None where no class has ground truth), pycocotools' AP@0.5 as a
+    workbench.detect.data; None where no class has ground truth; inference under autocast_dtype(
+    device, precision), decoding in float32), pycocotools' AP@0.5 as a
     cross-check (None without pycocotools), inference and sensor + ISP ms per image, and with
     with_curves each class's precision–recall curve (at most 50 points)."""
     import torch
@@ -304,11 +331,13 @@ def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_si
 
     detections, truths = [], []
     infer_s, sensor_isp_s = 0.0, 0.0
+    amp_dtype = autocast_dtype(device, precision)
     with torch.no_grad():
         for x, targets in iterate_batches(view, _batches(len(view), batch_size, None), workers):
             sensor_isp_s += sum(t["sensor_isp_s"] for t in targets)
             t0 = time.perf_counter()
-            out = model(x.to(device))
+            with autocast(device, amp_dtype):
+                out = model(x.to(device))
             dets = decode({k: v.float() for k, v in out.items()}, stride=4, k=100, score_threshold=0.01)
             if device == "cuda":
                 torch.cuda.synchronize()
@@ -373,7 +402,7 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
         t0 = time.perf_counter()
         res = evaluate_detector(model, view, dataset.class_names, device=device,
                                 batch_size=job.config.eval_batch_size, with_curves=job.with_curves,
-                                workers=job.config.loader_workers)
+                                workers=job.config.loader_workers, precision=job.config.precision)
         res.update({"ev": float(ev), "seconds": time.perf_counter() - t0})
         tests.append(res)
     train = asdict(tr)

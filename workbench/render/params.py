@@ -89,7 +89,11 @@ class WorldParams(Params):
     """Scene features beyond geometry, each switchable: `lighting` 'day' (render.daylight) or
     'night' (`night`); `fog` (None = clear air); `glass` 'diffuse' (windows as dark Lambertian
     surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
-    reflection of the sky)."""
+    reflection of the sky); `materials` 'uniform' (one spectrum per material, as before) or
+    'procedural' (asphalt, concrete, brick, stucco, sandstone and grass as texture-weighted blends
+    of analytic spectra, scene/city/surfaces.py), with `wet_road_fraction` of the road under
+    puddles; `paint` 'diffuse' (paints Lambertian, as before) or 'clearcoat' (every 'paint_*'
+    material under a glossy n = 1.5 clear coat: scene_builder.PAINT_COAT_*)."""
 
     lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
                                                                  "(night); city render")
@@ -97,6 +101,13 @@ class WorldParams(Params):
     fog: FogParams | None = Field(None, description="fog or haze; None = clear air; city render")
     glass: Literal["diffuse", "dielectric"] = Field("diffuse", description="windows as dark diffuse surfaces or "
                                                                            "thin glass panes; city render")
+    materials: Literal["uniform", "procedural"] = Field("uniform", description="one spectrum per material or "
+                                                                         "procedural blends (wear, stains, "
+                                                                         "bricks, soil, puddles); city render")
+    wet_road_fraction: float = Field(0.05, ge=0.0, le=1.0, description="road area under puddles with procedural "
+                                                                      "materials (0–1); city render")
+    paint: Literal["diffuse", "clearcoat"] = Field("diffuse", description="vehicle paints Lambertian or under a "
+                                                                          "glossy clear coat; city render")
 
 
 class RenderParams(Params):

@@ -25,8 +25,30 @@ Facts used (levels approximate, chosen inside the quoted ranges):
   water band at 970 nm (Anderson & Parrish 1981).
 - Textiles: most textile dyes are NIR-transparent, so dyed cotton rises to ~0.5–0.7 past 700 nm
   (indigo denim: ~0.05 at 600–650 nm, ~0.5 at 800 nm) (NIR false-colour and camouflage
-  literature); carbon-pigmented black stays low.
+  literature); carbon-pigmented black stays low. The clothing palette follows the same rule:
+  reactive, vat and disperse dyes on cotton and polyester (navy, burgundy, beige, yellow, pink …)
+  keep their visible shape and turn NIR-bright (~0.5–0.75) past ~700–760 nm, as camouflage-
+  textile studies report for undyed-in-the-NIR fabrics; only carbon-black pigment stays dark.
+- High-visibility yellow and orange (EN ISO 20471 background materials, luminance factor ≥ 0.70
+  and ≥ 0.40 *with* fluorescence): reflective-only approximations, a sharp edge at ~495 nm
+  (yellow-green) or ~575 nm (orange) to ~0.85–0.9, NIR ~0.8; the fluorescent boost (re-emission
+  of blue light as green/orange) is not modelled, so they are a little darker than real vests.
+- Leather shoes: tanned leather (vegetable or chrome) is brown, low in the blue (~0.04), ~0.25
+  in the red and NIR-bright (~0.45); black leather finishes are carbon-pigmented and stay
+  ~0.05–0.08. White sneakers: TiO2-pigmented synthetics like white paint.
+- Hair: eumelanin absorption falls with wavelength, so hair reflectance rises into the NIR;
+  dark ~0.04 → 0.2, brown ~0.06 → 0.4, blonde (less eumelanin) ~0.12 → 0.55, gray ~0.25 → 0.45
+  (hair-colour reflectance spectroscopy, e.g. Vaughn et al. hair-colour measurements).
+- Licence plates: retroreflective sheeting over aluminium, seen here diffusely: white ~0.8 with
+  TiO2's edge below ~400 nm, yellow low in the blue with an edge near 500 nm; both stay bright
+  in the NIR (ANPR cameras read plates at ~850 nm because the background reflects there and the
+  carbon-black characters do not; the characters are not modelled).
 - Glass seen diffusely (tinted windows, dark interiors): ~0.06–0.08 flat; tyre rubber ~0.04.
+- Variants blended in by the procedural surfaces (scene/city/surfaces.py): aged asphalt ~0.09
+  rising to ~0.14 (oxidised binder, exposed aggregate; Herold et al. 2004 find aged roads up to
+  twice as bright as fresh ones); cement–lime mortar, lighter than concrete (~0.3 → 0.45);
+  over-fired (clinker) brick, darker with the same iron-oxide edge; urban grime (soot + mineral
+  dust: black carbon is near-flat and dark, dust rises toward the red), ~0.05 → 0.10.
 """
 from __future__ import annotations
 
@@ -85,6 +107,11 @@ def _builders(wl: np.ndarray) -> dict[str, np.ndarray]:
     return {
         # road, ground, walls
         "asphalt": 0.06 + 0.035 * ramp,
+        "asphalt_aged": 0.09 + 0.05 * ramp,
+        "mortar": _edge(wl, 0.30, 0.45, 500, 60) * _uv_falloff(wl),
+        "brick_dark": (_edge(wl, 0.05, 0.22, 595, 25) + 0.04 * _sig(wl, 760, 40)
+                       - 0.03 * _gauss(wl, 870, 40)) * _uv_falloff(wl),
+        "grime": 0.05 + 0.05 * _sig(wl, 600, 120),
         "concrete": _edge(wl, 0.22, 0.38, 520, 60) * _uv_falloff(wl),
         "concrete_dark": _edge(wl, 0.14, 0.24, 520, 60) * _uv_falloff(wl),
         "brick": (_edge(wl, 0.08, 0.36, 585, 22) + 0.06 * _sig(wl, 760, 40)
@@ -107,6 +134,9 @@ def _builders(wl: np.ndarray) -> dict[str, np.ndarray]:
         "paint_green": _paint(wl, 0.05 + 0.22 * _gauss(wl, 525, 35), 0.55, 715, 18),
         "paint_yellow": _paint(wl, _edge(wl, 0.07, 0.72, 505, 14), 0.74, 760, 40),
         "paint_orange": _paint(wl, _edge(wl, 0.06, 0.70, 570, 14), 0.72, 760, 40),
+        # licence plates
+        "plate_white": _edge(wl, 0.30, 0.82, 400, 10) - 0.03 * ramp,
+        "plate_yellow": _edge(wl, 0.08, 0.72, 505, 13) * _uv_falloff(wl) + 0.06 * _sig(wl, 740, 30),
         # lane paint
         "lane_white": _edge(wl, 0.12, 0.75, 400, 10) - 0.05 * ramp,
         "lane_yellow": _edge(wl, 0.08, 0.64, 505, 13) * _uv_falloff(wl) + 0.03 * _sig(wl, 740, 30),
@@ -132,6 +162,23 @@ def _builders(wl: np.ndarray) -> dict[str, np.ndarray]:
         "cloth_green": _paint(wl, 0.06 + 0.16 * _gauss(wl, 530, 35), 0.55, 705, 18),
         "cloth_khaki": _paint(wl, _edge(wl, 0.10, 0.38, 560, 40), 0.55, 720, 30),
         "cloth_carbon": 0.035 + 0.01 * ramp,
+        # clothing palette of the detailed pedestrians (dyed textiles NIR-bright, see above)
+        "cloth_navy": _paint(wl, 0.04 + 0.07 * _gauss(wl, 460, 40), 0.50, 715, 22),
+        "cloth_blue": _paint(wl, 0.06 + 0.32 * _gauss(wl, 465, 35), 0.55, 720, 20),
+        "cloth_burgundy": _paint(wl, _edge(wl, 0.04, 0.28, 630, 15), 0.58, 740, 30),
+        "cloth_beige": _paint(wl, _edge(wl, 0.25, 0.55, 540, 50), 0.65, 740, 40),
+        "cloth_brown": _paint(wl, _edge(wl, 0.05, 0.22, 600, 45), 0.55, 740, 35),
+        "cloth_yellow": _paint(wl, _edge(wl, 0.08, 0.68, 510, 14), 0.70, 760, 40),
+        "cloth_pink": _paint(wl, _edge(wl, 0.38, 0.72, 590, 18) - 0.12 * _gauss(wl, 530, 30), 0.75, 760, 40),
+        "cloth_hivis_yellow": _paint(wl, _edge(wl, 0.06, 0.90, 495, 14) - 0.12 * _sig(wl, 610, 20),
+                                     0.80, 760, 40),
+        "cloth_hivis_orange": _paint(wl, _edge(wl, 0.05, 0.85, 575, 14), 0.80, 760, 40),
+        "leather_brown": _paint(wl, _edge(wl, 0.04, 0.25, 610, 50), 0.45, 760, 60),
+        "leather_black": 0.045 + 0.03 * _sig(wl, 750, 50),
+        "shoe_white": _edge(wl, 0.30, 0.75, 415, 12) - 0.05 * ramp,
+        "hair_brown": 0.05 + 0.35 * _sig(wl, 720, 110),
+        "hair_blonde": 0.10 + 0.45 * _sig(wl, 600, 90),
+        "hair_gray": _edge(wl, 0.25, 0.45, 550, 120),
     }
 
 
@@ -145,6 +192,14 @@ FACADES = ("brick", "concrete", "concrete_dark", "sandstone", "plaster_white")
 SKINS = ("skin_light", "skin_medium", "skin_dark")
 CLOTHES = ("cloth_black", "cloth_white", "cloth_gray", "cloth_denim", "cloth_red", "cloth_green",
            "cloth_khaki", "cloth_carbon")
+# Palettes of the detailed pedestrians (workbench/scene/city/people.py).
+TOPS = ("cloth_black", "cloth_white", "cloth_gray", "cloth_navy", "cloth_red", "cloth_green",
+        "cloth_beige", "cloth_blue", "cloth_burgundy", "cloth_carbon", "cloth_yellow", "cloth_pink",
+        "cloth_khaki", "cloth_denim", "cloth_hivis_yellow", "cloth_brown", "cloth_hivis_orange")
+BOTTOMS = ("cloth_denim", "cloth_black", "cloth_navy", "cloth_khaki", "cloth_gray", "cloth_carbon",
+           "cloth_beige", "cloth_brown")
+SHOES = ("leather_brown", "leather_black", "shoe_white", "plastic_black", "cloth_gray")
+HAIRS = ("hair_dark", "hair_brown", "hair_blonde", "hair_gray")
 
 
 def reflectance(name: str, wavelengths_nm: np.ndarray | None = None) -> np.ndarray:

@@ -1,0 +1,320 @@
+"""Detailed pedestrians: a jointed body posed by joint angles, dressed from clothing palettes.
+
+Every body segment (head, neck, torso, pelvis, upper arms, forearms, hands, thighs, shins, feet)
+is its own closed convex solid: a tapered tube of elliptic rings between its two joints, with a
+rounded cap past each joint so the joint centre lies inside both neighbours (no gaps when bent).
+Segment lengths and landmark heights are fractions of stature H after Drillis & Contini (1966,
+'Body segment parameters', NYU report 1166-03; as tabulated in Winter, 'Biomechanics and Motor
+Control of Human Movement'): hip (greater trochanter) 0.530 H, knee 0.285 H, ankle 0.039 H,
+shoulder 0.818 H, elbow 0.630 H, wrist 0.485 H, chin 0.870 H, hand 0.108 H, foot 0.152 H × 0.055 H,
+shoulder breadth 0.259 H, hip breadth 0.191 H; the shoulder joint centres are taken 0.20 H
+apart and 0.02 H below the acromion, the hip joint centres 0.10 H apart.
+Children have larger heads (≈ 1/6 of stature at 1.1 m against ≈ 1/7.7 for adults); the body
+below the chin is scaled to fill the rest.
+
+A pose is a small table of angles (degrees, from the vertical, positive forward): hip flexion
+of each thigh, knee flexion, foot pitch (toe down positive), shoulder flexion of each upper arm,
+elbow flexion, arm abduction and trunk lean. Legs marked `contact` touch the ground: the lowest
+one sets the pelvis height, the other rolls onto its toes until it touches too. Walking poses
+follow the gait cycle (Perry & Burnfield, 'Gait Analysis'): double support at heel strike
+(lead hip ~22° flexed, trailing hip ~15° extended and heel off) and mid-stance (stance leg
+vertical, swing knee ~55° flexed), arms swinging opposite to the legs.
+
+Local frame as every asset: x forward, y left, z up, on the ground, centred on the footprint.
+Variant names are deterministic: '<pose>_<index>'.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+from scipy.stats import norm
+
+from workbench.scene.city import geometry as g
+from workbench.scene.city.assets import Asset, _finish
+from workbench.scene.city.materials import BOTTOMS, HAIRS, SHOES, SKINS, TOPS
+
+# Drillis & Contini landmark heights and lengths (fractions of stature).
+HIP_H, KNEE_H, ANKLE_H, SHOULDER_H, ELBOW_H, WRIST_H, CHIN_H = 0.530, 0.285, 0.039, 0.818, 0.630, 0.485, 0.870
+HAND_L, FOOT_L, FOOT_B = 0.108, 0.152, 0.055
+SHOULDER_JOINTS_B, SHOULDER_DROP, HIP_JOINTS_B, HIP_B = 0.20, 0.02, 0.10, 0.191
+REF_STATURE_M = 1.75          # girths below are for an average adult of this stature
+
+
+@dataclass(frozen=True)
+class Leg:
+    hip_deg: float
+    knee_deg: float
+    foot_pitch_deg: float = 0.0
+    contact: bool = True
+
+
+@dataclass(frozen=True)
+class Arm:
+    shoulder_deg: float
+    elbow_deg: float
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Joint angles (deg); legs and arms are (right, left)."""
+
+    name: str
+    legs: tuple[Leg, Leg]
+    arms: tuple[Arm, Arm]
+    trunk_lean_deg: float = 2.0
+    arm_abduction_deg: float = 6.0
+
+    def mirrored(self, name: str) -> "Pose":
+        return Pose(name, self.legs[::-1], self.arms[::-1], self.trunk_lean_deg, self.arm_abduction_deg)
+
+
+STANDING = Pose("standing", (Leg(0, 0), Leg(0, 0)), (Arm(0, 10), Arm(0, 10)))
+# right heel strike: right leg leads, left leg trails on its toes, left arm forward
+WALK_CONTACT = Pose("walk_contact", (Leg(22, 2, -12), Leg(-15, 15, 0)),
+                    (Arm(-18, 12), Arm(20, 30)), trunk_lean_deg=4.0)
+# right mid-stance: right leg vertical, left leg swinging through, arms passing neutral
+WALK_MIDSTANCE = Pose("walk_midstance", (Leg(0, 5), Leg(20, 55, -5, contact=False)),
+                      (Arm(3, 15), Arm(-3, 20)), trunk_lean_deg=4.0)
+POSES: tuple[Pose, ...] = (STANDING, WALK_CONTACT, WALK_MIDSTANCE,
+                           WALK_CONTACT.mirrored("walk_contact_l"),
+                           WALK_MIDSTANCE.mirrored("walk_midstance_l"))
+POSE_BY_NAME = {p.name: p for p in POSES}
+
+BUILDS = {"slim": (0.88, 0.85), "average": (1.0, 1.0), "broad": (1.12, 1.18)}   # width, depth factors
+
+
+@dataclass(frozen=True)
+class PedestrianSpec:
+    name: str
+    pose: str
+    stature_m: float
+    build: str
+    top: str
+    bottom: str
+    shoes: str
+    skin: str
+    hair: str
+    long_sleeves: bool
+    shorts: bool
+    long_hair: bool
+
+
+def head_fraction(stature_m: float) -> float:
+    """Head height (chin to vertex) as a fraction of stature: 0.13 for adults, up to ~0.17 at 1 m."""
+    return 0.13 + 0.04 * float(np.clip((1.55 - stature_m) / 0.55, 0.0, 1.0))
+
+
+# ---------------------------------------------------------------- skeleton
+def _rot_y(v: np.ndarray, deg: float) -> np.ndarray:
+    """Rotate about +y so that +x goes down for positive angles (toe down, lean forward)."""
+    a = np.radians(deg)
+    c, s = np.cos(a), np.sin(a)
+    return np.stack([v[..., 0] * c + v[..., 2] * s, v[..., 1], -v[..., 0] * s + v[..., 2] * c], -1)
+
+
+def _down(deg: float, lateral: float = 0.0) -> np.ndarray:
+    """Unit vector hanging from the vertical by `deg` forward and tilted `lateral` (sin) sideways."""
+    a = np.radians(deg)
+    c = np.sqrt(1.0 - lateral ** 2)
+    return np.array([np.sin(a) * c, lateral, -np.cos(a) * c])
+
+
+@dataclass(frozen=True)
+class Body:
+    """Scaled dimensions of one person (m)."""
+
+    stature: float
+    k: float           # scale of Drillis & Contini fractions below the chin
+    build_w: float     # build factor across
+    build_d: float     # build factor front-to-back
+
+    def L(self, frac: float) -> float:
+        """A Drillis & Contini length (fraction of stature) for this body (m)."""
+        return frac * self.k * self.stature
+
+    @property
+    def W(self) -> float:
+        """Scale of girths across (reference-adult girths × this)."""
+        return self.stature / REF_STATURE_M * self.build_w
+
+    @property
+    def D(self) -> float:
+        """Scale of girths front-to-back."""
+        return self.stature / REF_STATURE_M * self.build_d
+
+
+def _body(spec: PedestrianSpec) -> Body:
+    return Body(spec.stature_m, (1 - head_fraction(spec.stature_m)) / CHIN_H, *BUILDS[spec.build])
+
+
+def _foot_points(b: Body) -> np.ndarray:
+    """Shoe hull points in the foot frame (origin at the ankle joint, x along the foot)."""
+    lf, bf, ha = b.L(FOOT_L), b.L(FOOT_B) * b.build_w, b.L(ANKLE_H)
+    sole = -ha
+    pts = [(-0.20 * lf, 0.28 * bf, sole), (-0.22 * lf, 0.24 * bf, sole + 0.6 * ha),
+           (0.55 * lf, 0.50 * bf, sole), (0.78 * lf, 0.28 * bf, sole),
+           (0.74 * lf, 0.24 * bf, sole + 0.45 * ha), (0.40 * lf, 0.40 * bf, sole + 1.05 * ha)]
+    pts = [(x, sy * y, z) for x, y, z in pts for sy in (-1, 1)]
+    ring = g.ring(0.5 * bf, 0.5 * bf, 0.25 * ha, 8)
+    return np.concatenate([np.array(pts), ring])
+
+
+def skeleton(spec: PedestrianSpec) -> dict[str, np.ndarray]:
+    """Joint centres (m, body frame: ground z = 0, pelvis above x = y = 0) of a posed person:
+    'hip_r', 'knee_r', 'ankle_r', 'shoulder_r', 'elbow_r', 'wrist_r' (and '_l'), 'pelvis',
+    'waist', 'neck' (base), 'chin', plus 'foot_pitch_r/_l' (deg, as 1-element arrays)."""
+    pose, b = POSE_BY_NAME[spec.pose], _body(spec)
+    hip_y = 0.5 * b.L(HIP_JOINTS_B) * b.build_w
+    foot = _foot_points(b)
+    j: dict[str, np.ndarray] = {}
+    pitches = {}
+    # legs relative to the pelvis centre at z = 0
+    for side, sy, leg in (("r", -1, pose.legs[0]), ("l", 1, pose.legs[1])):
+        hip = np.array([0.0, sy * hip_y, 0.0])
+        knee = hip + b.L(HIP_H - KNEE_H) * _down(leg.hip_deg)
+        ankle = knee + b.L(KNEE_H - ANKLE_H) * _down(leg.hip_deg - leg.knee_deg)
+        j[f"hip_{side}"], j[f"knee_{side}"], j[f"ankle_{side}"] = hip, knee, ankle
+        pitches[side] = leg.foot_pitch_deg
+    sole = {s: j[f"ankle_{s}"][2] + _rot_y(foot, pitches[s])[:, 2].min()
+            for s, leg in zip("rl", pose.legs) if leg.contact}
+    first = min(sole, key=sole.get)
+    ground = sole[first]
+    for side in set(sole) - {first}:   # roll onto the toes until this foot touches the ground too
+        z = j[f"ankle_{side}"][2]
+        lowest = lambda deg: z + _rot_y(foot, deg)[:, 2].min() - ground  # noqa: E731
+        if lowest(0.0) < -1e-9:
+            raise ValueError(f"pose '{pose.name}': the {side} leg reaches below the ground")
+        pitches[side] = brentq(lowest, 0.0, 70.0, xtol=1e-10)
+    for key in list(j):
+        j[key] = j[key] - np.array([0.0, 0.0, ground])
+    j["pelvis"] = np.array([0.0, 0.0, -ground])
+    lean = np.radians(pose.trunk_lean_deg)
+    trunk = np.array([np.sin(lean), 0.0, np.cos(lean)])          # up, leaning forward
+    j["waist"] = j["pelvis"] + b.L(0.06) * trunk
+    j["neck"] = j["pelvis"] + b.L(SHOULDER_H - HIP_H) * trunk
+    j["chin"] = j["neck"] + np.array([0.0, 0.0, b.L(CHIN_H - SHOULDER_H)])
+    sh_y = 0.5 * b.L(SHOULDER_JOINTS_B) * b.build_w
+    lat = np.sin(np.radians(pose.arm_abduction_deg))
+    for side, sy, arm in (("r", -1, pose.arms[0]), ("l", 1, pose.arms[1])):
+        sh = j["neck"] + np.array([0.0, sy * sh_y, 0.0]) - b.L(SHOULDER_DROP) * trunk
+        elbow = sh + b.L(SHOULDER_H - SHOULDER_DROP - ELBOW_H) * _down(arm.shoulder_deg, sy * lat)
+        wrist = elbow + b.L(ELBOW_H - WRIST_H) * _down(arm.shoulder_deg + arm.elbow_deg, sy * lat)
+        j[f"shoulder_{side}"], j[f"elbow_{side}"], j[f"wrist_{side}"] = sh, elbow, wrist
+    for side in "rl":
+        j[f"foot_pitch_{side}"] = np.array([pitches[side]])
+    return j
+
+
+# ---------------------------------------------------------------- solids
+def _tube(p: np.ndarray, q: np.ndarray, rings: list[tuple[float, float, float]], n: int = 8) -> g.Part:
+    """Convex tube from p to q: rings (t, r_sagittal, r_lateral) at p + t·(q − p) (t may be < 0
+    or > 1 for caps past a joint), each perpendicular to the axis."""
+    axis = q - p
+    a = axis / np.linalg.norm(axis)
+    v = np.array([0.0, 1.0, 0.0]) - a[1] * a
+    v /= np.linalg.norm(v)
+    u = np.cross(v, a)
+    t = 2 * np.pi * (np.arange(n) + 0.5) / n
+    pts = [p + tt * axis + rx * np.cos(t)[:, None] * u + ry * np.sin(t)[:, None] * v
+           for tt, rx, ry in rings]
+    return g.convex_solid(np.concatenate(pts))
+
+
+def _limb(p, q, r0: tuple[float, float], r1: tuple[float, float], mid=None, n=8) -> g.Part:
+    """Tapered limb between joints p and q (radii (sagittal, lateral) there), with rounded caps."""
+    length = np.linalg.norm(q - p)
+    c0, c1 = 0.55 * max(r0) / length, 0.55 * max(r1) / length
+    rings = [(-c0, 0.6 * r0[0], 0.6 * r0[1]), (0.0, *r0)]
+    if mid is not None:
+        rings.append(mid)
+    rings += [(1.0, *r1), (1.0 + c1, 0.6 * r1[0], 0.6 * r1[1])]
+    return _tube(p, q, rings, n)
+
+
+def body_parts(spec: PedestrianSpec) -> dict[str, tuple[str, g.Part]]:
+    """Every segment of a posed, dressed person: name → (material, closed solid), body frame."""
+    b, j = _body(spec), skeleton(spec)
+    W, D, H = b.W, b.D, spec.stature_m
+    out: dict[str, tuple[str, g.Part]] = {}
+    foot = _foot_points(b)
+    legwear = spec.skin if spec.shorts else spec.bottom
+    forearm = spec.top if spec.long_sleeves else spec.skin
+    for s in "rl":
+        hip, knee, ankle = j[f"hip_{s}"], j[f"knee_{s}"], j[f"ankle_{s}"]
+        out[f"thigh_{s}"] = (spec.bottom, _limb(hip, knee, (0.085 * D, 0.080 * W), (0.056 * D, 0.054 * W),
+                                                (0.3, 0.080 * D, 0.076 * W)))
+        out[f"shin_{s}"] = (legwear, _limb(knee, ankle, (0.052 * D, 0.050 * W), (0.036 * D, 0.034 * W),
+                                           (0.3, 0.056 * D, 0.050 * W)))
+        out[f"foot_{s}"] = (spec.shoes, g.convex_solid(ankle + _rot_y(foot, j[f"foot_pitch_{s}"][0])))
+        sh, el, wr = j[f"shoulder_{s}"], j[f"elbow_{s}"], j[f"wrist_{s}"]
+        out[f"upper_arm_{s}"] = (spec.top, _limb(sh, el, (0.050 * D, 0.048 * W), (0.038 * D, 0.036 * W)))
+        out[f"forearm_{s}"] = (forearm, _limb(el, wr, (0.037 * D, 0.035 * W), (0.027 * D, 0.022 * W)))
+        d = (wr - el) / np.linalg.norm(wr - el)
+        tip = wr + b.L(HAND_L) * 0.8 * d
+        out[f"hand_{s}"] = (spec.skin, _tube(wr, tip, [(-0.15, 0.024 * D, 0.018 * W), (0.0, 0.030 * D, 0.020 * W),
+                                                      (0.5, 0.045 * D, 0.018 * W), (1.0, 0.030 * D, 0.013 * W)]))
+    pel, neck = j["pelvis"], j["neck"]
+    trunk = (neck - pel) / np.linalg.norm(neck - pel)
+    hip_half = 0.5 * b.L(HIP_B) * b.build_w
+    down = pel - b.L(HIP_H - 0.470) * trunk
+    out["pelvis"] = (spec.bottom, _tube(down, pel + b.L(0.07) * trunk,
+                                        [(0.0, 0.09 * D, 0.75 * hip_half), (0.45, 0.11 * D, hip_half),
+                                         (1.0, 0.10 * D, 0.88 * hip_half)], n=12))
+    sh_half = 0.5 * b.L(SHOULDER_JOINTS_B) * b.build_w
+    t_len = np.linalg.norm(neck - pel)
+    out["torso"] = (spec.top, _tube(pel, neck, [
+        (b.L(0.05) / t_len, 0.10 * D, 0.85 * hip_half), (b.L(0.19) / t_len, 0.125 * D, sh_half + 0.01 * W),
+        (1.0 - b.L(SHOULDER_DROP) / t_len, 0.10 * D, sh_half + 0.035 * W),
+        (1.0 + b.L(0.01) / t_len, 0.07 * D, 0.6 * sh_half)], n=12))
+    chin = j["chin"]
+    out["neck"] = (spec.skin, _limb(neck - np.array([0, 0, 0.02]), chin, (0.055 * D, 0.055 * W),
+                                    (0.048 * D, 0.048 * W)))
+    rz = 0.5 * head_fraction(H) * H                 # head half-height: vertex = chin + 2 rz
+    c = chin + np.array([0.012 * D, 0.0, 0.95 * rz])
+    out["head"] = (spec.skin, g.ellipsoid(tuple(c), (0.100 * D, 0.078 * W, 0.98 * rz), 7, 12))
+    hair = [g.ellipsoid(tuple(c + np.array([-0.012 * D, 0, 0.30 * rz])), (0.104 * D, 0.083 * W, 0.75 * rz), 5, 12)]
+    if spec.long_hair:
+        hair.append(g.ellipsoid(tuple(c + np.array([-0.05 * D, 0, -0.35 * rz])),
+                                (0.06 * D, 0.085 * W, 0.9 * rz), 4, 10))
+    out["hair"] = (spec.hair, g.merge(hair))
+    return out
+
+
+def _pedestrian(spec: PedestrianSpec) -> Asset:
+    parts: dict[str, list[g.Part]] = {}
+    for material, part in body_parts(spec).values():
+        parts.setdefault(material, []).append(part)
+    return _finish("pedestrian", spec.name, parts)
+
+
+# ---------------------------------------------------------------- variants
+N_VARIANTS = 80
+CHILD_STATURES_M = (1.02, 1.15, 1.28, 1.40)
+# adult stature (m): women 1.63 ± 0.07, men 1.77 ± 0.07 (NCD-RisC 2016, European adults)
+ADULT_STATURE_M = ((1.63, 0.07), (1.77, 0.07))
+
+
+def _specs() -> tuple[PedestrianSpec, ...]:
+    builds = tuple(BUILDS)
+    out = []
+    for i in range(N_VARIANTS):
+        pose = POSES[i % len(POSES)].name
+        if i % 9 == 4:
+            h = CHILD_STATURES_M[(i // 9) % len(CHILD_STATURES_M)]
+        else:
+            mean, sd = ADULT_STATURE_M[(i // len(POSES)) % 2]
+            u = (0.5 + i * 0.6180339887) % 1.0
+            h = float(np.clip(mean + sd * norm.ppf(0.03 + 0.94 * u), 1.45, 1.95))
+        out.append(PedestrianSpec(
+            f"{pose}_{i:02d}", pose, round(h, 3), builds[(i * 5 // 3) % 3],
+            TOPS[(i * 7) % len(TOPS)], BOTTOMS[(i * 3 + i // 8) % len(BOTTOMS)],
+            SHOES[(i * 2 + i // 5) % len(SHOES)], SKINS[(i + i // 3) % len(SKINS)],
+            HAIRS[(i * 3 + i // 4) % len(HAIRS)], long_sleeves=(i * 5) % 7 < 4,
+            shorts=(i * 3) % 11 == 1, long_hair=(i * 7) % 5 < 2))
+    return tuple(out)
+
+
+PEDESTRIAN_SPECS = _specs()
+DETAILED_PEDESTRIANS: dict[str, tuple] = {s.name: (_pedestrian, s) for s in PEDESTRIAN_SPECS}
