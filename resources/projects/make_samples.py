@@ -93,7 +93,8 @@ def main() -> None:
             name="city_fog",
             description="The city in fog of 150 m visibility (extinction 3.912/150 per m, albedo 0.98, forward "
                         "scattering g = 0.85) in a 60 m deep layer, under an overcast sky; procedural materials "
-                        "with puddles on 15 % of the road.",
+                        "with puddles on 15 % of the road; Koschmieder's law per pixel with a measured "
+                        "in-scattering profile (fog.model 'volumetric' renders the medium itself, ~10^3 times the cost).",
             render=RenderParams(daylight=day.updated(sky_model="overcast"),
                                 world=textured(0.15, fog=FogParams(visibility_m=150.0, height_m=60.0)))),
         city.updated(
