@@ -26,7 +26,7 @@ def feature_cases():
             ("sky perez", day.updated(sky_model="perez"), WorldParams()),
             ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
             ("overcast", day.updated(sky_model="overcast"), WorldParams()),
-            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0))),
+            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
             ("glass dielectric", day, WorldParams(glass="dielectric")),
             ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
             ("materials procedural", day, WorldParams(materials="procedural"))]
