@@ -6,7 +6,7 @@ from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.project import PROJECTS_DIR, ExperimentParams, Project, save_project
 from workbench.render.params import FogParams, RenderParams, WorldParams
-from workbench.scene.city import CityRecipe, PoseParams
+from workbench.scene.city import CityRecipe, PoseParams, TunnelParams
 from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
 
@@ -97,6 +97,16 @@ def main() -> None:
                         "in-scattering profile (fog.model 'volumetric' renders the medium itself, ~10^3 times the cost).",
             render=RenderParams(daylight=day.updated(sky_model="overcast"),
                                 world=textured(0.15, fog=FogParams(visibility_m=150.0, height_m=60.0)))),
+        city.updated(
+            name="city_tunnel",
+            description="Inside a 150 m road tunnel by day, 20-60 m before the exit (the HDR case): concrete walls "
+                        "and roof, a row of 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 interior "
+                        "zone, road ~4 cd/m2) against the sunlit street beyond the portal; blocks of 180 m so the "
+                        "segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor (MT9V024-like: "
+                        "10-bit linear ADC, no IR cut).",
+            city=CityRecipe(seed=1, block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
+            pose=PoseParams(mode="tunnel", tunnel_view="exit", seed=1),
+            sensor=SENSOR_PRESETS["auto_rccc"], render=RenderParams(world=textured(0.0))),
     ]
     detection = city.updated(
         name="city_detection_quick",

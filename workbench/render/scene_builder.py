@@ -18,7 +18,7 @@ import numpy as np
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
-from workbench.render.lamps import night_emitters, set_view_light_weights
+from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -186,10 +186,11 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
     world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
-        the lights' sampling weights set for this camera: lamps.set_view_light_weights), fog
-        (fog.py: with model 'volumetric' a medium box whose id maps to None in the id table =
-        background; with 'koschmieder' the scene stays clear, its sun dimmed by the layer, and
-        fog.koschmieder_fog fogs the render), glass and materials (WorldParams; procedural textures are seeded by
+        the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
+        tunnel's luminaires either way: lamps.tunnel_emitters), fog (fog.py: with model
+        'volumetric' a medium box whose id maps to None in the id table = background; with
+        'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
+        fogs the render), glass and materials (WorldParams; procedural textures are seeded by
         city.seed); None = day, clear air, diffuse glass, uniform materials.
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
     import mitsuba as mi
@@ -207,7 +208,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     world = WorldParams() if world is None else world
     if world.fog is not None and world.fog.model == "koschmieder":
         daylight = sun_through_layer(daylight, world.fog)
-    lights = night_emitters(city, world.night) if world.lighting == "night" else daylight_emitters(daylight)
+    if world.lighting == "night":
+        lights = {**night_emitters(city, world.night), **tunnel_emitters(city)}
+    else:              # a tunnel's luminaires burn by day too; they weigh as much as the sun
+        lights = {**daylight_emitters(daylight), **tunnel_emitters(city, sampling_weight=1.0)}
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
