@@ -5,9 +5,9 @@ dynamic range.
 Oracles, independent of the sensor code: a pixel's electrons computed here from the optical
 image's irradiance (photons/s/m²/nm, on the pixel grid), the channel QE curves, the pixel's area
 and fill factor and the exposure; the saturation level from the part's documented numbers
-(MT9V024-like: 2.8 V swing at 110 µV/e⁻ = 25,455 e⁻ full well) and the ADC's codes (a code is
-rint(V / LSB) with LSB = swing / 2^bits, so the top code 2^bits − 1 is reached from
-(2^bits − 1.5) LSB); luminance as 683 lm/W · Σ L_photons · hc/λ · V(λ) · Δλ."""
+(MT9V024-like: 2.8 V swing at 110 µV/e⁻ = 25,455 e⁻ full well, volts × the analog gain) and
+the ADC's codes (a code is rint(V / LSB) with LSB = swing / 2^bits, so the top code 2^bits − 1
+is reached from (2^bits − 1.5) LSB); luminance as 683 lm/W · Σ L_photons · hc/λ · V(λ) · Δλ."""
 import json
 
 import numpy as np
@@ -68,7 +68,7 @@ def test_clipped_pixels_are_those_past_saturation(pipe, bits):
     assert img.max_dn == 2 ** bits - 1
     electrons = _expected_electrons(result, project.sensor)
     np.testing.assert_allclose(img.electrons, electrons, rtol=1e-4, atol=1e-3)
-    e_clip = FULL_WELL_E * (2 ** bits - 1.5) / 2 ** bits
+    e_clip = FULL_WELL_E * (2 ** bits - 1.5) / 2 ** bits / project.sensor.analog_gain    # gain × volts
     clipped = img.dn >= img.max_dn
     near = np.abs(electrons / e_clip - 1) < 1e-4                           # float32 round-off
     np.testing.assert_array_equal(clipped[~near], (electrons >= e_clip)[~near])
@@ -77,7 +77,7 @@ def test_clipped_pixels_are_those_past_saturation(pipe, bits):
     assert report["fraction_clipped"] == pytest.approx(clipped.mean())
     assert report["sensor_dynamic_range"]["saturation_e"] == pytest.approx(e_clip, rel=1e-9)
     read_e = project.sensor.read_noise_V / 110e-6
-    assert report["sensor_dynamic_range"]["dynamic_range_dB"] == pytest.approx(20 * np.log10(FULL_WELL_E / read_e))
+    assert report["sensor_dynamic_range"]["dynamic_range_dB"] == pytest.approx(20 * np.log10(e_clip / read_e))
 
 
 def test_with_noise_only_the_edge_of_saturation_is_uncertain(pipe):
@@ -86,7 +86,8 @@ def test_with_noise_only_the_edge_of_saturation_is_uncertain(pipe):
     result = pipe.run()
     electrons = _expected_electrons(result, project.sensor)
     sigma = np.sqrt(electrons + (project.sensor.read_noise_V / 110e-6) ** 2)
-    e_clip = FULL_WELL_E * (2 ** project.sensor.bit_depth - 1.5) / 2 ** project.sensor.bit_depth
+    bits = project.sensor.bit_depth
+    e_clip = FULL_WELL_E * (2 ** bits - 1.5) / 2 ** bits / project.sensor.analog_gain
     clipped = result.sensor_image.dn >= result.sensor_image.max_dn
     assert clipped[electrons > e_clip + 6 * sigma].all()
     assert not clipped[electrons < e_clip - 6 * sigma].any()

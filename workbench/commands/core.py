@@ -154,7 +154,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if scene_range is not None and scene_range["dB"] is not None and sensor_range["dynamic_range_dB"] is not None:
         print(f"scene dynamic range {scene_range['dB']:.1f} dB (p{scene_range['percentiles'][1]:g}/"
               f"p{scene_range['percentiles'][0]:g} {scene_range['quantity']}), sensor "
-              f"{sensor_range['dynamic_range_dB']:.1f} dB (full well / read noise); "
+              f"{sensor_range['dynamic_range_dB']:.1f} dB (saturation / read noise); "
               f"{100 * report['fraction_clipped']:.2f} % of pixels clipped")
     extra = " labels.png" if result.labels is not None else ""
     for name in report["removed_stale"]:
