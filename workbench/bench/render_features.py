@@ -3,11 +3,11 @@
 Every case renders the same city view through the camera's three channels (sensor film) with
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
-lamps + vehicle lights), clear-coat paint, and the same city built with detailed assets
-(CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry). For each: the
-broadband noise constant c from two independent seeds (σ = rms(a−b)/√2 relative to the mean,
-c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and the time of that frame extrapolated
-from two renders as t = a + b·spp (warm; scene build and the first JIT trace excluded).
+lamps + vehicle lights), procedural materials, clear-coat paint, and the same city built with
+detailed assets (CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry). For
+each: the broadband noise constant c from two independent seeds (σ = rms(a−b)/√2 relative to
+the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and the time of that frame
+extrapolated from two renders as t = a + b·spp (warm; scene build and the first JIT trace excluded).
 """
 from __future__ import annotations
 
@@ -27,9 +27,10 @@ def feature_cases():
             ("sky perez", day.updated(sky_model="perez"), WorldParams()),
             ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
             ("overcast", day.updated(sky_model="overcast"), WorldParams()),
-            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0))),
+            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
             ("glass dielectric", day, WorldParams(glass="dielectric")),
             ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
+            ("materials procedural", day, WorldParams(materials="procedural")),
             ("paint clearcoat", day, WorldParams(paint="clearcoat")),
             ("detailed assets", day, WorldParams(), "detailed"),
             ("detailed + clearcoat + glass", day, WorldParams(paint="clearcoat", glass="dielectric"), "detailed")]

@@ -163,6 +163,24 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
     return result
 
 
+def tunnel_emitters(city, sampling_weight: float | None = None) -> dict:
+    """One emitter per tunnel (render/luminaire_row.py): its luminaires (scene/city/tunnel.py) as
+    full cut-off point sources of the tunnel's kind and flux, I = Φ/(2π) over the lower
+    hemisphere, at the points in its meta. sampling_weight: its share of Mitsuba's light
+    selection (by day 1, like the sun and the sky); None = the luminaires' total flux (lm), as
+    the street lamps at night."""
+    from workbench.render.luminaire_row import luminaire_row_emitter
+
+    out = {}
+    for obj in (o for o in city.objects if o.class_name == "tunnel"):
+        kind, flux = obj.meta["luminaire_kind"], float(obj.meta["luminaire_flux_lm"])
+        points = np.asarray(obj.meta["luminaires_m"], dtype=np.float64)
+        weight = flux * len(points) if sampling_weight is None else sampling_weight
+        out[f"tunnel_luminaires_{obj.instance_id}"] = luminaire_row_emitter(
+            points, _spectrum(kind, hemisphere_intensity_cd(flux)), weight)
+    return out
+
+
 def night_emitters(city, night) -> dict:
     """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights, sky glow."""
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM

@@ -73,7 +73,9 @@ class NightParams(Params):
 
 
 class FogParams(Params):
-    """Fog or haze as a homogeneous participating medium (render/fog.py): meteorological
+    """Fog or haze (render/fog.py): `model` 'koschmieder' (clear-air render fogged per pixel by
+    Koschmieder's law with a measured airlight: cheap, the data-set default) or 'volumetric' (a
+    homogeneous participating medium rendered by volpath: the reference, ~10³× the cost); meteorological
     visibility `visibility_m` (extinction σ = 3.912 / V, Koschmieder, 2 % contrast), single-
     scattering `albedo` (water droplets ≈ 0.99, urban haze ≈ 0.9), Henyey–Greenstein asymmetry
     `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
@@ -83,6 +85,8 @@ class FogParams(Params):
     albedo: float = Field(0.98, ge=0.0, le=1.0, description="single-scattering albedo (0–1); fog medium")
     phase_g: float = Field(0.85, gt=-1.0, lt=1.0, description="Henyey–Greenstein asymmetry (−1…1); fog medium")
     height_m: float = Field(100.0, gt=1.0, le=1e4, description="fog layer depth over the city (m); fog medium")
+    model: Literal["koschmieder", "volumetric"] = Field(
+        "koschmieder", description="Koschmieder's law per pixel (cheap) or a volumetric medium (reference); fog")
 
 
 class WorldParams(Params):

@@ -17,8 +17,8 @@ import numpy as np
 
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
-from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium
-from workbench.render.lamps import night_emitters
+from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
+from workbench.render.lamps import night_emitters, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -185,10 +185,12 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         sensor_channels), which also fix the wavelength range every spectrum must cover.
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
-    world: lighting (day: `daylight`; night: lamps.night_emitters), fog (fog.py: a medium box
-        whose id maps to None in the id table = background), glass and materials (WorldParams;
-        procedural textures are seeded by city.seed); None = day, clear air, diffuse glass,
-        uniform materials.
+    world: lighting (day: `daylight`; night: lamps.night_emitters; a tunnel's luminaires either
+        way: lamps.tunnel_emitters), fog (fog.py: with model
+        'volumetric' a medium box whose id maps to None in the id table = background; with
+        'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
+        fogs the render), glass and materials (WorldParams; procedural textures are seeded by
+        city.seed); None = day, clear air, diffuse glass, uniform materials.
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
     import mitsuba as mi
 
@@ -203,15 +205,21 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     cam["film"] = film_srfs.mitsuba_film(width, height)
     cam["sampler"] = {"type": "independent", "sample_count": 1}
     world = WorldParams() if world is None else world
-    lights = night_emitters(city, world.night) if world.lighting == "night" else daylight_emitters(daylight)
+    if world.fog is not None and world.fog.model == "koschmieder":
+        daylight = sun_through_layer(daylight, world.fog)
+    if world.lighting == "night":
+        lights = {**night_emitters(city, world.night), **tunnel_emitters(city)}
+    else:              # a tunnel's luminaires burn by day too; they weigh as much as the sun
+        lights = {**daylight_emitters(daylight), **tunnel_emitters(city, sampling_weight=1.0)}
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
     medium = None
     if world.fog is not None:
-        medium = fog_medium(world.fog)
         check_camera_inside(camera_to_world(pose)[0] if sensor is None else
                             np.asarray(cam["to_world"].translation()), city.extent_m, world.fog.height_m)
+    if world.fog is not None and world.fog.model == "volumetric":
+        medium = fog_medium(world.fog)
         scene["integrator"] = {"type": "volpath", "max_depth": int(max_depth)}
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
