@@ -10,6 +10,8 @@ from workbench.scene.city import CityRecipe, PoseParams, TunnelParams
 from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
 
+VIDEO_MAX_EXPOSURE_S = 1 / 30      # a 30 fps automotive video camera exposes at most one frame time
+
 
 def main() -> None:
     paper = Project(
@@ -93,8 +95,11 @@ def main() -> None:
             city=detailed,
             description="The city at night: high-pressure sodium street lamps (15,000 lm), LED head-lights and red "
                         "tail-lights on every car, a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
-                        "the sodium 819 nm line; procedural materials with puddles on 10 % of the road.",
-            sensor=SENSOR_PRESETS["auto_rccc"],
+                        "the sodium 819 nm line; procedural materials with puddles on 10 % of the road. As an "
+                        "automotive night camera: f/2, exposure at most 1/30 s (30 fps video; auto-exposure would "
+                        "otherwise open to seconds) and the MT9V024's largest analog gain, 4x.",
+            optics=city.optics.updated(f_number=2.0),
+            sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S, analog_gain=4.0),
             render=RenderParams(world=textured(0.10, lighting="night"))),
         city.updated(
             name="city_fog",
@@ -110,11 +115,12 @@ def main() -> None:
             description="Inside a 150 m road tunnel by day, 20-60 m before the exit (the HDR case): concrete walls "
                         "and roof, a row of 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 interior "
                         "zone, road ~4 cd/m2) against the sunlit street beyond the portal; blocks of 180 m so the "
-                        "segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor (MT9V024-like: "
-                        "10-bit linear ADC, no IR cut).",
+                        "segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
+                        "(MT9V024-like: 10-bit linear ADC, no IR cut; exposure at most 1/30 s).",
             city=detailed.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
             pose=PoseParams(mode="tunnel", tunnel_view="exit", seed=1),
-            sensor=SENSOR_PRESETS["auto_rccc"], render=RenderParams(world=textured(0.0))),
+            sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S),
+            render=RenderParams(world=textured(0.0))),
     ]
     detection = city.updated(
         name="city_detection_quick",

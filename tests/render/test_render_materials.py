@@ -9,7 +9,8 @@
   L·[F₀ + (1 − F₀)·ρ(1 − F̄ᵢ)/(1 − ρF̄ᵢ)] (Lekner & Dorf 1988), F̄ᵢ = 1 − (1 − F̄ₑ)/n² from the
   exact Fresnel equations integrated numerically here; within 2 % (Mitsuba fits F̄).
 - Textures: deterministic for a seed, in [0, strength], seamless across the wrap, coverage
-  masks cover their fraction, brick mortar covers 1 − (215·65)/(225·75) of a wall.
+  masks cover their fraction, brick mortar covers 1 − (215·65)/(225·75) of a wall, slab joints
+  1 − (1 − 0.01/1.5)² of a pavement.
 - 'uniform' leaves the scene as before (bit-identical render); 'procedural' leaves labels alone.
 """
 import numpy as np
@@ -24,7 +25,7 @@ from workbench.scene.city import generate_city
 from workbench.scene.city.materials import city_materials
 from workbench.scene.city.recipe import CityRecipe
 from workbench.scene.city.surfaces import WATER_IOR, planar_uv_m, procedural_surfaces
-from workbench.scene.city.textures import BRICK_M, JOINT_M, KINDS, bake
+from workbench.scene.city.textures import BRICK_M, JOINT_M, KINDS, SLAB_M, bake
 from workbench.scene.city.types import CameraPose
 from workbench.units import photon_energy_J
 
@@ -82,7 +83,7 @@ def test_blend_weights_zero_and_one_give_the_pure_materials(mi, weight):
     check(mi, bsdf, 2.0, MATS["brick" if weight else "grass"].reflectance, f"weight {weight}")
 
 
-@pytest.mark.parametrize("name", ["grass", "concrete", "asphalt", "plaster_white"])
+@pytest.mark.parametrize("name", ["grass", "concrete_dark", "asphalt", "plaster_white"])
 def test_blend_reads_the_texture_weighted_lambertian_radiance(mi, name):
     surface = procedural_surfaces(0.0)[name]
     assert len(surface.layers) == 1
@@ -121,7 +122,7 @@ def test_wet_layer_darkens_by_lekner_dorf(mi):
     assert np.all(diffuse < 0.6 * rho)                      # water-filled pores: darker substrate
 
 
-@pytest.mark.parametrize("kind", [k for k in KINDS if not k.startswith("brick")])
+@pytest.mark.parametrize("kind", [k for k in KINDS if not k.startswith(("brick", "slab"))])
 def test_noise_textures_are_deterministic_bounded_and_seamless(kind):
     a = bake(kind, 128, 3, 0.2, 0.8)
     assert a.dtype == np.float32 and a.shape == (128, 128)
@@ -152,6 +153,8 @@ def test_coverage_and_mortar_fractions():
         assert bake("puddles", 256, 1, fraction).mean() == pytest.approx(fraction, abs=0.02)
     mortar = 1 - BRICK_M[0] * BRICK_M[1] / ((BRICK_M[0] + JOINT_M) * (BRICK_M[1] + JOINT_M))
     assert bake("brick_mortar", 512, 1).mean() == pytest.approx(mortar, abs=0.01)
+    joints = 1 - (1 - JOINT_M / SLAB_M) ** 2
+    assert bake("slab_joints", 600, 1).mean() == pytest.approx(joints, abs=0.002)
 
 
 def test_planar_uv_projects_ground_by_xy_and_walls_by_distance_and_height():

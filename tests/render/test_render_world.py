@@ -320,3 +320,49 @@ def test_koschmieder_matches_the_volumetric_fog_where_its_assumptions_hold(mi):
     for part in (wall, ground):            # model tolerance 5 %: the board shadows the fog before it
         assert k[part].mean() == pytest.approx(vol[part].mean(), rel=0.05)
     assert k.mean() == pytest.approx(vol.mean(), rel=0.05)
+
+
+def _lamp_row_scene(mi, weights_from_view: bool):
+    """A street seen from 1.5 m: ground and a wall, one lamp over the visible road, ten lamps behind
+    the wall (they light nothing the camera sees directly)."""
+    from workbench.render.lamps import set_view_light_weights
+    lamps = {"street_lamp_0": street_lamp_emitter([12.0, 0.0, 6.0], "led")}
+    for i in range(1, 6):
+        lamps[f"street_lamp_{i}"] = street_lamp_emitter([10.0 * i, 30.0, 6.0], "led")
+        lamps[f"street_lamp_{5 + i}"] = street_lamp_emitter([10.0 * i - 5.0, 40.0, 6.0], "led")
+    grey = {"type": "diffuse", "reflectance": {"type": "spectrum", "value": [(300.0, 0.3), (1100.0, 0.3)]}}
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 4},
+        "sensor": {"type": "perspective", "fov": 50.0, "film": box_bands(450, 650, 1).mitsuba_film(32, 24),
+                   "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 1.5], target=[1, 0, 1.0], up=[0, 0, 1]),
+                   "sampler": {"type": "independent"}},
+        **lamps,
+        "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(200.0), "bsdf": grey},
+        "wall": {"type": "rectangle", "bsdf": grey,
+                 "to_world": mi.ScalarTransform4f().translate([20.0, 20.0, 10.0])
+                 @ mi.ScalarTransform4f().rotate([1, 0, 0], 90.0) @ mi.ScalarTransform4f().scale([200.0, 10.0, 1.0])}})
+    weights = set_view_light_weights(scene, lamps) if weights_from_view else None
+    return scene, weights
+
+
+def test_view_light_weights_favour_the_lamp_lighting_the_view(mi):
+    from workbench.render.lamps import DEFENSIVE_SHARE
+    _, w = _lamp_row_scene(mi, True)
+    total = sum(w.values())
+    assert w["street_lamp_0"] / total == pytest.approx(1 - DEFENSIVE_SHARE + DEFENSIVE_SHARE / 11, rel=1e-6)
+    for k in (f"street_lamp_{i}" for i in range(1, 11)):          # no direct light on the view
+        assert w[k] / total == pytest.approx(DEFENSIVE_SHARE / 11, rel=1e-6)
+
+
+def test_view_light_weights_keep_the_image_and_cut_its_noise(mi):
+    """Same expected image with flux and view weights (within 4 standard errors), less noise."""
+    def two(scene):
+        return [np.array(mi.render(scene, spp=32, seed=s), dtype=np.float64)[..., 0] for s in (1, 2)]
+    stats = {}
+    for view in (False, True):
+        a, b = two(_lamp_row_scene(mi, view)[0])
+        var = np.mean((a - b) ** 2) / 2                       # per-pixel variance of one render
+        stats[view] = (0.5 * (a.mean() + b.mean()), np.sqrt(var / (2 * a.size)), np.sqrt(var) / a.mean())
+    (m0, se0, n0), (m1, se1, n1) = stats[False], stats[True]
+    assert abs(m1 - m0) < 4 * np.hypot(se0, se1), (m0, m1, se0, se1)
+    assert n1 < 0.5 * n0, (n0, n1)

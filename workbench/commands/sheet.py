@@ -6,7 +6,7 @@ import json
 import sys
 
 # The city scene types among the sample projects, one tile row's worth each by default.
-SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog",
+SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog", "city_tunnel",
                       "city_detection_quick")
 
 

@@ -58,7 +58,9 @@ class NightParams(Params):
     `lamp_kind` spectrum and luminous flux `lamp_flux_lm` (None = the kind's rated flux), vehicle
     head-lights (`headlight_kind`, `headlight_cd` peak) and tail-lights (red LED, `taillight_cd`)
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
-    blackbody shape; urban skies are ~0.01–0.1 cd/m²)."""
+    blackbody shape; urban skies are ~0.01–0.1 cd/m²). `light_selection`: how next-event estimation
+    picks a light — 'view' (by each light's direct illuminance on what the camera sees, plus a
+    10 % flux share: the same image with far less noise) or 'flux' (by luminous flux alone)."""
 
     lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
                                                                                       "night render")
@@ -70,6 +72,8 @@ class NightParams(Params):
     taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
     sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
                                                                           "night render")
+    light_selection: Literal["view", "flux"] = Field("view", description="lights sampled by their light on the "
+                                                                        "view or by flux alone; night render")
 
 
 class FogParams(Params):

@@ -18,7 +18,7 @@ import numpy as np
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
-from workbench.render.lamps import night_emitters, tunnel_emitters
+from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -185,8 +185,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         sensor_channels), which also fix the wavelength range every spectrum must cover.
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
-    world: lighting (day: `daylight`; night: lamps.night_emitters; a tunnel's luminaires either
-        way: lamps.tunnel_emitters), fog (fog.py: with model
+    world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
+        the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
+        tunnel's luminaires either way: lamps.tunnel_emitters), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
         'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
         fogs the render), glass and materials (WorldParams; procedural textures are seeded by
@@ -249,7 +250,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             else:
                 scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
-    return mi.load_dict(scene), id_table
+    mi_scene = mi.load_dict(scene)
+    if world.lighting == "night" and world.night.light_selection == "view":
+        set_view_light_weights(mi_scene, lights)
+    return mi_scene, id_table
 
 
 def set_camera_pose(mi_scene, pose: CameraPose) -> None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.scene.city.textures import BRICK_TILE_M
+from workbench.scene.city.textures import BRICK_TILE_M, SLAB_M
 
 WATER_IOR = 1.33
 
@@ -53,20 +53,21 @@ def procedural_surfaces(wet_fraction: float) -> dict[str, Surface]:
     the road lies under puddles (0 = dry)."""
     if not 0.0 <= wet_fraction <= 1.0:
         raise ValueError(f"wet_fraction must be in 0…1, got {wet_fraction}")
-    stains = Layer(Texture("stains", 8.0, 256, strength=0.6), "grime")
-    asphalt = [Layer(Texture("asphalt_wear", 16.0, 512), "asphalt_aged")]
+    stains = Layer(Texture("stains", 16.0, 512, strength=0.6), "grime")
+    joints = Layer(Texture("slab_joints", SLAB_M, 256, strength=0.8), "grime")
+    asphalt = [Layer(Texture("asphalt_wear", 32.0, 1024), "asphalt_aged")]
     if wet_fraction > 0:
         asphalt.append(Layer(Texture("puddles", 32.0, 256, fraction=wet_fraction), "asphalt", wet=True))
     brick_tile = BRICK_TILE_M[0]
     return {
         "asphalt": Surface("asphalt", tuple(asphalt)),
-        "concrete": Surface("concrete", (stains,)),
+        "concrete": Surface("concrete", (stains, joints)),
         "concrete_dark": Surface("concrete_dark", (stains,)),
         "sandstone": Surface("sandstone", (stains,)),
-        "plaster_white": Surface("plaster_white", (Layer(Texture("streaks", 6.0, 256, strength=0.5), "grime"),)),
+        "plaster_white": Surface("plaster_white", (Layer(Texture("streaks", 12.0, 512, strength=0.5), "grime"),)),
         "brick": Surface("brick", (Layer(Texture("brick_variation", brick_tile, 512, strength=0.7), "brick_dark"),
                                    Layer(Texture("brick_mortar", brick_tile, 512), "mortar"))),
-        "grass": Surface("grass", (Layer(Texture("soil_patches", 12.0, 256, fraction=0.2), "soil"),)),
+        "grass": Surface("grass", (Layer(Texture("soil_patches", 24.0, 512, fraction=0.2), "soil"),)),
     }
 
 

@@ -10,6 +10,7 @@ gives the same array, bit for bit.
 - Coverage masks (puddles, soil patches): fBm above its (1 − fraction) quantile, with a soft
   edge, so the mask covers ≈ `fraction` of the area.
 - Cracks: thin lines along an fBm iso-contour (the median level): wiggly, branching networks.
+- Slab joints: a 1 cm joint along two edges of a square tile (one slab or panel per tile).
 - Brick: running bond of 215 × 65 mm bricks with 10 mm joints (UK format), one random value
   per brick.
 """
@@ -19,11 +20,13 @@ from functools import lru_cache
 
 import numpy as np
 
-KINDS = ("asphalt_wear", "puddles", "stains", "streaks", "soil_patches", "brick_mortar", "brick_variation")
+KINDS = ("asphalt_wear", "puddles", "stains", "streaks", "soil_patches", "brick_mortar", "brick_variation",
+         "slab_joints")
 BRICK_M = (0.215, 0.065)        # brick length × height (m), UK format
 JOINT_M = 0.010                 # mortar joint (m)
 BRICKS_PER_TILE = (8, 24)       # running-bond tile: 8 bricks along, 24 courses up → 1.8 × 1.8 m
 BRICK_TILE_M = (BRICKS_PER_TILE[0] * (BRICK_M[0] + JOINT_M), BRICKS_PER_TILE[1] * (BRICK_M[1] + JOINT_M))
+SLAB_M = 1.5                    # concrete slab / panel module (m); one slab per slab_joints tile
 
 
 def _fade(t: np.ndarray) -> np.ndarray:
@@ -113,6 +116,9 @@ def bake(kind: str, size_px: int, seed: int, fraction: float = 0.0, strength: fl
         w = coverage(fbm(shape, (4, 4), 6, rng), fraction, softness=0.05)
     elif kind == "stains":
         w = smoothstep(0.45, 0.8, fbm(shape, (4, 4), 6, rng))
+    elif kind == "slab_joints":
+        edge = (np.arange(size_px) + 0.5) / size_px * SLAB_M < JOINT_M
+        w = (edge[:, None] | edge[None, :]).astype(np.float64)
     elif kind == "streaks":
         # Rain-washed soiling: noise stretched 8× vertically (rows = height up the wall).
         w = smoothstep(0.4, 0.8, fbm(shape, (2, 16), 5, rng))
