@@ -59,23 +59,31 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("glass dielectric", world={"glass": "dielectric"}),
             FeatureCase("materials procedural", world={"materials": "procedural"}),
             FeatureCase("paint clearcoat", world={"paint": "clearcoat"}),
-            FeatureCase("assets detailed", recipe={"asset_detail": "detailed"}),
+            FeatureCase("detailed assets", recipe={"asset_detail": "detailed"}),
+            FeatureCase("detailed + clearcoat + glass", world={"paint": "clearcoat", "glass": "dielectric"},
+                        recipe={"asset_detail": "detailed"}),
             FeatureCase("tunnel exit view (day)", recipe={"seed": 1, "block_size_m": 180.0,
                                                           "tunnel": TunnelParams(length_m=150.0)},
                         pose={"mode": "tunnel", "tunnel_view": "exit", "seed": 1})]
 
 
 def _view(case: FeatureCase, cache: dict):
-    """(city, pose) of a case, generated once per recipe and pose."""
+    """(city, pose) of a case, each generated once; the pose is drawn on the city at the simple
+    asset detail, so that detailed assets are seen from the same view."""
     from workbench.scene.city.generate import generate_city
     from workbench.scene.city.poses import sample_camera_poses
     from workbench.scene.city.recipe import CityRecipe, PoseParams
 
-    key = (repr(sorted(case.recipe.items())), repr(sorted(case.pose.items())))
+    def city(recipe: dict):
+        key = ("city", repr(sorted(recipe.items())))
+        if key not in cache:
+            cache[key] = generate_city(CityRecipe().updated(**recipe))
+        return cache[key]
+    simple = {k: v for k, v in case.recipe.items() if k != "asset_detail"}
+    key = ("pose", repr(sorted(simple.items())), repr(sorted(case.pose.items())))
     if key not in cache:
-        city = generate_city(CityRecipe().updated(**case.recipe))
-        cache[key] = city, sample_camera_poses(city, PoseParams().updated(**case.pose), 1, seed=0)[0]
-    return cache[key]
+        cache[key] = sample_camera_poses(city(simple), PoseParams().updated(**case.pose), 1, seed=0)[0]
+    return city(case.recipe), cache[key]
 
 
 def _case_row(case: FeatureCase, city, pose, film, fov_deg: float, width: int, height: int,
