@@ -3,7 +3,8 @@
 Every case renders the same city view through the camera's three channels (sensor film) with
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
-lamps + vehicle lights), procedural materials. For each: the broadband noise constant c from two independent seeds
+lamps + vehicle lights), procedural materials; and the tunnel's exit view by day (its own city: the
+city_tunnel sample's recipe and pose mode, luminaires lit). For each: the broadband noise constant c from two independent seeds
 (σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and
 the time of that frame extrapolated from two renders as t = a + b·spp (warm; scene build and
 the first JIT trace excluded).
@@ -17,19 +18,30 @@ from workbench.bench.timing import timed
 TARGET = 0.02
 
 
+def tunnel_view():
+    """(city, pose) of the tunnel case: a 150 m tunnel in 180 m blocks, the camera 20–60 m before
+    the exit (the city_tunnel sample's city and pose mode)."""
+    from workbench.scene.city import CityRecipe, PoseParams, TunnelParams, generate_city, sample_camera_poses
+    city = generate_city(CityRecipe(seed=1, block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)))
+    return city, sample_camera_poses(city, PoseParams(mode="tunnel", tunnel_view="exit", seed=1), 1)[0]
+
+
 def feature_cases():
-    """(name, DaylightParams, WorldParams) of every benchmarked case, baseline first."""
+    """(name, DaylightParams, WorldParams, view) of every benchmarked case, baseline first; view is
+    None (the bench's city and pose) or a function returning its own (city, pose)."""
     from workbench.render.params import DaylightParams, FogParams, WorldParams
 
     day = DaylightParams()
-    return [("baseline (uniform sky)", day, WorldParams()),
-            ("sky perez", day.updated(sky_model="perez"), WorldParams()),
-            ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
-            ("overcast", day.updated(sky_model="overcast"), WorldParams()),
-            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
-            ("glass dielectric", day, WorldParams(glass="dielectric")),
-            ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
-            ("materials procedural", day, WorldParams(materials="procedural"))]
+    cases = [("baseline (uniform sky)", day, WorldParams()),
+             ("sky perez", day.updated(sky_model="perez"), WorldParams()),
+             ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
+             ("overcast", day.updated(sky_model="overcast"), WorldParams()),
+             ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
+             ("glass dielectric", day, WorldParams(glass="dielectric")),
+             ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
+             ("materials procedural", day, WorldParams(materials="procedural"))]
+    return [case + (None,) for case in cases] + [("tunnel exit view (day, luminaires)", day, WorldParams(),
+                                                   tunnel_view)]
 
 
 def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spps: tuple[int, int]) -> list[dict]:
@@ -40,8 +52,9 @@ def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spp
     from workbench.render.spectral import render_loaded
 
     rows = []
-    for name, daylight, world in feature_cases():
-        scene = build_scene(city, pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)[0]
+    for name, daylight, world, view in feature_cases():
+        c_city, c_pose = (city, pose) if view is None else view()
+        scene = build_scene(c_city, c_pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)[0]
 
         def render(spp, seed):
             p = RenderParams(spp=spp, chunk_spp=spp, preview_spp=spp, seed=seed)
