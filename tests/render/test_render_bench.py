@@ -21,5 +21,6 @@ def test_bench_render_quick(tmp_path):
     assert cost["spp_for_2pct"] >= 1 and cost["err_broadband_measured"] is None and cost["core_min_per_frame"] > 0 and cost["npz_float16_MB"] > 0
     assert (tmp_path / "bench_render.png").exists()
     feats = {r["case"]: r for r in res.extra["features_2pct"]}
-    assert len(feats) == len(feature_cases()) and all(r["s_per_spp"] > 0 and r["c_broadband"] > 0 for r in feats.values())
+    assert len(feats) == len(feature_cases()) and {"paint clearcoat", "detailed assets"} <= set(feats)
+    assert all(r["s_per_spp"] > 0 and r["c_broadband"] > 0 for r in feats.values())
     assert feats["baseline (uniform sky)"]["x_baseline"] == 1.0

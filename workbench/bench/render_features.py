@@ -3,11 +3,13 @@
 Every case renders the same city view through the camera's three channels (sensor film) with
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
-lamps + vehicle lights), procedural materials; and the tunnel's exit view by day (its own city: the
-city_tunnel sample's recipe and pose mode, luminaires lit). For each: the broadband noise constant c from two independent seeds
-(σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and
-the time of that frame extrapolated from two renders as t = a + b·spp (warm; scene build and
-the first JIT trace excluded).
+lamps + vehicle lights), procedural materials, clear-coat paint, and the same city built with
+detailed assets (CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry); and
+the tunnel's exit view by day (its own city and pose: the city_tunnel sample's recipe and pose
+mode, luminaires lit; a 4th entry that is a function). For each: the broadband noise constant c
+from two independent seeds (σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)²
+for 2 % broadband error, and the time of that frame extrapolated from two renders as
+t = a + b·spp (warm; scene build and the first JIT trace excluded).
 """
 from __future__ import annotations
 
@@ -27,21 +29,33 @@ def tunnel_view():
 
 
 def feature_cases():
-    """(name, DaylightParams, WorldParams, view) of every benchmarked case, baseline first; view is
-    None (the bench's city and pose) or a function returning its own (city, pose)."""
+    """(name, DaylightParams, WorldParams[, asset_detail or view]) of every benchmarked case,
+    baseline first; a view is a function returning the case's own (city, pose)."""
     from workbench.render.params import DaylightParams, FogParams, WorldParams
 
     day = DaylightParams()
-    cases = [("baseline (uniform sky)", day, WorldParams()),
-             ("sky perez", day.updated(sky_model="perez"), WorldParams()),
-             ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
-             ("overcast", day.updated(sky_model="overcast"), WorldParams()),
-             ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
-             ("glass dielectric", day, WorldParams(glass="dielectric")),
-             ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
-             ("materials procedural", day, WorldParams(materials="procedural"))]
-    return [case + (None,) for case in cases] + [("tunnel exit view (day, luminaires)", day, WorldParams(),
-                                                   tunnel_view)]
+    return [("baseline (uniform sky)", day, WorldParams()),
+            ("sky perez", day.updated(sky_model="perez"), WorldParams()),
+            ("low sun 5 deg (perez)", day.updated(sun_elevation_deg=5.0, sky_model="perez"), WorldParams()),
+            ("overcast", day.updated(sky_model="overcast"), WorldParams()),
+            ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
+            ("glass dielectric", day, WorldParams(glass="dielectric")),
+            ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
+            ("materials procedural", day, WorldParams(materials="procedural")),
+            ("paint clearcoat", day, WorldParams(paint="clearcoat")),
+            ("detailed assets", day, WorldParams(), "detailed"),
+            ("detailed + clearcoat + glass", day, WorldParams(paint="clearcoat", glass="dielectric"), "detailed"),
+            ("tunnel exit view (day, luminaires)", day, WorldParams(), tunnel_view)]
+
+
+def _city_at(city, detail: str | None):
+    """The city regenerated from its recipe at another asset detail (None: the city itself, or
+    when it has no recipe, e.g. the demo scene)."""
+    if detail is None or "recipe" not in city.meta:
+        return city
+    from workbench.scene.city.generate import generate_city
+    from workbench.scene.city.recipe import CityRecipe
+    return generate_city(CityRecipe.model_validate({**city.meta["recipe"], "asset_detail": detail}))
 
 
 def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spps: tuple[int, int]) -> list[dict]:
@@ -52,8 +66,9 @@ def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spp
     from workbench.render.spectral import render_loaded
 
     rows = []
-    for name, daylight, world, view in feature_cases():
-        c_city, c_pose = (city, pose) if view is None else view()
+    for name, daylight, world, *option in feature_cases():
+        option = option[0] if option else None
+        c_city, c_pose = option() if callable(option) else (_city_at(city, option), pose)
         scene = build_scene(c_city, c_pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)[0]
 
         def render(spp, seed):
