@@ -8,6 +8,7 @@ import pytest
 @pytest.mark.slow
 def test_bench_render_quick(tmp_path):
     from workbench.bench.render import bench_render
+    from workbench.bench.render_features import feature_cases
 
     res = bench_render(argparse.Namespace(quick=True, json=False, out=str(tmp_path)))
     assert {r["repr"] for r in res.rows} >= {"bands6", "bands30", "basis6", "sensor3"}
@@ -20,5 +21,6 @@ def test_bench_render_quick(tmp_path):
     assert cost["spp_for_2pct"] >= 1 and cost["err_broadband_measured"] is None and cost["core_min_per_frame"] > 0 and cost["npz_float16_MB"] > 0
     assert (tmp_path / "bench_render.png").exists()
     feats = {r["case"]: r for r in res.extra["features_2pct"]}
-    assert len(feats) == 7 and all(r["s_per_spp"] > 0 and r["c_broadband"] > 0 for r in feats.values())
+    assert len(feats) == len(feature_cases()) and {"paint clearcoat", "detailed assets"} <= set(feats)
+    assert all(r["s_per_spp"] > 0 and r["c_broadband"] > 0 for r in feats.values())
     assert feats["baseline (uniform sky)"]["x_baseline"] == 1.0

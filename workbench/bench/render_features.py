@@ -3,10 +3,11 @@
 Every case renders the same city view through the camera's three channels (sensor film) with
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
-lamps + vehicle lights), procedural materials. For each: the broadband noise constant c from two independent seeds
-(σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and
-the time of that frame extrapolated from two renders as t = a + b·spp (warm; scene build and
-the first JIT trace excluded).
+lamps + vehicle lights), procedural materials, clear-coat paint, and the same city built with
+detailed assets (CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry). For
+each: the broadband noise constant c from two independent seeds (σ = rms(a−b)/√2 relative to
+the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and the time of that frame
+extrapolated from two renders as t = a + b·spp (warm; scene build and the first JIT trace excluded).
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ TARGET = 0.02
 
 
 def feature_cases():
-    """(name, DaylightParams, WorldParams) of every benchmarked case, baseline first."""
+    """(name, DaylightParams, WorldParams[, asset_detail]) of every benchmarked case, baseline first."""
     from workbench.render.params import DaylightParams, FogParams, WorldParams
 
     day = DaylightParams()
@@ -29,7 +30,20 @@ def feature_cases():
             ("fog V=150 m", day, WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0, model="volumetric"))),
             ("glass dielectric", day, WorldParams(glass="dielectric")),
             ("night (HPS, vehicle lights)", day, WorldParams(lighting="night")),
-            ("materials procedural", day, WorldParams(materials="procedural"))]
+            ("materials procedural", day, WorldParams(materials="procedural")),
+            ("paint clearcoat", day, WorldParams(paint="clearcoat")),
+            ("detailed assets", day, WorldParams(), "detailed"),
+            ("detailed + clearcoat + glass", day, WorldParams(paint="clearcoat", glass="dielectric"), "detailed")]
+
+
+def _city_at(city, detail: str | None):
+    """The city regenerated from its recipe at another asset detail (None: the city itself, or
+    when it has no recipe, e.g. the demo scene)."""
+    if detail is None or "recipe" not in city.meta:
+        return city
+    from workbench.scene.city.generate import generate_city
+    from workbench.scene.city.recipe import CityRecipe
+    return generate_city(CityRecipe.model_validate({**city.meta["recipe"], "asset_detail": detail}))
 
 
 def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spps: tuple[int, int]) -> list[dict]:
@@ -40,8 +54,9 @@ def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spp
     from workbench.render.spectral import render_loaded
 
     rows = []
-    for name, daylight, world in feature_cases():
-        scene = build_scene(city, pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)[0]
+    for name, daylight, world, *detail in feature_cases():
+        scene = build_scene(_city_at(city, detail[0] if detail else None), pose, fov_deg, width, height, film,
+                            daylight, max_depth=6, world=world)[0]
 
         def render(spp, seed):
             p = RenderParams(spp=spp, chunk_spp=spp, preview_spp=spp, seed=seed)
