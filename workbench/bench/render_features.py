@@ -4,10 +4,12 @@ Every case renders the same city view through the camera's three channels (senso
 one setting changed from the baseline (today's city: day, uniform sky, clear air, diffuse glass):
 Perez sky, low sun (5°, Perez), overcast, fog (150 m visibility), dielectric glass, night (HPS
 lamps + vehicle lights), procedural materials, clear-coat paint, and the same city built with
-detailed assets (CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry). For
-each: the broadband noise constant c from two independent seeds (σ = rms(a−b)/√2 relative to
-the mean, c = σ√spp), spp = (c/0.02)² for 2 % broadband error, and the time of that frame
-extrapolated from two renders as t = a + b·spp (warm; scene build and the first JIT trace excluded).
+detailed assets (CityRecipe.asset_detail, the view unchanged; a case's optional 4th entry); and
+the tunnel's exit view by day (its own city and pose: the city_tunnel sample's recipe and pose
+mode, luminaires lit; a 4th entry that is a function). For each: the broadband noise constant c
+from two independent seeds (σ = rms(a−b)/√2 relative to the mean, c = σ√spp), spp = (c/0.02)²
+for 2 % broadband error, and the time of that frame extrapolated from two renders as
+t = a + b·spp (warm; scene build and the first JIT trace excluded).
 """
 from __future__ import annotations
 
@@ -18,8 +20,17 @@ from workbench.bench.timing import timed
 TARGET = 0.02
 
 
+def tunnel_view():
+    """(city, pose) of the tunnel case: a 150 m tunnel in 180 m blocks, the camera 20–60 m before
+    the exit (the city_tunnel sample's city and pose mode)."""
+    from workbench.scene.city import CityRecipe, PoseParams, TunnelParams, generate_city, sample_camera_poses
+    city = generate_city(CityRecipe(seed=1, block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)))
+    return city, sample_camera_poses(city, PoseParams(mode="tunnel", tunnel_view="exit", seed=1), 1)[0]
+
+
 def feature_cases():
-    """(name, DaylightParams, WorldParams[, asset_detail]) of every benchmarked case, baseline first."""
+    """(name, DaylightParams, WorldParams[, asset_detail or view]) of every benchmarked case,
+    baseline first; a view is a function returning the case's own (city, pose)."""
     from workbench.render.params import DaylightParams, FogParams, WorldParams
 
     day = DaylightParams()
@@ -33,7 +44,8 @@ def feature_cases():
             ("materials procedural", day, WorldParams(materials="procedural")),
             ("paint clearcoat", day, WorldParams(paint="clearcoat")),
             ("detailed assets", day, WorldParams(), "detailed"),
-            ("detailed + clearcoat + glass", day, WorldParams(paint="clearcoat", glass="dielectric"), "detailed")]
+            ("detailed + clearcoat + glass", day, WorldParams(paint="clearcoat", glass="dielectric"), "detailed"),
+            ("tunnel exit view (day, luminaires)", day, WorldParams(), tunnel_view)]
 
 
 def _city_at(city, detail: str | None):
@@ -54,9 +66,10 @@ def feature_costs(city, pose, film, fov_deg: float, width: int, height: int, spp
     from workbench.render.spectral import render_loaded
 
     rows = []
-    for name, daylight, world, *detail in feature_cases():
-        scene = build_scene(_city_at(city, detail[0] if detail else None), pose, fov_deg, width, height, film,
-                            daylight, max_depth=6, world=world)[0]
+    for name, daylight, world, *option in feature_cases():
+        option = option[0] if option else None
+        c_city, c_pose = option() if callable(option) else (_city_at(city, option), pose)
+        scene = build_scene(c_city, c_pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)[0]
 
         def render(spp, seed):
             p = RenderParams(spp=spp, chunk_spp=spp, preview_spp=spp, seed=seed)
