@@ -22,7 +22,7 @@ def test_bench_render_quick(tmp_path):
     assert (tmp_path / "bench_render.png").exists()
     feats = res.extra["features_2pct"]
     assert {r["res"] for r in feats} == {"48x36", "96x72"} and len(feats) == 2 * len(feature_cases())
-    assert {"paint clearcoat", "detailed assets", "tunnel exit view (day)"} <= {r["case"] for r in feats}
+    assert {"paint clearcoat", "detailed assets", "tunnel exit view (day, luminaires)"} <= {r["case"] for r in feats}
 
 
 @pytest.mark.slow

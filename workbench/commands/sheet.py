@@ -5,9 +5,9 @@ from __future__ import annotations
 import json
 import sys
 
-# The city scene types among the sample projects, one tile row's worth each by default.
-SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog", "city_tunnel",
-                      "city_detection_quick")
+# The city scene types among the sample projects (the default list).
+SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog",
+                      "city_tunnel", "city_detection_quick")
 
 
 def register(sub) -> None:

@@ -1,6 +1,7 @@
 """Contact sheet: city frames rendered through the project's camera (lens level, sensor, ISP → sRGB),
 tiled in a grid with the amodal boxes of the road users drawn over them, a class legend, and a
-caption per tile (scene, lighting, object counts, sampling, render time, exposure, clipping).
+caption per tile (scene, lighting, features switched on, road users, sampling, render time,
+exposure, clipping).
 
 Tiles are the simulated camera's sRGB output, not the render's colorimetric preview: what a
 detector would get. Each project is rendered at width × height by binning its sensor (pixel
@@ -33,7 +34,7 @@ CLASS_COLOURS = {"car": (255, 48, 48), "pedestrian": (0, 230, 255), "bus": (255,
 GAP_PX = 4
 FONT_PX = 10
 LINE_PX = 12
-CAPTION_LINES = 4
+CAPTION_LINES = 5
 BACKGROUND = (24, 24, 24)
 TEXT = (230, 230, 230)
 
@@ -169,9 +170,9 @@ def sheet_project(project, width: int, height: int, spp: int):
                            render=project.render.updated(spp=spp, target_rel_error=None, shot_noise_ratio=None))
 
 
-def lighting_caption(render) -> str:
-    """The render's lighting and weather in a few words."""
-    world, day = render.world, render.daylight
+def lighting_caption(project) -> str:
+    """The project's lighting and weather (and a tunnel) in a few words."""
+    world, day = project.render.world, project.render.daylight
     if world.lighting == "night":
         n = world.night
         text = f"night: {n.lamp_kind} lamps" + (", vehicle lights" if n.vehicle_lights else "")
@@ -182,8 +183,22 @@ def lighting_caption(render) -> str:
                else f"sun el {day.sun_elevation_deg:g}° az {day.sun_azimuth_deg:g}°")
         text = f"{sun}, {day.sky_model} sky"
     if world.fog is not None:
-        text += f"; fog V {world.fog.visibility_m:g} m"
+        text += f"; fog V {world.fog.visibility_m:g} m ({world.fog.model})"
+    tunnel = getattr(project.city, "tunnel", None)
+    if tunnel is not None:
+        text += f"; tunnel {tunnel.length_m:g} m, {tunnel.luminaire_kind} lights"
     return text
+
+
+def features_caption(project) -> str:
+    """The scene features that are switched on (issue 8: each is a switch)."""
+    world = project.render.world
+    detail = getattr(project.city, "asset_detail", "simple")
+    words = [f"{detail} assets", f"{world.materials} materials"]
+    if world.materials == "procedural" and world.wet_road_fraction > 0:
+        words.append(f"wet {100 * world.wet_road_fraction:.0f} %")
+    words += [f"{world.glass} glass"] + (["clear-coat paint"] if world.paint == "clearcoat" else [])
+    return ", ".join(words)
 
 
 def _duration(seconds: float) -> str:
@@ -209,12 +224,12 @@ def camera_tile(project, index: int, renderer: Callable | None = None, keep: Kee
     exposure_s = float(np.mean(image.exposure_s))
     clipped = float(np.mean(image.dn >= image.max_dn))
     spp = data.meta.get("spp", project.render.spp)
-    lighting = lighting_caption(project.render)
-    caption = [f"{project.name} #{index}  ({image.pattern})", lighting,
+    lighting, features = lighting_caption(project), features_caption(project)
+    caption = [f"{project.name} #{index}  ({image.pattern})", lighting, features,
                "  ".join(f"{'ped' if c == 'pedestrian' else c} {n}" for c, n in counts.items()),
                f"{spp} spp {render_s:.1f} s  t {_duration(exposure_s)}  clip {100 * clipped:.1f} %"]
     record = {"project": project.name, "frame": index, "seeds": asdict(seeds), "lighting": lighting,
-              "cfa": image.pattern, "spp": spp, "render_s": round(render_s, 3),
+              "features": features, "cfa": image.pattern, "spp": spp, "render_s": round(render_s, 3),
               "sensor_isp_s": round(camera_s, 3), "exposure_s": exposure_s, "clipped_fraction": clipped,
               "visible_objects_of_interest": counts,
               "kept_objects_of_interest": {c: sum(o.class_name == c and k for o, k in objects)
