@@ -230,7 +230,8 @@ def test_sun_disc_is_dimmed_by_the_fog_in_front_of_it(mi):
 
 def test_exit_distance_and_path_airlight_closed_forms():
     """The layer path of a ray and the in-scattered integral ∫₀^s σe^{−σt} J(z₀ + t d_z) dt against
-    closed forms: J constant → J(1 − e^{−σs}); J = a + b z → a(1−T) + b[z₀(1−T) + d_z(1 − T(1+σs))/σ]."""
+    closed forms: J constant → J(1 − e^{−σs});
+    J = a + b z → a(1−T) + b[z₀(1−T) + d_z(1 − T(1+σs))/σ]."""
     from workbench.render.fog import exit_distance_m, path_airlight, transmittance
     lo, hi = np.array([-100.0, -50.0, -1.0]), np.array([100.0, 50.0, 60.0])
     el = np.radians([5.0, 30.0, 90.0])
