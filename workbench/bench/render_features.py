@@ -4,7 +4,7 @@
 Every case (feature_cases, one line each) renders a city view through the camera's three
 channels (sensor film) with one thing changed from the baseline (today's city: day, uniform sky,
 clear air, diffuse glass, uniform materials, simple assets): a sky model, a low sun, fog by either
-model, night with either light selection, glass, materials, paint, detailed assets, a tunnel
+model, night with either light selection or direct light only, glass, materials, paint, detailed assets, a tunnel
 scene (its own city and pose). For each case and resolution: the broadband noise constant c
 (relative RMS of the three channels' sum between two independent renders, c = σ√spp),
 spp = (c/0.02)² for 2 % broadband error, and the process CPU time of that frame extrapolated from
@@ -32,13 +32,14 @@ BASELINE = "day baseline (uniform sky)"
 @dataclass(frozen=True)
 class FeatureCase:
     """A benchmarked case: updates to the baseline's DaylightParams, WorldParams, CityRecipe and
-    PoseParams (an empty dict: the baseline's)."""
+    PoseParams (an empty dict: the baseline's), and the longest light path (RenderParams.max_depth)."""
 
     name: str
     daylight: dict = field(default_factory=dict)
     world: dict = field(default_factory=dict)
     recipe: dict = field(default_factory=dict)
     pose: dict = field(default_factory=dict)
+    max_depth: int = 6
 
 
 def feature_cases() -> list[FeatureCase]:
@@ -56,6 +57,7 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("night HPS, view light selection", world={"lighting": "night"}),
             FeatureCase("night HPS, flux light selection", world={"lighting": "night",
                                                                   "night": NightParams(light_selection="flux")}),
+            FeatureCase("night HPS, view, direct light only (max_depth 2)", world={"lighting": "night"}, max_depth=2),
             FeatureCase("glass dielectric", world={"glass": "dielectric"}),
             FeatureCase("materials procedural", world={"materials": "procedural"}),
             FeatureCase("paint clearcoat", world={"paint": "clearcoat"}),
@@ -96,13 +98,14 @@ def _case_row(case: FeatureCase, city, pose, film, fov_deg: float, width: int, h
 
     daylight = DaylightParams().updated(**case.daylight)
     world = WorldParams().updated(**case.world)
-    scene, ids = build_scene(city, pose, fov_deg, width, height, film, daylight, max_depth=6, world=world)
+    scene, ids = build_scene(city, pose, fov_deg, width, height, film, daylight, max_depth=case.max_depth,
+                             world=world)
     fog, fog_s = None, 0.0
     if world.fog is not None and world.fog.model == "koschmieder":
         depth = render_labels(scene, ids, width, height).depth_m
 
         def fogging():
-            return koschmieder_fog(scene, depth, city, pose.pan_deg, film, daylight, world)
+            return koschmieder_fog(scene, depth, city, pose.pan_deg, film, daylight, world, max_depth=case.max_depth)
         fogging()                                                # warm (JIT trace of its kernels)
         fog, took = timed(fogging)
         fog_s = took.cpu_ms * 1e-3

@@ -60,7 +60,11 @@ class NightParams(Params):
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
     blackbody shape; urban skies are ~0.01–0.1 cd/m²). `light_selection`: how next-event estimation
     picks a light — 'view' (by each light's direct illuminance on what the camera sees, plus a
-    10 % flux share: the same image with far less noise) or 'flux' (by luminous flux alone)."""
+    10 % flux share: the same image with far less noise) or 'flux' (by luminous flux alone). What
+    noise remains at night is mostly indirect light from small, very bright patches (a car lit by
+    the head-lights 1 m behind it), found rarely by bounced paths; render.max_depth 2 (direct light
+    only) removes it and loses the indirect light: on the render bench's view −5 % on lit
+    surfaces (−0.7 % of the frame mean), depth 3 −2.5 %, depth 4 within 0.2 % of depth 10."""
 
     lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
                                                                                       "night render")
