@@ -220,7 +220,9 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
         fogged = koschmieder_fog(mi_scene, labels.depth_m, city, pose.pan_deg, film, inputs.render.daylight,
                                  inputs.render.world, max_depth=inputs.render.max_depth)
         meta["fog"] = {"model": "koschmieder", "source_heights_m": fogged.profile_z_m.tolist(),
-                       "source_function": fogged.profile.tolist()}
+                       "source_function": fogged.profile.tolist(),
+                       "upward_elevations_deg": fogged.upward_elevation_deg.tolist(),
+                       "upward_source_function": fogged.upward.tolist()}
     else:
         fogged = None
 

@@ -15,17 +15,18 @@ dimmed to e^{−σH/sin el}, what reaches the ground through the layer: sun_thro
 each pixel afterwards (KoschmiederFog.apply): L = L₀ e^{−σd} + ∫₀^d σ e^{−σt} J(z(t)) dt, d the
 pixel-centre ray's path inside the same layer box (to its first hit, or to where it leaves the
 box: sky pixels keep L₀ e^{−σd} of the sky above the layer, as the volumetric model's rays do).
-With J constant this is Koschmieder's law L₀T + L_air(1 − T). J(z), the fog's source function
-(in-scattered radiance, albedo × ∫ p L dω), is measured per frame as a function of height:
-airlight_profile renders an empty layer over the ground by volpath through an orthographic
-camera whose rows are horizontal rays at different heights — a horizontal ray in a horizontally
-uniform layer sees the same J all along it, so its radiance is J(z) (Koschmieder's horizon-sky
-luminance, at every height). What it leaves out, and the volumetric model keeps: J's change with
-the view direction (forward-peaked droplet scattering makes fog seen upward brighter than seen
-horizontally: sky pixels come out darker), the fog's diffuse light on objects (the clear sky
-stands in for it), shadowed fog between buildings, lamp halos at night (the night source is the
-sky glow's alone), and pixels whose footprint spans several depths (the pixel-centre ray's d is
-used). `workbench bench render` measures the difference from the volumetric reference.
+With J constant this is Koschmieder's law L₀T + L_air(1 − T). J, the fog's source function
+(in-scattered radiance, albedo × ∫ p L dω), is measured per frame on an empty layer over the
+ground by small volpath renders: for level and falling rays as a function of height J(z)
+(airlight_profile: an orthographic camera whose rows are horizontal rays at different heights —
+a horizontal ray in a horizontally uniform layer sees the same J all along it, so its radiance
+is J(z), Koschmieder's horizon-sky luminance at every height); for rising rays as the mean
+along the ray J̄(θ) by elevation (upward_airlight: forward-peaked droplet scattering makes fog
+seen upward much brighter than seen level). What it leaves out, and the volumetric model keeps:
+J's change with azimuth within the view (sun glow), the fog's diffuse light on objects (the
+clear sky stands in for it), objects' own shadow on the fog before them, shadowed fog between
+buildings, lamp halos at night (the night source is the sky glow's alone), and pixels whose
+footprint spans several depths (the pixel-centre ray's d is used). `workbench bench render` measures the difference from the volumetric reference.
 """
 from __future__ import annotations
 
@@ -123,47 +124,98 @@ AIRLIGHT_COLUMNS = 32
 AIRLIGHT_SPP = 2048
 AIRLIGHT_OPTICAL_RADIUS = 25.0      # the empty layer's half-width in optical depths (e^{−25} ≈ 1e−11)
 PATH_SAMPLES = 16                   # optical-depth quadrature points along each pixel ray
+UPWARD_BINS = 16                    # elevation bins of the upward airlight
+UPWARD_COLUMNS, UPWARD_ROWS = 48, 32
+UPWARD_SPP = 256
 
 
-def airlight_profile(film, fog, lights: dict, ground_reflectance: dict, pan_deg: float, *, max_depth: int = 6,
-                     spp: int = AIRLIGHT_SPP, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """The fog's source function J(z) (film output spectra, photons/s/sr/m²/nm) at AIRLIGHT_ROWS heights
-    z (m) through the layer: the radiance of horizontal rays toward pan_deg in an empty layer (box of
-    half-width AIRLIGHT_OPTICAL_RADIUS/σ, z −1…fog.height_m) over a ground plane of
-    `ground_reflectance` (a Mitsuba spectrum dict), lit by `lights` (Mitsuba emitter dicts), rendered
-    by volpath through an orthographic camera whose rows are the heights. A horizontal ray in a
-    horizontally uniform layer sees the same J all along it, so its radiance is J. Returns
-    (z_m (rows,), J (rows × Nλ))."""
+def _empty_layer(film, fog, lights: dict, ground_reflectance: dict, camera: dict, *, foggy: bool, max_depth: int,
+                 spp: int, seed: int) -> np.ndarray:
+    """Radiance (H×W×Nλ, film output) seen by the Mitsuba sensor dict `camera` (film and sampler
+    added here) in an empty fog layer: a box of half-width AIRLIGHT_OPTICAL_RADIUS/σ about the
+    origin, z −1…fog.height_m, over a ground plane of `ground_reflectance` (a Mitsuba spectrum
+    dict), lit by `lights` (Mitsuba emitter dicts); volpath, or the clear air (path) unless foggy."""
     import mitsuba as mi
 
     from workbench.jobs import run_job
     from workbench.render.params import RenderParams
     from workbench.render.spectral import render_loaded
 
-    sigma = extinction_per_m(fog.visibility_m)
-    radius = AIRLIGHT_OPTICAL_RADIUS / sigma
+    radius = AIRLIGHT_OPTICAL_RADIUS / extinction_per_m(fog.visibility_m)
+    ground = {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale([radius, radius, 1.0]),
+              "bsdf": {"type": "diffuse", "reflectance": ground_reflectance}}
+    scene = {"type": "scene", "sensor": {**camera, "sampler": {"type": "independent", "sample_count": 1}},
+             **lights, "ground": ground, "integrator": {"type": "volpath" if foggy else "path",
+                                                         "max_depth": int(max_depth)}}
+    if foggy:
+        medium = fog_medium(fog)
+        scene["sensor"]["medium"] = medium
+        ground["exterior"] = medium
+        scene[FOG_BOX_ID] = fog_box(medium, (-radius, -radius, radius, radius), fog.height_m, margin_m=0.0)
+    p = RenderParams(spp=spp, chunk_spp=spp, preview_spp=spp, seed=seed)
+    return run_job(render_loaded(mi.load_dict(scene), film, p, fov_deg=1.0)).radiance_photons.astype(np.float64)
+
+
+def airlight_profile(film, fog, lights: dict, ground_reflectance: dict, pan_deg: float, *, max_depth: int = 6,
+                     spp: int = AIRLIGHT_SPP, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The fog's source function J(z) (film output spectra, photons/s/sr/m²/nm) at AIRLIGHT_ROWS heights
+    z (m) through the layer: the radiance of horizontal rays toward pan_deg in the empty layer
+    (_empty_layer), rendered through an orthographic camera whose rows are the heights. A
+    horizontal ray in a horizontally uniform layer sees the same J all along it, so its radiance
+    is J. Returns (z_m (rows,), J (rows × Nλ))."""
+    import mitsuba as mi
+
     top = float(fog.height_m)
     fwd = np.array([np.cos(np.radians(pan_deg)), np.sin(np.radians(pan_deg)), 0.0])
     centre = np.array([0.0, 0.0, top / 2])
-    medium = fog_medium(fog)
     half = top / 2 * AIRLIGHT_COLUMNS / AIRLIGHT_ROWS     # Mitsuba's view spans ±1/aspect vertically
-    cam = {"type": "orthographic", "medium": medium, "near_clip": 1e-3, "far_clip": 4 * radius,
+    radius = AIRLIGHT_OPTICAL_RADIUS / extinction_per_m(fog.visibility_m)
+    cam = {"type": "orthographic", "near_clip": 1e-3, "far_clip": 4 * radius,
            "to_world": mi.ScalarTransform4f().look_at(origin=centre.tolist(), target=(centre + fwd).tolist(),
                                                       up=[0.0, 0.0, 1.0])
            @ mi.ScalarTransform4f().scale([half, half, 1.0]),
-           "film": film.mitsuba_film(AIRLIGHT_COLUMNS, AIRLIGHT_ROWS),
-           "sampler": {"type": "independent", "sample_count": 1}}
-    scene = mi.load_dict({
-        "type": "scene", "sensor": cam, **lights,
-        "integrator": {"type": "volpath", "max_depth": int(max_depth)},
-        "ground": {"type": "rectangle", "exterior": medium,
-                   "to_world": mi.ScalarTransform4f().scale([radius, radius, 1.0]),
-                   "bsdf": {"type": "diffuse", "reflectance": ground_reflectance}},
-        FOG_BOX_ID: fog_box(medium, (-radius, -radius, radius, radius), top, margin_m=0.0)})
-    p = RenderParams(spp=spp, chunk_spp=spp, preview_spp=spp, seed=seed)
-    rad = run_job(render_loaded(scene, film, p, fov_deg=1.0)).radiance_photons.astype(np.float64)
+           "film": film.mitsuba_film(AIRLIGHT_COLUMNS, AIRLIGHT_ROWS)}
+    rad = _empty_layer(film, fog, lights, ground_reflectance, cam, foggy=True, max_depth=max_depth, spp=spp,
+                       seed=seed)
     z = top * (1.0 - (np.arange(AIRLIGHT_ROWS) + 0.5) / AIRLIGHT_ROWS)        # row 0 = the top
     return z[::-1], rad.mean(axis=1)[::-1]
+
+
+def upward_airlight(film, fog, lights: dict, ground_reflectance: dict, height_m: float, pan_deg: float,
+                    max_elevation_deg: float, *, max_depth: int = 6, spp: int = UPWARD_SPP,
+                    seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The mean source function J̄(θ) along upward rays (film output spectra) at UPWARD_BINS
+    elevations θ in 0…max_elevation_deg (bin centres, deg), from height_m toward pan_deg: a rising
+    ray leaves the empty layer at distance t, and its radiance is J̄(1 − e^{−σt}) + e^{−σt} L_sky
+    with J̄ the e^{−σs}-weighted mean source along it; so J̄ = Σ(L_fog − T L_clear) / Σ(1 − T) over
+    the pixels of a perspective render of the empty layer (_empty_layer, with and without fog) in
+    each elevation bin. Forward-peaked droplet scattering makes J̄ grow with θ (the light in fog
+    travels mostly downward), which the horizontal profile J(z) misses."""
+    import mitsuba as mi
+
+    from workbench.render.scene_builder import pinhole_sensor
+    from workbench.scene.city.types import CameraPose
+
+    top_deg = float(np.clip(max_elevation_deg, 1.0, 89.0))
+    pose = CameraPose(np.array([0.0, 0.0, float(height_m)]), float(pan_deg), top_deg / 2, 0.0)
+    cam = {**pinhole_sensor(pose, 1.0), "fov": top_deg * 1.02, "fov_axis": "y",
+           "film": film.mitsuba_film(UPWARD_COLUMNS, UPWARD_ROWS)}
+    fogged = _empty_layer(film, fog, lights, ground_reflectance, cam, foggy=True, max_depth=max_depth, spp=spp,
+                          seed=seed)
+    clear = _empty_layer(film, fog, lights, ground_reflectance, cam, foggy=False, max_depth=max_depth, spp=spp,
+                         seed=seed + 1)
+    radius = AIRLIGHT_OPTICAL_RADIUS / extinction_per_m(fog.visibility_m)
+    lo, hi = box_bounds_m((-radius, -radius, radius, radius), fog.height_m, 0.0)
+    dirs = pixel_directions(mi.load_dict({"type": "scene", "sensor": cam}))[1]
+    t = transmittance(extinction_per_m(fog.visibility_m), exit_distance_m([0.0, 0.0, height_m], dirs, lo, hi))
+    elevation = np.degrees(np.arcsin(np.clip(dirs[..., 2], -1.0, 1.0)))
+    edges = np.linspace(0.0, top_deg, UPWARD_BINS + 1)
+    which = np.clip(np.digitize(elevation, edges) - 1, 0, UPWARD_BINS - 1)
+    num = np.zeros((UPWARD_BINS, fogged.shape[-1]))
+    den = np.zeros(UPWARD_BINS)
+    np.add.at(num, which.ravel(), (fogged - t[..., None] * clear).reshape(-1, fogged.shape[-1]))
+    np.add.at(den, which.ravel(), (1.0 - t).ravel())
+    return 0.5 * (edges[1:] + edges[:-1]), num / np.maximum(den, 1e-12)[:, None]
 
 
 def path_airlight(origin_z_m: float, directions_z, path_m, sigma_per_m: float, z_m, source) -> np.ndarray:
@@ -189,13 +241,16 @@ def path_airlight(origin_z_m: float, directions_z, path_m, sigma_per_m: float, z
 @dataclass
 class KoschmiederFog:
     """A frame's fog: extinction σ (1/m), each pixel's path in the layer (H×W, m), the in-scattered
-    radiance along it (H×W×Nλ, path_airlight) and the source profile it came from."""
+    radiance along it (H×W×Nλ) and what it came from: the horizontal source profile J(z) (rays
+    level or falling) and the upward mean source J̄(θ) (rising rays)."""
 
     sigma_per_m: float
     path_m: np.ndarray
     inscattered: np.ndarray
     profile_z_m: np.ndarray
     profile: np.ndarray
+    upward_elevation_deg: np.ndarray
+    upward: np.ndarray
 
     def apply(self, radiance: np.ndarray) -> np.ndarray:
         """The clear-air radiance (H×W×Nλ) seen through the fog: L₀ e^{−σd} + in-scattered."""
@@ -222,7 +277,9 @@ def koschmieder_fog(mi_scene, depth_m: np.ndarray, city, pan_deg: float, film, d
                     *, max_depth: int = 6, airlight_spp: int = AIRLIGHT_SPP) -> KoschmiederFog:
     """The Koschmieder fog of a clear-air city render (mi_scene built without the medium; depth_m its
     pixel-centre hit distances, labels.BACKGROUND_DEPTH_M for sky): paths inside the layer box
-    (fog_box's), airlight from airlight_radiance lit by the daylight or, at night, the sky glow."""
+    (fog_box's); in-scattered light along level and falling rays from the source profile J(z)
+    (path_airlight), along rising rays from the upward mean source J̄(θ) × (1 − e^{−σd})
+    (upward_airlight); the empty layer lit by the daylight or, at night, the sky glow."""
     from workbench.render.lamps import night_emitters
     from workbench.render.sky import daylight_emitters
 
@@ -234,7 +291,17 @@ def koschmieder_fog(mi_scene, depth_m: np.ndarray, city, pan_deg: float, film, d
         lights = {k: v for k, v in night_emitters(city, world.night).items() if k == "sky"}
     else:
         lights = daylight_emitters(daylight)
-    z, source = airlight_profile(film, fog, lights, ground_reflectance(city), pan_deg, max_depth=max_depth,
-                                 spp=airlight_spp)
+    ground = ground_reflectance(city)
+    z, source = airlight_profile(film, fog, lights, ground, pan_deg, max_depth=max_depth, spp=airlight_spp)
     sigma = extinction_per_m(fog.visibility_m)
-    return KoschmiederFog(sigma, path, path_airlight(float(centre[2]), dirs[..., 2], path, sigma, z, source), z, source)
+    inscattered = path_airlight(float(centre[2]), dirs[..., 2], path, sigma, z, source)
+    rising = dirs[..., 2] > 0
+    elevation = np.degrees(np.arcsin(np.clip(dirs[..., 2], -1.0, 1.0)))
+    if rising.any():
+        el, up = upward_airlight(film, fog, lights, ground, float(centre[2]), pan_deg, float(elevation.max()),
+                                 max_depth=max_depth)
+        j = np.stack([np.interp(elevation[rising], el, up[:, k]) for k in range(up.shape[1])], axis=-1)
+        inscattered[rising] = j * (1.0 - transmittance(sigma, path[rising]))[:, None]
+    else:
+        el, up = np.zeros(0), np.zeros((0, source.shape[1]))
+    return KoschmiederFog(sigma, path, inscattered, z, source, el, up)
