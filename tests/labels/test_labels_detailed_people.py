@@ -30,7 +30,7 @@ def _projected_box(vertices, pose):
 
 
 def test_detailed_people_boxes_project_within_one_pixel():
-    mi = import_mitsuba("llvm_ad_spectral")
+    import_mitsuba("llvm_ad_spectral")
     from workbench.render.film import box_bands
     from workbench.render.labels import render_labels
     from workbench.render.params import DaylightParams
@@ -59,4 +59,3 @@ def test_detailed_people_boxes_project_within_one_pixel():
             assert np.abs(np.subtract(obj.amodal_bbox_xywh, box)).max() <= 1, (obj, box)
             checked += 1
     assert checked >= 3
-    del mi
