@@ -6,9 +6,11 @@ from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.project import PROJECTS_DIR, ExperimentParams, Project, save_project
 from workbench.render.params import FogParams, RenderParams, WorldParams
-from workbench.scene.city import CityRecipe, PoseParams
+from workbench.scene.city import CityRecipe, PoseParams, TunnelParams
 from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
+
+VIDEO_MAX_EXPOSURE_S = 1 / 30      # a 30 fps automotive video camera exposes at most one frame time
 
 
 def main() -> None:
@@ -58,35 +60,67 @@ def main() -> None:
             optics=OpticsParams(model="raytrace", lens_file="automotive.2.4mm.json", f_number=2.8)),
     ]
     day = city.render.daylight
+
+    def textured(wet_road_fraction: float = 0.05, **world) -> WorldParams:
+        """Procedural materials (worn asphalt, stained concrete, bricks, grass with soil, puddles) and
+        vehicle paint under a clear coat."""
+        return WorldParams(materials="procedural", wet_road_fraction=wet_road_fraction, paint="clearcoat", **world)
+
+    detailed = city.city.updated(asset_detail="detailed")   # wheels, glass, lights, mirrors, plates; posed people
+
     samples += [
         city.updated(
             name="city_day_clear_sky",
+            city=detailed,
             description="The city under a clear Perez/Preetham sky (brighter toward the sun and the horizon, "
-                        "spectral to 1100 nm) with see-through, Fresnel-reflecting window glass.",
-            render=RenderParams(daylight=day.updated(sky_model="perez"), world=WorldParams(glass="dielectric"))),
+                        "spectral to 1100 nm) with see-through, Fresnel-reflecting window glass and procedural "
+                        "materials (worn and patched asphalt, stained concrete, bricks, grass with soil; dry road).",
+            render=RenderParams(daylight=day.updated(sky_model="perez"), world=textured(0.0, glass="dielectric"))),
         city.updated(
             name="city_low_sun",
+            city=detailed,
             description="The city with the sun 5 deg above the horizon in the east: "
-                        "a long shadow, reddened sun (air mass ~10) and a Perez sky bright around the sun.",
+                        "a long shadow, reddened sun (air mass ~10) and a Perez sky bright around the sun; "
+                        "procedural materials with wet patches on 5 % of the road.",
             render=RenderParams(daylight=day.updated(sun_elevation_deg=5.0, sun_azimuth_deg=90.0,
-                                                     sky_model="perez"))),
+                                                     sky_model="perez"), world=textured(0.05))),
         city.updated(
             name="city_overcast",
-            description="The city under a CIE overcast sky (no direct sun; 30 % of the clear-sky global irradiance).",
-            render=RenderParams(daylight=day.updated(sky_model="overcast"))),
+            city=detailed,
+            description="The city under a CIE overcast sky (no direct sun; 30 % of the clear-sky global irradiance); "
+                        "procedural materials with puddles on 15 % of the road.",
+            render=RenderParams(daylight=day.updated(sky_model="overcast"), world=textured(0.15))),
         city.updated(
             name="city_night",
+            city=detailed,
             description="The city at night: high-pressure sodium street lamps (15,000 lm), LED head-lights and red "
                         "tail-lights on every car, a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
-                        "the sodium 819 nm line.",
-            sensor=SENSOR_PRESETS["auto_rccc"],
-            render=RenderParams(world=WorldParams(lighting="night"))),
+                        "the sodium 819 nm line; procedural materials with puddles on 10 % of the road. As an "
+                        "automotive night camera: f/2, exposure at most 1/30 s (30 fps video; auto-exposure would "
+                        "otherwise open to seconds) and the MT9V024's largest analog gain, 4x.",
+            optics=city.optics.updated(f_number=2.0),
+            sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S, analog_gain=4.0),
+            render=RenderParams(world=textured(0.10, lighting="night"))),
         city.updated(
             name="city_fog",
+            city=detailed,
             description="The city in fog of 150 m visibility (extinction 3.912/150 per m, albedo 0.98, forward "
-                        "scattering g = 0.85) in a 60 m deep layer, under an overcast sky.",
+                        "scattering g = 0.85) in a 60 m deep layer, under an overcast sky; procedural materials "
+                        "with puddles on 15 % of the road; Koschmieder's law per pixel with a measured "
+                        "in-scattering profile (fog.model 'volumetric' renders the medium itself, ~10^3 times the cost).",
             render=RenderParams(daylight=day.updated(sky_model="overcast"),
-                                world=WorldParams(fog=FogParams(visibility_m=150.0, height_m=60.0)))),
+                                world=textured(0.15, fog=FogParams(visibility_m=150.0, height_m=60.0)))),
+        city.updated(
+            name="city_tunnel",
+            description="Inside a 150 m road tunnel by day, 20-60 m before the exit (the HDR case): concrete walls "
+                        "and roof, a row of 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 interior "
+                        "zone, road ~4 cd/m2) against the sunlit street beyond the portal; blocks of 180 m so the "
+                        "segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
+                        "(MT9V024-like: 10-bit linear ADC, no IR cut; exposure at most 1/30 s).",
+            city=detailed.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
+            pose=PoseParams(mode="tunnel", tunnel_view="exit", seed=1),
+            sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S),
+            render=RenderParams(world=textured(0.0))),
     ]
     detection = city.updated(
         name="city_detection_quick",
@@ -94,12 +128,13 @@ def main() -> None:
                     "paper's city made denser (60 cars, 120 pedestrians, 8 buses, 6 trucks per arrangement) seen "
                     "from 1.5 m in a lane, aimed at a target object 6-20 m away; 320x240 pixels of 6 um "
                     "(the paper's 3 um pixel binned 2x2, so the 44 deg field of view is kept), rendered in the "
-                    "sensor's own channels at 16 spp; exposure biases -4...+4 EV in steps of 1. Render its data set "
+                    "sensor's own channels at 16 spp with procedural materials (puddles on 5 % of the road); "
+                    "exposure biases -4...+4 EV in steps of 1. Render its data set "
                     "with: workbench dataset city_detection_quick --frames 400 --out DIR",
-        city=CityRecipe(seed=1, n_cars=60, n_pedestrians=120, n_buses=8, n_trucks=6),
+        city=detailed.updated(n_cars=60, n_pedestrians=120, n_buses=8, n_trucks=6),
         pose=PoseParams(mode="target", seed=1, target_distance_range_m=(6.0, 20.0)),
         sensor=SENSOR_PRESETS["paper_table1"].updated(rows=240, cols=320, pixel_pitch_um=6.0),
-        render=RenderParams(representation="sensor", spp=16),
+        render=RenderParams(representation="sensor", spp=16, world=textured(0.05)),
         experiment=ExperimentParams(ev_biases=[float(ev) for ev in range(-4, 5)]))
     samples += [
         detection,
@@ -107,7 +142,8 @@ def main() -> None:
             name="city_detection_paper",
             description="The detection experiments' paper profile: city_detection_quick at the paper's 640x480 "
                         "with its 3 um pixel (44 deg), 32 spp. Render ~3,000 frames (2,200 train / 800 test).",
-            sensor=SENSOR_PRESETS["paper_table1"], render=RenderParams(representation="sensor", spp=32)),
+            sensor=SENSOR_PRESETS["paper_table1"],
+            render=RenderParams(representation="sensor", spp=32, world=textured(0.05))),
     ]
     for project in samples:
         save_project(project, PROJECTS_DIR / f"{project.name}.json")

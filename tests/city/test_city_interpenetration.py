@@ -9,10 +9,10 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
-from workbench.scene.city import CityRecipe, generate_city
+from workbench.scene.city import CityRecipe, TunnelParams, generate_city
 
 TOL_M = 0.01
-SOLID = ("car", "bus", "truck", "pedestrian", "tree", "lamp", "bench", "mailbox", "building")
+SOLID = ("car", "bus", "truck", "pedestrian", "tree", "lamp", "bench", "mailbox", "building", "tunnel")
 
 
 def _pieces(city):
@@ -47,10 +47,12 @@ def _depth(e1, e2):
     return -res.fun
 
 
-@pytest.mark.parametrize("seed,detail", [(0, "simple"), (7, "simple"), (3, "detailed")])
-def test_no_interpenetration(seed, detail):
+@pytest.mark.parametrize("seed,detail,tunnel", [(0, "simple", None), (7, "simple", None), (3, "detailed", None),
+                                                (5, "simple", TunnelParams(street_index=1, length_m=84.0))])
+def test_no_interpenetration(seed, detail, tunnel):
+    """(With a tunnel: trees and lamps stay out from under its roof, vehicles and people fit inside.)"""
     city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40,
-                                    asset_detail=detail))
+                                    asset_detail=detail, tunnel=tunnel))
     pieces = _pieces(city)
     ids = np.array([p[0] for p in pieces])
     z = np.array([[p[1], p[2]] for p in pieces])

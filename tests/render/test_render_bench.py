@@ -8,6 +8,7 @@ import pytest
 @pytest.mark.slow
 def test_bench_render_quick(tmp_path):
     from workbench.bench.render import bench_render
+    from workbench.bench.render_features import feature_cases
 
     res = bench_render(argparse.Namespace(quick=True, json=False, out=str(tmp_path)))
     assert {r["repr"] for r in res.rows} >= {"bands6", "bands30", "basis6", "sensor3"}
@@ -19,6 +20,25 @@ def test_bench_render_quick(tmp_path):
     cost = res.extra["cost_640x480_2pct"][0]
     assert cost["spp_for_2pct"] >= 1 and cost["err_broadband_measured"] is None and cost["core_min_per_frame"] > 0 and cost["npz_float16_MB"] > 0
     assert (tmp_path / "bench_render.png").exists()
-    feats = {r["case"]: r for r in res.extra["features_2pct"]}
-    assert len(feats) == 7 and all(r["s_per_spp"] > 0 and r["c_broadband"] > 0 for r in feats.values())
-    assert feats["baseline (uniform sky)"]["x_baseline"] == 1.0
+    feats = res.extra["features_2pct"]
+    assert {r["res"] for r in feats} == {"48x36", "96x72"} and len(feats) == 2 * len(feature_cases())
+    assert {"paint clearcoat", "detailed assets", "tunnel exit view (day, luminaires)"} <= {r["case"] for r in feats}
+
+
+@pytest.mark.slow
+def test_feature_bench_rows_per_case_and_resolution():
+    """The feature table: one row per case and resolution, times and noise constants positive,
+    Koschmieder fog with its fogging time, x_baseline 1 for the baseline (a tiny run of 3 cases)."""
+    from workbench.bench import render_features as rf
+    from workbench.render.variants import select_variant
+    select_variant()
+    cases = [c for c in rf.feature_cases() if c.name in (rf.BASELINE, "fog V=150 m koschmieder",
+                                                          "night HPS, view light selection")]
+    film, fov = rf.bench_camera_film()
+    rows = rf.feature_costs(film, fov, [(24, 18), (32, 24)], [(2, 4), (1, 2)], cases)
+    assert [(r["case"], r["res"]) for r in rows] == [(c.name, res) for res in ("24x18", "32x24") for c in cases]
+    for r in rows:
+        assert r["cpu_s_per_spp"] > 0 and r["c_broadband"] > 0 and r["spp_for_2pct"] >= 1
+        assert r["cpu_s_per_frame_2pct"] > 0 and (r["fog_cpu_s"] > 0) == ("koschmieder" in r["case"])
+        assert r["x_baseline"] > 0 and (r["x_baseline"] == 1.0 or r["case"] != rf.BASELINE)
+    assert len({c.name for c in rf.feature_cases()}) == len(rf.feature_cases())

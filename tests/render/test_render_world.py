@@ -170,7 +170,7 @@ def test_labels_exact_with_fog_and_glass(mi):
     film = box_bands(400, 1000, 2)
     base, ids = build_scene(city, pose, 60.0, 64, 48, film, DaylightParams())
     ref = render_labels(base, ids, 64, 48)
-    world = WorldParams(fog=FogParams(visibility_m=100.0), glass="dielectric")
+    world = WorldParams(fog=FogParams(visibility_m=100.0, model="volumetric"), glass="dielectric")
     foggy, ids_f = build_scene(city, pose, 60.0, 64, 48, film, DaylightParams(), world=world)
     got = render_labels(foggy, ids_f, 64, 48)
     np.testing.assert_array_equal(got.instance_id, ref.instance_id)
@@ -219,10 +219,154 @@ def test_sun_disc_is_dimmed_by_the_fog_in_front_of_it(mi):
     day = DaylightParams(sun_elevation_deg=20.0, sun_azimuth_deg=90.0)
     pose = CameraPose(np.array([0.0, 0.0, 1.5]), pan_deg=0.0, tilt_deg=20.0, roll_deg=0.0)   # yaw 0 = east
     film = box_bands(400, 1000, 2)
-    fog = FogParams(visibility_m=500.0, height_m=60.0)
+    fog = FogParams(visibility_m=500.0, height_m=60.0, model="volumetric")
     clear = sun_disc_coverage(pose, 20.0, 64, 48, day, mi_scene=build_scene(city, pose, 20.0, 64, 48, film, day)[0])
     foggy = sun_disc_coverage(pose, 20.0, 64, 48, day, mi_scene=build_scene(
         city, pose, 20.0, 64, 48, film, day, world=WorldParams(fog=fog))[0])
     assert clear.sum() > 0.5
     t = (60.0 - 1.5) / np.sin(np.radians(20.0))
     assert foggy.sum() / clear.sum() == pytest.approx(np.exp(-extinction_per_m(500.0) * t), rel=1e-3)
+
+
+def test_exit_distance_and_path_airlight_closed_forms():
+    """The layer path of a ray and the in-scattered integral ∫₀^s σe^{−σt} J(z₀ + t d_z) dt against
+    closed forms: J constant → J(1 − e^{−σs}); J = a + b z → a(1−T) + b[z₀(1−T) + d_z(1 − T(1+σs))/σ]."""
+    from workbench.render.fog import exit_distance_m, path_airlight, transmittance
+    lo, hi = np.array([-100.0, -50.0, -1.0]), np.array([100.0, 50.0, 60.0])
+    el = np.radians([5.0, 30.0, 90.0])
+    dirs = np.stack([np.cos(el), np.zeros(3), np.sin(el)], axis=-1)
+    want = np.minimum(100.0 / np.cos(el).clip(1e-12), (60.0 - 1.5) / np.sin(el))
+    np.testing.assert_allclose(exit_distance_m([0.0, 0.0, 1.5], dirs, lo, hi), want, rtol=1e-12)
+    sigma, z0 = 3.912 / 150.0, 1.5
+    s = np.array([[5.0, 40.0, 300.0]])
+    dz = np.array([[0.0, 0.2, -0.01]])
+    z_m = np.linspace(0.0, 60.0, 8)
+    flat = path_airlight(z0, dz, s, sigma, z_m, np.ones((8, 2)) * [2.0, 3.0])
+    np.testing.assert_allclose(flat, (1 - transmittance(sigma, s))[..., None] * [2.0, 3.0], rtol=1e-12)
+    a, b = 1.0, 0.05
+    t = transmittance(sigma, s)
+    exact = a * (1 - t) + b * (z0 * (1 - t) + dz * (1 - t * (1 + sigma * s)) / sigma)
+    lin = path_airlight(z0, dz, s, sigma, z_m, (a + b * z_m)[:, None])[..., 0]
+    np.testing.assert_allclose(lin, exact, rtol=2e-3)          # 16-point quadrature in 1 − e^{−σt}
+
+
+def test_koschmieder_apply_is_beer_lambert_without_source():
+    from workbench.render.fog import KoschmiederFog
+    rng = np.random.default_rng(0)
+    rad = rng.random((4, 5, 3))
+    path = rng.random((4, 5)) * 200.0
+    fog = KoschmiederFog(0.02, path, np.zeros((4, 5, 3)), np.zeros(2), np.zeros((2, 3)), np.zeros(2), np.zeros((2, 3)))
+    np.testing.assert_allclose(fog.apply(rad), rad * np.exp(-0.02 * path)[..., None], rtol=1e-12)
+
+
+@pytest.mark.parametrize("albedo", [0.0, 1.0])
+def test_source_profile_of_an_empty_layer(mi, albedo):
+    """Under a uniform sky over a white ground, a conservative medium (albedo 1) is in equilibrium
+    with the sky: J = L_sky at every height and along rising rays (a solution of the transfer
+    equation); an absorbing one (albedo 0) scatters nothing: J = 0."""
+    from workbench.render.fog import airlight_profile, upward_airlight
+    film = box_bands(500, 700, 1)
+    sky = {"sky": {"type": "constant", "radiance": {"type": "spectrum", "value": FLAT}}}
+    white = {"type": "spectrum", "value": FLAT}
+    fog = FogParams(visibility_m=60.0, height_m=20.0, albedo=albedo, phase_g=0.85)
+    z, j = airlight_profile(film, fog, sky, white, 30.0, max_depth=256, spp=64)
+    from workbench.units import energy_to_photons
+    l_sky = np.trapezoid(energy_to_photons(np.ones(201), np.arange(500.0, 701.0)), np.arange(500.0, 701.0)) / 200
+    assert z.shape == (j.shape[0],) and np.all(np.diff(z) > 0) and 0 < z[0] and z[-1] < 20.0
+    el, up = upward_airlight(film, fog, sky, white, 1.5, 30.0, 20.0, max_depth=256, spp=16)
+    assert el.shape == (up.shape[0],) and 0 < el[0] and el[-1] < 20.0
+    if albedo == 0.0:
+        assert np.all(j == 0.0)
+        assert np.abs(up).max() < 0.05 * l_sky                 # fog = T·clear up to the tracker's noise
+    else:
+        np.testing.assert_allclose(j[:, 0], l_sky, rtol=0.05)
+        assert j.mean() == pytest.approx(l_sky, rel=0.02)
+        np.testing.assert_allclose(up[:, 0], l_sky, rtol=0.05)
+
+
+def test_koschmieder_matches_the_volumetric_fog_where_its_assumptions_hold(mi):
+    """A small grey board 15 m away in conservative fog under a uniform sky over a white ground (no
+    sun): the source function is uniform, so Koschmieder's law is the transfer equation's solution
+    and the clear render + KoschmiederFog must equal the volumetric render (within its noise and
+    the board's own small shadow on the fog, isotropic scattering: with forward-peaked droplet
+    scattering the fog in front of a dark object is lit mostly from behind it, i.e. by it, and
+    Koschmieder's airlight there is too bright)."""
+    from workbench.jobs import run_job
+    from workbench.render.fog import koschmieder_fog
+    from workbench.render.params import RenderParams
+    from workbench.render.spectral import render_loaded
+    wl = np.array([350.0, 1000.0])
+    mats = {"white": Material("white", wl, np.array([1.0, 1.0])), "grey": Material("grey", wl, np.array([0.2, 0.2]))}
+    city = City([CityObject("ground", 1, [plane_mesh(400.0, 0.0, "white")]),
+                 CityObject("building", 2, [_box(15, -1, 0.5, 15.2, 1, 2.5, "grey")])], mats,
+                seed=0, extent_m=(-50, -50, 50, 50))
+    pose = CameraPose(np.array([0.0, 0.0, 1.5]), pan_deg=0.0, tilt_deg=0.0, roll_deg=0.0)
+    day = DaylightParams(sun_scale=0.0)
+    fog = FogParams(visibility_m=90.0, height_m=30.0, albedo=1.0, phase_g=0.0)
+    film = box_bands(500, 700, 1)
+    w, h = 32, 24
+
+    def render(world, spp, depth):
+        scene, ids = build_scene(city, pose, 30.0, w, h, film, day, max_depth=depth, world=world)
+        out = run_job(render_loaded(scene, film, RenderParams(spp=spp, chunk_spp=spp), fov_deg=30.0))
+        return scene, ids, out.radiance_photons[..., 0].astype(np.float64)
+
+    clear, ids, l0 = render(WorldParams(fog=fog), 16, 8)
+    labels = render_labels(clear, ids, w, h)
+    kf = koschmieder_fog(clear, labels.depth_m, city, pose.pan_deg, film, day, WorldParams(fog=fog),
+                         max_depth=64, airlight_spp=64)
+    k = kf.apply(l0[..., None])[..., 0]
+    _, _, vol = render(WorldParams(fog=fog.updated(model="volumetric")), 256, 64)
+    wall = labels.instance_id == 2
+    assert wall.sum() > 40 and np.all(labels.depth_m[wall] < 20)
+    ground = labels.instance_id == 1
+    assert np.ptp(labels.depth_m[ground]) > 10                # the ground spans distances
+    for part in (wall, ground):            # model tolerance 4 %: the board shadows the fog before it
+        assert k[part].mean() == pytest.approx(vol[part].mean(), rel=0.04)
+    assert k.mean() == pytest.approx(vol.mean(), rel=0.04)
+
+
+def _lamp_row_scene(mi, weights_from_view: bool):
+    """A street seen from 1.5 m: ground and a wall, one lamp over the visible road, ten lamps behind
+    the wall (they light nothing the camera sees directly)."""
+    from workbench.render.lamps import set_view_light_weights
+    lamps = {"street_lamp_0": street_lamp_emitter([12.0, 0.0, 6.0], "led")}
+    for i in range(1, 6):
+        lamps[f"street_lamp_{i}"] = street_lamp_emitter([10.0 * i, 30.0, 6.0], "led")
+        lamps[f"street_lamp_{5 + i}"] = street_lamp_emitter([10.0 * i - 5.0, 40.0, 6.0], "led")
+    grey = {"type": "diffuse", "reflectance": {"type": "spectrum", "value": [(300.0, 0.3), (1100.0, 0.3)]}}
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 4},
+        "sensor": {"type": "perspective", "fov": 50.0, "film": box_bands(450, 650, 1).mitsuba_film(32, 24),
+                   "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 1.5], target=[1, 0, 1.0], up=[0, 0, 1]),
+                   "sampler": {"type": "independent"}},
+        **lamps,
+        "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(200.0), "bsdf": grey},
+        "wall": {"type": "rectangle", "bsdf": grey,
+                 "to_world": mi.ScalarTransform4f().translate([20.0, 20.0, 10.0])
+                 @ mi.ScalarTransform4f().rotate([1, 0, 0], 90.0) @ mi.ScalarTransform4f().scale([200.0, 10.0, 1.0])}})
+    weights = set_view_light_weights(scene, lamps) if weights_from_view else None
+    return scene, weights
+
+
+def test_view_light_weights_favour_the_lamp_lighting_the_view(mi):
+    from workbench.render.lamps import DEFENSIVE_SHARE
+    _, w = _lamp_row_scene(mi, True)
+    total = sum(w.values())
+    assert w["street_lamp_0"] / total == pytest.approx(1 - DEFENSIVE_SHARE + DEFENSIVE_SHARE / 11, rel=1e-6)
+    for k in (f"street_lamp_{i}" for i in range(1, 11)):          # no direct light on the view
+        assert w[k] / total == pytest.approx(DEFENSIVE_SHARE / 11, rel=1e-6)
+
+
+def test_view_light_weights_keep_the_image_and_cut_its_noise(mi):
+    """Same expected image with flux and view weights (within 4 standard errors), less noise."""
+    def two(scene):
+        return [np.array(mi.render(scene, spp=32, seed=s), dtype=np.float64)[..., 0] for s in (1, 2)]
+    stats = {}
+    for view in (False, True):
+        a, b = two(_lamp_row_scene(mi, view)[0])
+        var = np.mean((a - b) ** 2) / 2                       # per-pixel variance of one render
+        stats[view] = (0.5 * (a.mean() + b.mean()), np.sqrt(var / (2 * a.size)), np.sqrt(var) / a.mean())
+    (m0, se0, n0), (m1, se1, n1) = stats[False], stats[True]
+    assert abs(m1 - m0) < 4 * np.hypot(se0, se1), (m0, m1, se0, se1)
+    assert n1 < 0.5 * n0, (n0, n1)

@@ -9,8 +9,8 @@ noise can be subtracted). Errors are relative RMS over the image:
   band      — per output wavelength against the reference re-binned / interpolated onto it.
 Then: frames per hour and core-minutes per 640×480 frame at 2 % broadband error (spp = (c/0.02)²
 with c measured here; that frame is rendered and timed, or in --quick extrapolated), peak
-memory, stored bytes per frame; and the cost at 320×240 (64×48 in --quick) of every scene type and
-feature switched on alone (render_features.py; extra['features_2pct']).
+memory, stored bytes per frame; and the cost at 320×240 and 640×480 (48×36 and 96×72 in --quick)
+of every scene type and feature switched on alone (render_features.py; extra['features_2pct']).
 """
 from __future__ import annotations
 
@@ -197,11 +197,12 @@ def bench_render(args) -> BenchResult:
                 "float16_max_rel_err": f"{f16_err:.1e}"}
         extra["cost_640x480_2pct"].append(item)
         notes.append("640x480 @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
-    from workbench.bench.render_features import feature_costs
-    fw, fh = (64, 48) if quick else (320, 240)
-    extra["features_2pct"] = feature_costs(city, pose, reps["sensor3"], fov, fw, fh, (2, 8) if quick else (8, 64))
+    from workbench.bench.render_features import feature_costs, feature_notes, feature_plan
+    f_res, f_spps = feature_plan(quick)
+    extra["features_2pct"] = feature_costs(reps["sensor3"], fov, f_res, f_spps)
     for item in extra["features_2pct"]:
-        notes.append(f"feature {fw}x{fh} @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
+        notes.append("feature @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
+    notes += feature_notes(variant, f_res, f_spps)
     notes.append(f"spp = (c/0.02)² with c from the {last} rows; "
                  + (f"--quick: time extrapolated from {cost_spps} spp at 640x480, bytes of that noisier "
                     "frame (an upper bound); " if quick else

@@ -25,9 +25,24 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_demo)
 
 
+def scene_range_report(result, project) -> dict | None:
+    """The scene's dynamic range (scene/dynamic_range.py) of the radiance the optics stage took:
+    luminance (cd/m²), or for a city through the full lens model the film's illuminance (lx);
+    None when the render holds the sensor's channels instead of a spectrum."""
+    from workbench.render.city_frame import uses_full_lens_model
+    from workbench.scene.dynamic_range import scene_dynamic_range
+    scene = result.scene
+    if scene.meta.get("representation") == "sensor":
+        return None
+    full = project.scene.kind == "city" and uses_full_lens_model(project.optics)
+    return {"quantity": "film illuminance (lx)" if full else "luminance (cd/m2)",
+            **scene_dynamic_range(scene.radiance_photons, scene.wavelengths_nm)}
+
+
 def stage_report(result, project) -> dict:
-    """Exposure, mean electrons and SNR per channel, clipped fraction, per-stage time."""
-    from workbench.sensor import snr_dB
+    """Exposure, mean electrons and SNR per channel, clipped fraction, the scene's and the
+    sensor's dynamic range, per-stage time."""
+    from workbench.sensor import sensor_dynamic_range, snr_dB
     img = result.sensor_image
     exposure_s = float(np.mean(img.exposure_s))
     channels = {}
@@ -44,12 +59,19 @@ def stage_report(result, project) -> dict:
             "fraction_clipped": float((img.dn[mask] >= img.max_dn).mean()),
         }
     exposure = img.exposure_s
+    scene_range, sensor_range = scene_range_report(result, project), sensor_dynamic_range(project.sensor)
+    exceeds = None
+    if scene_range is not None and scene_range["dB"] is not None and sensor_range["dynamic_range_dB"] is not None:
+        exceeds = scene_range["dB"] > sensor_range["dynamic_range_dB"]
     return {
         "project": project.name,
         "exposure_s": exposure.tolist() if isinstance(exposure, np.ndarray) else float(exposure),
         "channels": channels,
         "fraction_clipped": float((img.dn >= img.max_dn).mean()),
         "fraction_zero": float((img.dn <= 0).mean()),
+        "scene_dynamic_range": scene_range,
+        "sensor_dynamic_range": sensor_range,
+        "scene_exceeds_sensor_range": exceeds,
         "stage_times_s": {k: round(v, 6) for k, v in result.stage_times_s.items()},
         "isp_notes": list(getattr(result.isp, "notes", []) or []),
     }
@@ -128,6 +150,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         bar.close()
     report = write_outputs(result, project, Path(args.out))
     print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
+    scene_range, sensor_range = report["scene_dynamic_range"], report["sensor_dynamic_range"]
+    if scene_range is not None and scene_range["dB"] is not None and sensor_range["dynamic_range_dB"] is not None:
+        print(f"scene dynamic range {scene_range['dB']:.1f} dB (p{scene_range['percentiles'][1]:g}/"
+              f"p{scene_range['percentiles'][0]:g} {scene_range['quantity']}), sensor "
+              f"{sensor_range['dynamic_range_dB']:.1f} dB (saturation / read noise); "
+              f"{100 * report['fraction_clipped']:.2f} % of pixels clipped")
     extra = " labels.png" if result.labels is not None else ""
     for name in report["removed_stale"]:
         print(f"removed {args.out}/{name}: left by an earlier run, not written by this one")

@@ -213,9 +213,24 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
         meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
                                                              "the full lens model bends the camera rays")}
 
+    fog = inputs.render.world.fog
+    if fog is not None and fog.model == "koschmieder":
+        from workbench.render.fog import koschmieder_fog
+        yield Progress(0.07, 1.0, f"frame {seeds.index}: fog airlight")
+        fogged = koschmieder_fog(mi_scene, labels.depth_m, city, pose.pan_deg, film, inputs.render.daylight,
+                                 inputs.render.world, max_depth=inputs.render.max_depth)
+        meta["fog"] = {"model": "koschmieder", "source_heights_m": fogged.profile_z_m.tolist(),
+                       "source_function": fogged.profile.tolist(),
+                       "upward_elevations_deg": fogged.upward_elevation_deg.tolist(),
+                       "upward_source_function": fogged.upward.tolist()}
+    else:
+        fogged = None
+
     def with_sun(scene):
         if disc is not None:
             scene.radiance_photons = disc.add_to(scene.radiance_photons)
+        if fogged is not None:
+            scene.radiance_photons = fogged.apply(scene.radiance_photons)
         return scene
 
     def rendered(job, start: float, span: float):

@@ -58,7 +58,9 @@ class NightParams(Params):
     `lamp_kind` spectrum and luminous flux `lamp_flux_lm` (None = the kind's rated flux), vehicle
     head-lights (`headlight_kind`, `headlight_cd` peak) and tail-lights (red LED, `taillight_cd`)
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
-    blackbody shape; urban skies are ~0.01–0.1 cd/m²)."""
+    blackbody shape; urban skies are ~0.01–0.1 cd/m²). `light_selection`: how next-event estimation
+    picks a light — 'view' (by each light's direct illuminance on what the camera sees, plus a
+    10 % flux share: the same image with far less noise) or 'flux' (by luminous flux alone)."""
 
     lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
                                                                                       "night render")
@@ -70,10 +72,14 @@ class NightParams(Params):
     taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
     sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
                                                                           "night render")
+    light_selection: Literal["view", "flux"] = Field("view", description="lights sampled by their light on the "
+                                                                        "view or by flux alone; night render")
 
 
 class FogParams(Params):
-    """Fog or haze as a homogeneous participating medium (render/fog.py): meteorological
+    """Fog or haze (render/fog.py): `model` 'koschmieder' (clear-air render fogged per pixel by
+    Koschmieder's law with a measured airlight: cheap, the data-set default) or 'volumetric' (a
+    homogeneous participating medium rendered by volpath: the reference, ~10³× the cost); meteorological
     visibility `visibility_m` (extinction σ = 3.912 / V, Koschmieder, 2 % contrast), single-
     scattering `albedo` (water droplets ≈ 0.99, urban haze ≈ 0.9), Henyey–Greenstein asymmetry
     `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
@@ -83,13 +89,19 @@ class FogParams(Params):
     albedo: float = Field(0.98, ge=0.0, le=1.0, description="single-scattering albedo (0–1); fog medium")
     phase_g: float = Field(0.85, gt=-1.0, lt=1.0, description="Henyey–Greenstein asymmetry (−1…1); fog medium")
     height_m: float = Field(100.0, gt=1.0, le=1e4, description="fog layer depth over the city (m); fog medium")
+    model: Literal["koschmieder", "volumetric"] = Field(
+        "koschmieder", description="Koschmieder's law per pixel (cheap) or a volumetric medium (reference); fog")
 
 
 class WorldParams(Params):
     """Scene features beyond geometry, each switchable: `lighting` 'day' (render.daylight) or
     'night' (`night`); `fog` (None = clear air); `glass` 'diffuse' (windows as dark Lambertian
     surfaces, as before) or 'dielectric' (a thin glass pane, n = 1.52: see-through, Fresnel
-    reflection of the sky)."""
+    reflection of the sky); `materials` 'uniform' (one spectrum per material, as before) or
+    'procedural' (asphalt, concrete, brick, stucco, sandstone and grass as texture-weighted blends
+    of analytic spectra, scene/city/surfaces.py), with `wet_road_fraction` of the road under
+    puddles; `paint` 'diffuse' (paints Lambertian, as before) or 'clearcoat' (every 'paint_*'
+    material under a glossy n = 1.5 clear coat: scene_builder.PAINT_COAT_*)."""
 
     lighting: Literal["day", "night"] = Field("day", description="daylight (render.daylight) or night "
                                                                  "(night); city render")
@@ -97,6 +109,13 @@ class WorldParams(Params):
     fog: FogParams | None = Field(None, description="fog or haze; None = clear air; city render")
     glass: Literal["diffuse", "dielectric"] = Field("diffuse", description="windows as dark diffuse surfaces or "
                                                                            "thin glass panes; city render")
+    materials: Literal["uniform", "procedural"] = Field("uniform", description="one spectrum per material or "
+                                                                         "procedural blends (wear, stains, "
+                                                                         "bricks, soil, puddles); city render")
+    wet_road_fraction: float = Field(0.05, ge=0.0, le=1.0, description="road area under puddles with procedural "
+                                                                      "materials (0–1); city render")
+    paint: Literal["diffuse", "clearcoat"] = Field("diffuse", description="vehicle paints Lambertian or under a "
+                                                                          "glossy clear coat; city render")
 
 
 class RenderParams(Params):

@@ -3,7 +3,11 @@
 Every mesh becomes one Mitsuba shape with the id `<class>_<instance>_<k>`; the id table maps
 each id (`shape.id()`) to its ShapeLabel. Materials are Lambertian with the city's explicit
 spectral reflectance (0 outside its samples, so it must cover the film's range, NIR included),
-except window glass with WorldParams.glass 'dielectric' (a thin dielectric pane).
+except window glass with WorldParams.glass 'dielectric' (a thin dielectric pane), paints with
+WorldParams.paint 'clearcoat' (a rough dielectric coat over the spectral base), and with
+WorldParams.materials 'procedural' the surfaces of scene/city/surfaces.py: `blendbsdf`s of those
+Lambertian spectra weighted by baked scalar textures (single-channel raw bitmaps repeated over
+planar texture coordinates in metres), wet layers as a smooth water coat (`plastic`, n = 1.33).
 """
 from __future__ import annotations
 
@@ -13,10 +17,12 @@ import numpy as np
 
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
-from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium
-from workbench.render.lamps import night_emitters
+from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
+from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
-from workbench.scene.city.types import CameraPose, City
+from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
+from workbench.scene.city.textures import bake
+from workbench.scene.city.types import CameraPose, City, Material
 
 
 @dataclass(frozen=True)
@@ -51,7 +57,9 @@ def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
                                                         up=up.tolist())}
 
 
-def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior=None):
+def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior=None,
+          texcoords: np.ndarray | None = None):
+    """A Mitsuba mesh (flat-shaded); `texcoords` (V×2) are per-vertex texture coordinates."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
@@ -62,10 +70,16 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior
     props = mi.Properties()
     if exterior is not None:
         props["exterior"] = exterior
-    mesh = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=False)
+    mesh = mi.Mesh(name, len(v), len(f), props, has_vertex_normals=False,
+                   has_vertex_texcoords=texcoords is not None)
     params = mi.traverse(mesh)
     params["vertex_positions"] = type(params["vertex_positions"])(v.astype(np.float32).ravel())
     params["faces"] = type(params["faces"])(f.astype(np.uint32).ravel())
+    if texcoords is not None:
+        uv = np.asarray(texcoords, dtype=np.float32)
+        if uv.shape != (len(v), 2) or not np.all(np.isfinite(uv)):
+            raise ValueError(f"mesh '{name}': texcoords must be finite V×2, got {uv.shape}")
+        params["vertex_texcoords"] = type(params["vertex_texcoords"])(uv.ravel())
     params.update()
     mesh.set_bsdf(bsdf)
     return mesh
@@ -73,13 +87,20 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior
 
 GLASS_MATERIALS = ("glass_dark",)
 GLASS_IOR = 1.52         # soda-lime window glass (dispersion < 1 % over 400–1000 nm: ignored)
+# Automotive clear coat: an acrylic/polyurethane layer of n ≈ 1.5 over the coloured base coat
+# (normal-incidence reflectance ((n−1)/(n+1))² = 4 %). Günther et al. 2005 ("Efficient
+# acquisition and realistic rendering of car paint", VMV) model it as a smooth Fresnel dielectric
+# over the base; we give it a small GGX roughness α = 0.02 (our choice, at the glossy end of
+# 0.02–0.1) so the directional sun can glint off it. Mitsuba's roughplastic loses energy as α
+# grows (mitsuba3 issue #1155): under a uniform sky a ρ = 0.5 base reads 1.4 % low at α = 0.02,
+# 3 % at 0.05 and 19 % at 0.2 against the closed form L(R + ρ(1 − R)) (tests/render/test_render_paint.py).
+PAINT_PREFIX = "paint_"
+PAINT_COAT_IOR = 1.5
+PAINT_COAT_ALPHA = 0.02
 
 
-def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False):
-    """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
-    pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
-    glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
-    reflectance) for window quads mounted on façades and bus/truck bodies."""
+def _spectrum(material: Material, film_range_nm: tuple[float, float]) -> dict:
+    """Mitsuba spectrum dict of a material's reflectance, checked to cover the film's range."""
     wl = np.asarray(material.wavelengths_nm, dtype=np.float64)
     refl = np.asarray(material.reflectance, dtype=np.float64)
     if wl.shape != refl.shape or wl.size < 2:
@@ -90,13 +111,69 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffus
                          f"the film needs {film_range_nm[0]:.0f}–{film_range_nm[1]:.0f} nm")
     if not np.all(np.isfinite(refl)) or refl.min() < 0 or refl.max() > 1:
         raise ValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
-    spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
+    return {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
+
+
+def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False,
+          paint: str = "diffuse"):
+    """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
+    pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
+    glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
+    reflectance) for window quads mounted on façades and bus/truck bodies. Paints ('paint_*')
+    with paint='clearcoat': `roughplastic` (GGX α = PAINT_COAT_ALPHA, n = PAINT_COAT_IOR) over
+    the paint's reflectance, with the linear internal-scattering model (nonlinear = false)."""
+    if paint not in ("diffuse", "clearcoat"):
+        raise ValueError(f"paint must be 'diffuse' or 'clearcoat', got {paint!r}")
+    spectrum = _spectrum(material, film_range_nm)
     if glass == "dielectric" and material.name in GLASS_MATERIALS:
         if pane:
             return mi.load_dict({"type": "thindielectric", "int_ior": GLASS_IOR, "ext_ior": 1.0})
         return mi.load_dict({"type": "plastic", "int_ior": GLASS_IOR, "ext_ior": 1.0,
                              "diffuse_reflectance": spectrum})
+    if paint == "clearcoat" and material.name.startswith(PAINT_PREFIX):
+        return mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": PAINT_COAT_ALPHA,
+                             "int_ior": PAINT_COAT_IOR, "ext_ior": 1.0, "nonlinear": False,
+                             "diffuse_reflectance": spectrum})
     return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
+
+
+def texture_dict(mi, weight: np.ndarray, tile_m: float) -> dict:
+    """A single-channel raw bitmap texture (values used as-is), repeated every tile_m metres of
+    the mesh's texture coordinates, bilinearly filtered."""
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.array(weight[..., None], dtype=np.float32)),   # writable copy
+            "raw": True, "wrap_mode": "repeat", "filter_type": "bilinear",
+            "to_uv": mi.ScalarTransform3f().scale([1.0 / tile_m, 1.0 / tile_m])}
+
+
+def lambertian_dict(material: Material, film_range_nm: tuple[float, float]) -> dict:
+    return {"type": "diffuse", "reflectance": _spectrum(material, film_range_nm)}
+
+
+def wet_dict(material: Material, film_range_nm: tuple[float, float]) -> dict:
+    """The material under a smooth water film: Fresnel reflection at n = 1.33 over the Lambertian
+    substrate, with the light the film traps inside (`nonlinear`): albedo
+    (1 − F)·ρ(1 − F̄ᵢ)/(1 − ρF̄ᵢ) for the film's internal diffuse reflectance F̄ᵢ (Lekner & Dorf)."""
+    return {"type": "plastic", "int_ior": WATER_IOR, "ext_ior": 1.0, "nonlinear": True,
+            "diffuse_reflectance": _spectrum(material, film_range_nm)}
+
+
+def surface_bsdf(mi, surface: Surface, materials: dict[str, Material], film_range_nm: tuple[float, float],
+                 seed: int):
+    """Nested `blendbsdf`s of a procedural surface: each layer's weight 1 selects its material
+    (Lambertian, or under a water film when wet), 0 keeps what lies below. Blendbsdf takes its
+    two nested BSDFs in name order: 'below' (weight 0), then 'layer' (weight 1)."""
+    def material(name):
+        if name not in materials:
+            raise ValueError(f"procedural surface uses material '{name}', which the city does not define")
+        return materials[name]
+
+    bsdf = lambertian_dict(material(surface.base), film_range_nm)
+    for layer in surface.layers:
+        top = (wet_dict if layer.wet else lambertian_dict)(material(layer.material), film_range_nm)
+        t = layer.texture
+        weight = bake(t.kind, t.size_px, int(seed), t.fraction, t.strength)
+        bsdf = {"type": "blendbsdf", "weight": texture_dict(mi, weight, t.tile_m), "below": bsdf, "layer": top}
+    return mi.load_dict(bsdf)
 
 
 def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height: int,
@@ -108,9 +185,13 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         sensor_channels), which also fix the wavelength range every spectrum must cover.
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
-    world: lighting (day: `daylight`; night: lamps.night_emitters), fog (fog.py: a medium box
-        whose id maps to None in the id table = background) and glass (WorldParams); None = day,
-        clear air, diffuse glass.
+    world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
+        the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
+        tunnel's luminaires either way: lamps.tunnel_emitters), fog (fog.py: with model
+        'volumetric' a medium box whose id maps to None in the id table = background; with
+        'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
+        fogs the render), glass and materials (WorldParams; procedural textures are seeded by
+        city.seed); None = day, clear air, diffuse glass, uniform materials.
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
     import mitsuba as mi
 
@@ -125,21 +206,28 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     cam["film"] = film_srfs.mitsuba_film(width, height)
     cam["sampler"] = {"type": "independent", "sample_count": 1}
     world = WorldParams() if world is None else world
-    lights = night_emitters(city, world.night) if world.lighting == "night" else daylight_emitters(daylight)
+    if world.fog is not None and world.fog.model == "koschmieder":
+        daylight = sun_through_layer(daylight, world.fog)
+    if world.lighting == "night":
+        lights = {**night_emitters(city, world.night), **tunnel_emitters(city)}
+    else:              # a tunnel's luminaires burn by day too; they weigh as much as the sun
+        lights = {**daylight_emitters(daylight), **tunnel_emitters(city, sampling_weight=1.0)}
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
     medium = None
     if world.fog is not None:
-        medium = fog_medium(world.fog)
         check_camera_inside(camera_to_world(pose)[0] if sensor is None else
                             np.asarray(cam["to_world"].translation()), city.extent_m, world.fog.height_m)
+    if world.fog is not None and world.fog.model == "volumetric":
+        medium = fog_medium(world.fog)
         scene["integrator"] = {"type": "volpath", "max_depth": int(max_depth)}
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
         id_table[FOG_BOX_ID] = None
     rng = film_srfs.range_nm
     bsdfs = {}
+    surfaces = procedural_surfaces(world.wet_road_fraction) if world.materials == "procedural" else {}
     for obj in city.objects:
         if obj.instance_id <= 0:
             raise ValueError(f"city object '{obj.class_name}' has instance_id {obj.instance_id}; must be > 0")
@@ -150,13 +238,22 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             pane = obj.class_name == "car"              # closed glass cabin: see-through pane
             key = (m.material, pane and m.material in GLASS_MATERIALS)
             if key not in bsdfs:
-                bsdfs[key] = _bsdf(mi, city.materials[m.material], rng, world.glass, key[1])
+                bsdfs[key] = (surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
+                              if m.material in surfaces else
+                              _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint))
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
-            scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
+            if m.material in surfaces:
+                v, f, uv = planar_uv_m(m.vertices, m.faces)
+                scene[sid] = _mesh(mi, sid, v, f, bsdfs[key], medium, texcoords=uv)
+            else:
+                scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
-    return mi.load_dict(scene), id_table
+    mi_scene = mi.load_dict(scene)
+    if world.lighting == "night" and world.night.light_selection == "view":
+        set_view_light_weights(mi_scene, lights)
+    return mi_scene, id_table
 
 
 def set_camera_pose(mi_scene, pose: CameraPose) -> None:

@@ -13,11 +13,11 @@ from workbench.sensor.expose import fixed_patterns, signal_rate_to_sensor_image
 from workbench.sensor.image import SensorImage
 from workbench.sensor.params import CFA_PATTERNS, MAX_PIXELS, SENSOR_PRESETS, SensorParams
 from workbench.sensor.signal import REGRID_METHODS, channel_weights, irradiance_to_signal_rate
-from workbench.sensor.snr import snr_dB
+from workbench.sensor.snr import sensor_dynamic_range, snr_dB
 
 __all__ = [
     "AUTO_EXPOSURE_METHODS", "CFA_PATTERNS", "MAX_PIXELS", "REGRID_METHODS", "SENSOR_PRESETS",
     "SensorImage", "SensorParams", "auto_exposure", "cfa_layout", "channel_index_map", "channel_qe",
     "channel_weights", "fixed_patterns", "irradiance_to_sensor_image", "irradiance_to_signal_rate",
-    "register_auto_exposure", "resolve_exposure", "signal_rate_to_sensor_image", "snr_dB",
+    "register_auto_exposure", "resolve_exposure", "sensor_dynamic_range", "signal_rate_to_sensor_image", "snr_dB",
 ]

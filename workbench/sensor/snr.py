@@ -1,4 +1,5 @@
-"""Signal-to-noise ratio of a pixel under the sensor's noise model (the same terms `expose` draws)."""
+"""Signal-to-noise ratio of a pixel under the sensor's noise model (the same terms `expose` draws) and
+the sensor's own dynamic range."""
 from __future__ import annotations
 
 import math
@@ -23,3 +24,23 @@ def snr_dB(mean_e: float, params: SensorParams, exposure_s: float) -> float:
                 + (mean_e * params.prnu_sigma_pct / 100) ** 2
                 + (mean_e * params.column_fpn_gain_sigma_pct / 100) ** 2)
     return 10.0 * math.log10(mean_e ** 2 / var)
+
+
+def sensor_dynamic_range(params: SensorParams) -> dict:
+    """The sensor's electrons at saturation and its dynamic range.
+
+    saturation_e: the fewest signal electrons whose pixel reads the largest code: volts
+    e·g·gain + offset reach (max_dn − ½)·LSB, where rounding gives max_dn (for an analog read-out,
+    the voltage swing). full_well_e: swing / conversion gain. dynamic_range_dB:
+    20·log10(saturation / read noise), the read noise in electrons (it is added before the analog
+    gain): at gain 1 the full well over the read noise, less by the gain above it (None without
+    read noise); adc_dB: 20·log10(max_dn) of the code range (None for an analog read-out)."""
+    g = params.conversion_gain_V_per_e * params.analog_gain
+    clip_V = (params.max_dn - 0.5) * params.lsb_V if params.bit_depth else params.voltage_swing_V
+    clip_V = min(clip_V, params.voltage_swing_V)
+    saturation_e = (clip_V - params.analog_offset_V) / g
+    read = params.read_noise_e
+    return {"full_well_e": params.full_well_e, "saturation_e": saturation_e, "read_noise_e": read,
+            "dynamic_range_dB": 20.0 * math.log10(saturation_e / read) if read > 0 and saturation_e > 0 else None,
+            "bit_depth": params.bit_depth, "max_dn": params.max_dn,
+            "adc_dB": 20.0 * math.log10(params.max_dn) if params.bit_depth else None}

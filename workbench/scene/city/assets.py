@@ -384,5 +384,7 @@ def build_asset(class_name: str, variant: str, detail: str = "simple") -> Asset:
 
 # Detailed builders live in their own modules, which build on Asset and _finish above.
 from workbench.scene.city import people as _people  # noqa: E402
+from workbench.scene.city import vehicles as _vehicles  # noqa: E402
 
 DETAILED_BUILDERS["pedestrian"] = _people.DETAILED_PEDESTRIANS
+DETAILED_BUILDERS.update(_vehicles.detailed_builders())

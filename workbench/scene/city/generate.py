@@ -15,6 +15,7 @@ from workbench.scene.city.layout import CityLayout, build_layout, marking_rects
 from workbench.scene.city.materials import city_materials
 from workbench.scene.city.placement import Placement, place_objects
 from workbench.scene.city.recipe import CityRecipe
+from workbench.scene.city.tunnel import tunnel_object
 from workbench.scene.city.types import City, CityObject, Mesh
 
 MARKING_LIFT_M = 0.005    # paint sits this far above the asphalt (no coplanar faces)
@@ -106,9 +107,14 @@ def generate_city(recipe: CityRecipe) -> City:
     rng_layout = np.random.default_rng([recipe.seed, _LAYOUT_STREAM])
     rng_place = np.random.default_rng([recipe.seed, _PLACEMENT_STREAM, recipe.arrangement])
     static, building_rects = _static_objects(recipe, layout, rng_layout)
+    tunnel = []
+    if recipe.tunnel is not None:          # last, so a tunnel moves no other object's instance id
+        meshes, footprint, meta = tunnel_object(recipe, layout)
+        tunnel = [("tunnel", meshes, footprint, meta)]
+        building_rects = building_rects + [footprint]    # keeps tree canopies and lamp arms out
     placed = [_placed_object(p) for p in place_objects(recipe, layout, building_rects, rng_place)]
     objects = [CityObject(cls, i + 1, meshes, fp, meta)
-               for i, (cls, meshes, fp, meta) in enumerate(static + placed)]
+               for i, (cls, meshes, fp, meta) in enumerate(static + placed + tunnel)]
     x0, y0, x1, y1 = layout.road_bounds
     m = recipe.ground_margin_m
     return City(objects, city_materials(), recipe.seed, (x0 - m, y0 - m, x1 + m, y1 + m),

@@ -39,7 +39,16 @@ Facts used (levels approximate, chosen inside the quoted ranges):
 - Hair: eumelanin absorption falls with wavelength, so hair reflectance rises into the NIR;
   dark ~0.04 → 0.2, brown ~0.06 → 0.4, blonde (less eumelanin) ~0.12 → 0.55, gray ~0.25 → 0.45
   (hair-colour reflectance spectroscopy, e.g. Vaughn et al. hair-colour measurements).
+- Licence plates: retroreflective sheeting over aluminium, seen here diffusely: white ~0.8 with
+  TiO2's edge below ~400 nm, yellow low in the blue with an edge near 500 nm; both stay bright
+  in the NIR (ANPR cameras read plates at ~850 nm because the background reflects there and the
+  carbon-black characters do not; the characters are not modelled).
 - Glass seen diffusely (tinted windows, dark interiors): ~0.06–0.08 flat; tyre rubber ~0.04.
+- Variants blended in by the procedural surfaces (scene/city/surfaces.py): aged asphalt ~0.09
+  rising to ~0.14 (oxidised binder, exposed aggregate; Herold et al. 2004 find aged roads up to
+  twice as bright as fresh ones); cement–lime mortar, lighter than concrete (~0.3 → 0.45);
+  over-fired (clinker) brick, darker with the same iron-oxide edge; urban grime (soot + mineral
+  dust: black carbon is near-flat and dark, dust rises toward the red), ~0.05 → 0.10.
 """
 from __future__ import annotations
 
@@ -98,6 +107,11 @@ def _builders(wl: np.ndarray) -> dict[str, np.ndarray]:
     return {
         # road, ground, walls
         "asphalt": 0.06 + 0.035 * ramp,
+        "asphalt_aged": 0.09 + 0.05 * ramp,
+        "mortar": _edge(wl, 0.30, 0.45, 500, 60) * _uv_falloff(wl),
+        "brick_dark": (_edge(wl, 0.05, 0.22, 595, 25) + 0.04 * _sig(wl, 760, 40)
+                       - 0.03 * _gauss(wl, 870, 40)) * _uv_falloff(wl),
+        "grime": 0.05 + 0.05 * _sig(wl, 600, 120),
         "concrete": _edge(wl, 0.22, 0.38, 520, 60) * _uv_falloff(wl),
         "concrete_dark": _edge(wl, 0.14, 0.24, 520, 60) * _uv_falloff(wl),
         "brick": (_edge(wl, 0.08, 0.36, 585, 22) + 0.06 * _sig(wl, 760, 40)
@@ -120,6 +134,9 @@ def _builders(wl: np.ndarray) -> dict[str, np.ndarray]:
         "paint_green": _paint(wl, 0.05 + 0.22 * _gauss(wl, 525, 35), 0.55, 715, 18),
         "paint_yellow": _paint(wl, _edge(wl, 0.07, 0.72, 505, 14), 0.74, 760, 40),
         "paint_orange": _paint(wl, _edge(wl, 0.06, 0.70, 570, 14), 0.72, 760, 40),
+        # licence plates
+        "plate_white": _edge(wl, 0.30, 0.82, 400, 10) - 0.03 * ramp,
+        "plate_yellow": _edge(wl, 0.08, 0.72, 505, 13) * _uv_falloff(wl) + 0.06 * _sig(wl, 740, 30),
         # lane paint
         "lane_white": _edge(wl, 0.12, 0.75, 400, 10) - 0.05 * ramp,
         "lane_yellow": _edge(wl, 0.08, 0.64, 505, 13) * _uv_falloff(wl) + 0.03 * _sig(wl, 740, 30),

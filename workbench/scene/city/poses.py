@@ -1,6 +1,7 @@
 """Camera poses as in the paper: a plane height_m above the road, in a lane, panned about the
 lane direction (−10…10°), tilted and rolled (−5…5°); aimed at a target object from ~10 m
-(isetauto's camera generator); or one pose set by hand.
+(isetauto's camera generator); before a tunnel portal (exit or entrance view); or one pose set
+by hand.
 
 Angles follow `CameraPose`: pan = yaw about +Z from +X, tilt = pitch up, roll = right-handed
 rotation about the viewing direction (positive roll leans the camera's up vector to its right).
@@ -12,6 +13,7 @@ import numpy as np
 from workbench.scene.city import geometry as g
 from workbench.scene.city.layout import LANE_END_CLEARANCE_M, CityLayout
 from workbench.scene.city.recipe import PoseParams
+from workbench.scene.city.tunnel import TunnelFrame
 from workbench.scene.city.types import CameraPose, City
 
 EGO_LENGTH_M, EGO_WIDTH_M = 4.6, 1.9   # the camera rides in a car this size …
@@ -109,6 +111,34 @@ def _target_spot(lanes, targets, pp: PoseParams, rng, vehicles):
         "target_class": t.class_name, "target_distance_m": float(np.hypot(*(p - xy)))}
 
 
+def _tunnel_spot(layout: CityLayout, frame: TunnelFrame, pp: PoseParams, rng, vehicles):
+    """A spot in a lane of the tunnel's street, the wanted distance before the portal ahead
+    (inside the tunnel for the exit view, outside on the road for the entrance view): or None."""
+    lanes = [ln for ln in layout.lanes if ln.heading_deg in (90.0, 270.0) and abs(
+        (ln.segment_rect[0] + ln.segment_rect[2]) / 2 - frame.x_m) < 1e-6]
+    lane = lanes[int(rng.integers(len(lanes)))]
+    north = lane.heading_deg == 90.0
+    d = rng.uniform(*pp.tunnel_distance_range_m)
+    exit_view = pp.tunnel_view == "exit"
+    portal = frame.y_north_m if north == exit_view else frame.y_south_m
+    y = portal - d if north else portal + d
+    x = lane.start_xy[0] + rng.uniform(-1.0, 1.0) * pp.lateral_jitter_m
+    xy = np.array([x, y])
+    if bool(frame.inside(xy)[0]) != exit_view or not layout.on_road(xy)[0] or \
+            not _ego_clear(xy, lane.heading_deg, vehicles):
+        return None
+    pan_offset = float(rng.uniform(*pp.pan_range_deg))
+    return lane, xy, lane.heading_deg + pan_offset, {
+        "pan_offset_deg": pan_offset, "tunnel_view": pp.tunnel_view, "portal_distance_m": float(d)}
+
+
+def _tunnel_frame(city: City) -> TunnelFrame:
+    frames = [o.meta["frame"] for o in city.objects if o.class_name == "tunnel"]
+    if not frames:
+        raise ValueError("mode='tunnel' needs a city with a tunnel (set CityRecipe.tunnel)")
+    return frames[0]
+
+
 def sample_camera_poses(city: City, pose_params: PoseParams, n: int = 1,
                         seed: int | None = None) -> list[CameraPose]:
     """n camera poses (random and target modes: seeded by `seed`, default pose_params.seed).
@@ -133,17 +163,23 @@ def sample_camera_poses(city: City, pose_params: PoseParams, n: int = 1,
         raise ValueError(f"mode='target' but the city has no objects of target_classes="
                          f"{pp.target_classes}")
     poses = []
+    frame = _tunnel_frame(city) if pp.mode == "tunnel" else None
     for k in range(n):
         for _ in range(MAX_TRIES):
-            spot = (_target_spot(lanes, targets, pp, rng, vehicles) if pp.mode == "target"
-                    else _random_spot(lanes, lengths, pp, rng, vehicles))
+            if pp.mode == "tunnel":
+                spot = _tunnel_spot(layout, frame, pp, rng, vehicles)
+            elif pp.mode == "target":
+                spot = _target_spot(lanes, targets, pp, rng, vehicles)
+            else:
+                spot = _random_spot(lanes, lengths, pp, rng, vehicles)
             if spot is not None:
                 break
         else:
             raise ValueError(f"could not find a free spot in a lane for camera pose {k + 1} of {n} "
                              f"after {MAX_TRIES} tries (mode '{pp.mode}'); the lanes are full of "
                              "vehicles (lower n_cars) or no target is reachable (widen "
-                             "target_distance_range_m or max_target_bearing_deg)")
+                             "target_distance_range_m or max_target_bearing_deg) or, for tunnel poses, "
+                             "tunnel_distance_range_m does not fit the tunnel or the road before it")
         lane, xy, pan, extra = spot
         poses.append(CameraPose(
             np.array([xy[0], xy[1], pp.height_m]), _wrap(pan),

@@ -30,10 +30,40 @@ CLASS_IDS: dict[str, int] = {
     "sidewalk": 11,
     "marking": 12,
     "ground": 13,
+    "tunnel": 14,
 }
 
 # Smallest building lot left inside a block once the sidewalk ring is taken off (m).
 MIN_LOT_M = 20.0
+
+
+class TunnelParams(Params):
+    """A straight road tunnel over one street segment (scene/city/tunnel.py): the street along +Y at
+    x = street_index · pitch, between cross streets segment_index and segment_index + 1, centred on
+    the segment. Concrete side walls stand behind both sidewalks (which become its walkways), a
+    flat roof slab spans them at clearance_m above the road; the open ends are the portals.
+    Luminaires hang in one row over the centre line every luminaire_spacing_m, each a full
+    cut-off point source of luminaire_flux_lm (render/lamps.py), lit by day and by night.
+
+    Defaults follow CIE 88:2004's interior zone (a road luminance of a few cd/m² for urban
+    traffic): a row of luminaires of flux Φ at spacing S and height h gives the road below
+    E ≈ Φ/(π S h) (the sum of Φ/(2π) · h/r³ over the row), and a Lambertian asphalt of
+    reflectance ρ ≈ 0.075 shows L = ρE/π; Φ = 20,000 lm, S = 8 m, h ≈ 4.9 m → E ≈ 160 lx,
+    L ≈ 4 cd/m² (more with the walls' inter-reflection)."""
+
+    street_index: int = Field(1, ge=0, le=20, description="which street along +Y (0 = westmost) the tunnel "
+                                                          "covers (count); city tunnel")
+    segment_index: int = Field(0, ge=0, le=19, description="which segment of that street, from the south "
+                                                           "(count); city tunnel")
+    length_m: float = Field(80.0, ge=10.0, le=480.0, description="portal to portal (m); city tunnel")
+    clearance_m: float = Field(5.0, ge=4.0, le=10.0, description="roof soffit above the road (m); city tunnel")
+    wall_thickness_m: float = Field(0.5, gt=0.0, le=0.9, description="side wall thickness (m); city tunnel")
+    roof_thickness_m: float = Field(1.0, gt=0.0, le=5.0, description="roof slab thickness (m); city tunnel")
+    luminaire_kind: Literal["led", "hps"] = Field("led", description="luminaire spectrum; city tunnel lighting")
+    luminaire_flux_lm: float = Field(20000.0, gt=0.0, le=1e6, description="luminous flux per luminaire (lm); "
+                                                                          "city tunnel lighting")
+    luminaire_spacing_m: float = Field(8.0, ge=1.0, le=100.0, description="luminaire spacing along the tunnel "
+                                                                          "(m); city tunnel lighting")
 
 
 class CityRecipe(Params):
@@ -64,6 +94,8 @@ class CityRecipe(Params):
     n_lamps: int = Field(16, ge=0, le=5000, description="street lamps per arrangement (count); placement")
     n_benches: int = Field(8, ge=0, le=5000, description="benches per arrangement (count); placement")
     n_mailboxes: int = Field(4, ge=0, le=5000, description="mailboxes per arrangement (count); placement")
+    tunnel: TunnelParams | None = Field(None, description="a road tunnel over one street segment; None = no "
+                                                          "tunnel; city generator")
 
     @model_validator(mode="after")
     def _check_consistent(self) -> "CityRecipe":
@@ -77,6 +109,16 @@ class CityRecipe(Params):
                 f"block_size_m={self.block_size_m} leaves a {lot:.1f} m building lot after two "
                 f"sidewalks of sidewalk_width_m={self.sidewalk_width_m}; need block_size_m >= "
                 f"{2 * self.sidewalk_width_m + MIN_LOT_M:.1f}")
+        t = self.tunnel
+        if t is not None:
+            if t.street_index > self.blocks_x or t.segment_index >= self.blocks_y:
+                raise ValueError(f"tunnel street_index={t.street_index}, segment_index={t.segment_index}: the "
+                                 f"city has streets 0…{self.blocks_x} along +Y with segments 0…{self.blocks_y - 1}")
+            room = self.block_size_m - 2 * self.sidewalk_width_m
+            if t.length_m > room:
+                raise ValueError(f"tunnel length_m={t.length_m} does not fit its street segment: at most "
+                                 f"block_size_m − 2·sidewalk_width_m = {room:.1f} m (clear of the cross "
+                                 "streets' sidewalks)")
         return self
 
     @property
@@ -100,10 +142,15 @@ class PoseParams(Params):
     at a distance in target_distance_range_m, the target within max_target_bearing_deg of the
     lane direction; pan = bearing to the target + U(pan_range_deg); tilt, roll as in 'random'.
     'manual': manual_position_xy_m at height_m above the road, manual_* angles; manual_pan_deg
-    is the absolute yaw about +Z from +X (the `CameraPose` convention)."""
+    is the absolute yaw about +Z from +X (the `CameraPose` convention).
+    'tunnel' (a city with CityRecipe.tunnel): in a lane of the tunnel's street, heading along it,
+    tunnel_distance_range_m before the portal ahead: the exit portal from inside the tunnel
+    (tunnel_view 'exit') or the entrance portal from outside ('entrance'); pan jitter, tilt, roll
+    as in 'random'."""
 
-    mode: Literal["random", "target", "manual"] = Field("random", description="how poses are chosen (see the "
-                                                                             "class doc); camera poses")
+    mode: Literal["random", "target", "manual", "tunnel"] = Field("random", description="how poses are chosen "
+                                                                                       "(see the class doc); "
+                                                                                       "camera poses")
     height_m: float = Field(1.5, gt=0.0, le=50.0, description="camera height above the road (m); camera poses")
     pan_range_deg: tuple[float, float] = Field((-10.0, 10.0), description="(low, high) pan jitter (deg); "
                                                                           "random and target poses")
@@ -118,6 +165,10 @@ class PoseParams(Params):
                                                                                   "distance (m); target poses")
     max_target_bearing_deg: float = Field(45.0, gt=0.0, le=180.0,
                                           description="target direction vs lane direction (deg); target poses")
+    tunnel_view: Literal["exit", "entrance"] = Field("exit", description="inside looking at the exit or outside "
+                                                                         "approaching the entrance; tunnel poses")
+    tunnel_distance_range_m: tuple[float, float] = Field((20.0, 60.0), description="(low, high) camera-to-portal "
+                                                                                   "distance (m); tunnel poses")
     manual_position_xy_m: tuple[float, float] | None = Field(None, description="(x, y) camera position (m); "
                                                                                "manual pose")
     manual_pan_deg: float = Field(0.0, ge=-360.0, le=360.0, description="yaw about +Z from +X (deg); manual pose")
@@ -139,6 +190,9 @@ class PoseParams(Params):
         lo, hi = self.target_distance_range_m
         if not 0 < lo <= hi <= 500:
             raise ValueError(f"target_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
+        lo, hi = self.tunnel_distance_range_m
+        if not 0 < lo <= hi <= 500:
+            raise ValueError(f"tunnel_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
         if self.mode == "manual" and self.manual_position_xy_m is None:
             raise ValueError("mode='manual' needs manual_position_xy_m=(x, y) in metres")
         return self

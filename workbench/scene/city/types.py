@@ -35,7 +35,7 @@ class CityObject:
     """One labelled object (a car, a pedestrian, a building …) made of one or more meshes.
 
     class_name is the label class ('car', 'pedestrian', 'bus', 'truck', 'building', 'tree',
-    'lamp', 'bench', 'mailbox', 'road', 'sidewalk', 'marking', 'ground'; see CLASS_IDS);
+    'lamp', 'bench', 'mailbox', 'road', 'sidewalk', 'marking', 'ground', 'tunnel'; see CLASS_IDS);
     instance_id is unique in the city (> 0; 0 means background/sky). The meshes are in world
     coordinates."""
 
