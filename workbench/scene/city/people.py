@@ -451,7 +451,7 @@ def _pedestrian(spec: PedestrianSpec) -> Asset:
 # ---------------------------------------------------------------- variants
 N_VARIANTS = 80
 CHILD_STATURES_M = (1.02, 1.15, 1.28, 1.40)
-# adult stature (m): women 1.63 ± 0.07, men 1.77 ± 0.07 (NCD-RisC 2016, European adults)
+# adult stature (m): women ~1.63 ± 0.07, men ~1.77 ± 0.07 (roughly European adults, NCD-RisC 2016)
 ADULT_STATURE_M = ((1.63, 0.07), (1.77, 0.07))
 
 
