@@ -39,7 +39,7 @@ from scipy.optimize import brentq
 from scipy.stats import norm
 
 from workbench.scene.city import geometry as g
-from workbench.scene.city.assets import Asset, _finish
+from workbench.scene.city.assets import Asset, finish_asset
 from workbench.scene.city.materials import BOTTOMS, HAIRS, SHOES, SKINS, TOPS
 
 # Drillis & Contini landmark heights and lengths (fractions of stature).
@@ -448,7 +448,7 @@ def _pedestrian(spec: PedestrianSpec) -> Asset:
     parts: dict[str, list[g.Part]] = {}
     for material, part in body_parts(spec).values():
         parts.setdefault(material, []).append(part)
-    return _finish("pedestrian", spec.name, parts)
+    return finish_asset("pedestrian", spec.name, parts)
 
 
 # ---------------------------------------------------------------- variants
