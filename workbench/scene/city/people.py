@@ -39,13 +39,14 @@ from scipy.optimize import brentq
 from scipy.stats import norm
 
 from workbench.scene.city import geometry as g
-from workbench.scene.city.assets import Asset, _finish
+from workbench.scene.city.assets import Asset, finish_asset
 from workbench.scene.city.materials import BOTTOMS, HAIRS, SHOES, SKINS, TOPS
 
 # Drillis & Contini landmark heights and lengths (fractions of stature).
 HIP_H, KNEE_H, ANKLE_H, SHOULDER_H, ELBOW_H, WRIST_H, CHIN_H = 0.530, 0.285, 0.039, 0.818, 0.630, 0.485, 0.870
 HAND_L, FOOT_L, FOOT_B = 0.108, 0.152, 0.055
 SHOULDER_JOINTS_B, SHOULDER_DROP, HIP_JOINTS_B, HIP_B = 0.20, 0.02, 0.10, 0.191
+CROTCH_H = 0.470              # bottom of the pelvis segment (crotch height ~ 0.45–0.47 H)
 REF_STATURE_M = 1.75          # girths below are for an average adult of this stature
 
 
@@ -108,6 +109,8 @@ BUILDS = {"slim": (0.88, 0.85), "average": (1.0, 1.0), "broad": (1.12, 1.18)}   
 
 @dataclass(frozen=True)
 class PedestrianSpec:
+    """One detailed pedestrian variant: pose name, stature (m), build and outfit (material names)."""
+
     name: str
     pose: str
     stature_m: float
@@ -196,7 +199,7 @@ def _two_link(root: np.ndarray, target: np.ndarray, l1: float, l2: float, bend: 
     return root + a * e + np.sqrt(l1 ** 2 - a ** 2) * n / np.linalg.norm(n)
 
 
-def _trunk(b: Body, lean_deg: float) -> np.ndarray:
+def _trunk(lean_deg: float) -> np.ndarray:
     lean = np.radians(lean_deg)
     return np.array([np.sin(lean), 0.0, np.cos(lean)])          # up, leaning forward
 
@@ -239,7 +242,7 @@ def _standing_skeleton(pose: Pose, b: Body) -> dict[str, np.ndarray]:
     for key in list(j):
         j[key] = j[key] - np.array([0.0, 0.0, ground])
     j["pelvis"] = np.array([0.0, 0.0, -ground])
-    trunk = _trunk(b, pose.trunk_lean_deg)
+    trunk = _trunk(pose.trunk_lean_deg)
     _upper_body(j, b, trunk)
     lat = np.sin(np.radians(pose.arm_abduction_deg))
     for side, sy, arm in (("r", -1, pose.arms[0]), ("l", 1, pose.arms[1])):
@@ -270,9 +273,9 @@ def _cycling_skeleton(pose: "Cycling", b: Body) -> dict[str, np.ndarray]:
     grip = bike["grip_r"] + np.array([-0.02, 0.0, 0.02]) * b.D       # wrist just behind the bar
 
     def slack(lean_deg):           # lean forward until the elbows are bent by ~20 % of the reach
-        return np.linalg.norm(grip - _shoulder(j, b, _trunk(b, lean_deg), -1)) - 0.9 * (l_upper + l_fore)
+        return np.linalg.norm(grip - _shoulder(j, b, _trunk(lean_deg), -1)) - 0.9 * (l_upper + l_fore)
 
-    trunk = _trunk(b, brentq(slack, 0.0, 80.0, xtol=1e-8))
+    trunk = _trunk(brentq(slack, 0.0, 80.0, xtol=1e-8))
     _upper_body(j, b, trunk)
     for side, sy in (("r", -1), ("l", 1)):
         wrist = bike[f"grip_{side}"] + np.array([-0.02, 0.0, 0.02]) * b.D
@@ -415,7 +418,7 @@ def body_parts(spec: PedestrianSpec) -> dict[str, tuple[str, g.Part]]:
     pel, neck = j["pelvis"], j["neck"]
     trunk = (neck - pel) / np.linalg.norm(neck - pel)
     hip_half = 0.5 * b.L(HIP_B) * b.build_w
-    down = pel - b.L(HIP_H - 0.470) * trunk
+    down = pel - b.L(HIP_H - CROTCH_H) * trunk
     out["pelvis"] = (spec.bottom, _tube(down, pel + b.L(0.07) * trunk,
                                         [(0.0, 0.09 * D, 0.75 * hip_half), (0.45, 0.11 * D, hip_half),
                                          (1.0, 0.10 * D, 0.88 * hip_half)], n=12))
@@ -445,13 +448,13 @@ def _pedestrian(spec: PedestrianSpec) -> Asset:
     parts: dict[str, list[g.Part]] = {}
     for material, part in body_parts(spec).values():
         parts.setdefault(material, []).append(part)
-    return _finish("pedestrian", spec.name, parts)
+    return finish_asset("pedestrian", spec.name, parts)
 
 
 # ---------------------------------------------------------------- variants
 N_VARIANTS = 80
 CHILD_STATURES_M = (1.02, 1.15, 1.28, 1.40)
-# adult stature (m): women 1.63 ± 0.07, men 1.77 ± 0.07 (NCD-RisC 2016, European adults)
+# adult stature (m): women ~1.63 ± 0.07, men ~1.77 ± 0.07 (roughly European adults, NCD-RisC 2016)
 ADULT_STATURE_M = ((1.63, 0.07), (1.77, 0.07))
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.scene.city import geometry as g
-from workbench.scene.city.assets import build_asset, variant_names
+from workbench.scene.city.catalog import build_asset, variant_names
 from workbench.scene.city.layout import LANE_END_CLEARANCE_M, CityLayout
 from workbench.scene.city.materials import BUS_PAINTS, CAR_PAINTS
 from workbench.scene.city.people import CYCLISTS

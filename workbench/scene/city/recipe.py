@@ -85,7 +85,7 @@ class CityRecipe(Params):
     building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
     asset_detail: Literal["simple", "detailed"] = Field(
         "simple", description="object geometry: 'simple' (the original low-detail assets) or 'detailed' (the "
-                              "builders registered in scene.city.assets.DETAILED_BUILDERS); city generator")
+                              "builders registered in scene.city.catalog.DETAILED_BUILDERS); city generator")
     n_cars: int = Field(16, ge=0, le=2000, description="cars per arrangement (count); placement")
     n_pedestrians: int = Field(24, ge=0, le=5000, description="pedestrians per arrangement (count); placement")
     n_buses: int = Field(2, ge=0, le=200, description="buses per arrangement (count); placement")
