@@ -113,9 +113,9 @@ def main() -> None:
         city.updated(
             name="city_tunnel",
             description="Inside a 150 m road tunnel by day, 20-60 m before the exit (the HDR case): concrete walls "
-                        "and roof, a row of 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 interior "
-                        "zone, road ~4 cd/m2) against the sunlit street beyond the portal; blocks of 180 m so the "
-                        "segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
+                        "and roof, a row of glowing 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 "
+                        "interior zone, road ~6 cd/m2) against the sunlit street beyond the portal; blocks of 180 m "
+                        "so the segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
                         "(MT9V024-like: 10-bit linear ADC, no IR cut; exposure at most 1/30 s).",
             city=detailed.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
             pose=PoseParams(mode="tunnel", tunnel_view="exit", seed=1),

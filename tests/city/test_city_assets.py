@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from workbench.scene.city import build_asset, variant_names
-from workbench.scene.city.assets import PAINT, VARIANTS
+from workbench.scene.city.assets import PAINT
+from workbench.scene.city.catalog import VARIANTS
 from workbench.scene.city.materials import material_names
 
 ALL = [(c, v) for c in VARIANTS for v in variant_names(c)]
@@ -106,7 +107,7 @@ def test_overhead_parts_clear_the_tallest_vehicle():
 
 
 def test_detail_level_falls_back_to_simple_builders_and_refuses_unknown_levels():
-    from workbench.scene.city.assets import DETAILED_BUILDERS
+    from workbench.scene.city.catalog import DETAILED_BUILDERS
 
     for cls in VARIANTS:
         if cls not in DETAILED_BUILDERS:

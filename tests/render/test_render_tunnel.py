@@ -1,8 +1,11 @@
 """The tunnel's light and labels (render/luminaire_row.py, lamps.tunnel_emitters, scene_builder).
 
-- Luminaires: a white Lambertian plane seen with a V(λ)-weighted film, E_v = π L_v: one luminaire
-  gives Φ/(2π d²) at 1 m and 10 m (rated flux, full cut-off, inverse square), a row gives
-  Σ_k (Φ/2π) h/r_k³ (each luminaire's inverse-square and cosine), within 2 %.
+- Luminaires: a white Lambertian plane seen with a V(λ)-weighted film, E_v = π L_v: one glowing
+  lens (a Lambertian rectangle of luminous flux Φ, L_v = Φ/(πA)) gives the closed-form
+  illuminance of a uniform rectangle on a parallel plane, E = L_v Σ± [X/√(1+X²) atan(Y/√(1+X²))
+  + Y/√(1+Y²) atan(X/√(1+Y²))] over its corners (X, Y its corner offsets over the height), at
+  1 m and 10 m — Φ/(π d²) far away, the inverse square of I₀ = Φ/π; a row of them the sum of
+  each, within 2 %.
 - Daylight HDR: inside the tunnel by day, the road's luminance is a few cd/m² (CIE 88:2004
   interior zone) and the view through the exit portal 10²–10⁴ times brighter, as real tunnels.
 - Labels: the tunnel's pixels are those whose pixel-centre ray meets its walls or roof before the
@@ -12,8 +15,8 @@ import pytest
 
 from workbench.render.film import box_bands
 from workbench.render.labels import render_labels
-from workbench.render.lamps import _spectrum, hemisphere_intensity_cd
-from workbench.render.luminaire_row import luminaire_row_emitter
+from workbench.render.lamps import LAMP_WAVELENGTHS_NM, luminous_intensity_spectrum
+from workbench.render.luminaire_row import luminaire_row_shapes
 from workbench.render.params import DaylightParams
 from workbench.render.scene_builder import build_scene
 from workbench.render.demo_scene import box_mesh
@@ -24,41 +27,58 @@ FLAT = [(300.0, 1.0), (1100.0, 1.0)]
 W, H, FOV_DEG = 96, 72, 60.0
 
 
-def _e_v(mi, emitter, camera_z_m: float, spp: int) -> tuple[float, float]:
+def _e_v(mi, lenses: list[dict], camera_z_m: float, spp: int) -> tuple[float, float]:
     """Mean illuminance (lx) on the plane z = 0 around the origin and its standard error."""
     wl = np.arange(360.0, 831.0, 1.0)
     film = {"type": "specfilm", "width": 32, "height": 24, "rfilter": {"type": "box"},
             "component_format": "float32",
             "v": {"type": "spectrum", "value": list(zip(wl.tolist(), luminous_efficiency(wl).tolist()))}}
-    scene = mi.load_dict({
+    scene = {
         "type": "scene", "integrator": {"type": "path", "max_depth": 2},
         "sensor": {"type": "perspective", "fov": 1.0, "film": film, "sampler": {"type": "independent"},
                    "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, camera_z_m], target=[0, 0, 0],
                                                               up=[0, 1, 0])},
-        "lamps": emitter,
         "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(100.0),
-                   "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": FLAT}}}})
-    e = np.pi * 683.0 * np.array(mi.render(scene, spp=spp, seed=3), dtype=np.float64)[..., 0]
+                   "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": FLAT}}}}
+    scene.update({f"lens_{k}": lens for k, lens in enumerate(lenses)})
+    e = np.pi * 683.0 * np.array(mi.render(mi.load_dict(scene), spp=spp, seed=3), dtype=np.float64)[..., 0]
     return float(e.mean()), float(e.std() / np.sqrt(e.size))
 
 
+def _lenses(centres, kind: str, flux_lm: float, half=(0.2, 0.6)):
+    area = 4 * half[0] * half[1]
+    radiance = luminous_intensity_spectrum(kind, flux_lm / np.pi, LAMP_WAVELENGTHS_NM) / area
+    spectrum = {"type": "spectrum", "value": list(zip(LAMP_WAVELENGTHS_NM.tolist(), radiance.tolist()))}
+    return luminaire_row_shapes(np.asarray(centres, float), half, spectrum, 1.0)
+
+
+def _rect_illuminance(l_v, centre, half, h):
+    """Illuminance at the origin under a Lambertian rectangle of luminance l_v facing down."""
+    def corner(x, y):
+        return x / np.sqrt(1 + x * x) * np.arctan(y / np.sqrt(1 + x * x)) + \
+            y / np.sqrt(1 + y * y) * np.arctan(x / np.sqrt(1 + y * y))
+    x1, x2 = (centre[0] - half[0]) / h, (centre[0] + half[0]) / h
+    y1, y2 = (centre[1] - half[1]) / h, (centre[1] + half[1]) / h
+    return l_v / 2 * (corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1))
+
+
 @pytest.mark.parametrize("d", [1.0, 10.0])
-def test_one_luminaire_follows_flux_and_inverse_square(mi, d):
-    flux = 20000.0
-    em = luminaire_row_emitter([[0.0, 0.0, d]], _spectrum("led", hemisphere_intensity_cd(flux)), 1.0)
-    got, sem = _e_v(mi, em, d, 256)
-    want = flux / (2 * np.pi * d ** 2)
+def test_one_luminaire_follows_its_flux_and_the_closed_form(mi, d):
+    flux, half = 20000.0, (0.2, 0.6)
+    got, sem = _e_v(mi, _lenses([[0.0, 0.0, d]], "led", flux, half), d - 0.01, 256)
+    want = _rect_illuminance(flux / (np.pi * 4 * half[0] * half[1]), (0.0, 0.0), half, d)
     assert 4 * sem < 0.01 * want
     assert got == pytest.approx(want, rel=0.02)
+    if d == 10.0:                                        # far away: the inverse square of I₀ = Φ/π
+        assert want == pytest.approx(flux / (np.pi * d ** 2), rel=0.005)
 
 
-def test_a_row_sums_each_luminaires_inverse_square_and_cosine(mi):
-    flux, h = 15000.0, 4.9
-    pts = np.array([[0.4, y, h] for y in np.arange(-60.0, 61.0, 8.0) + 2.5])
-    em = luminaire_row_emitter(pts, _spectrum("hps", hemisphere_intensity_cd(flux)), 1.0)
-    got, sem = _e_v(mi, em, 0.5, 256)
-    r = np.linalg.norm(pts, axis=1)
-    want = float(np.sum(flux / (2 * np.pi) * h / r ** 3))
+def test_a_row_sums_each_luminaire(mi):
+    flux, h, half = 15000.0, 4.9, (0.2, 0.6)
+    centres = np.array([[0.4, y, h] for y in np.arange(-60.0, 61.0, 8.0) + 2.5])
+    got, sem = _e_v(mi, _lenses(centres, "hps", flux, half), 0.5, 256)
+    l_v = flux / (np.pi * 4 * half[0] * half[1])
+    want = sum(_rect_illuminance(l_v, c[:2], half, h) for c in centres)
     assert 4 * sem < 0.01 * want
     assert got == pytest.approx(want, rel=0.02)
 

@@ -100,6 +100,15 @@ def _font(size_px: int):
     return ImageFont.load_default(size=size_px)
 
 
+def _fit(draw, text: str, font, width_px: int) -> str:
+    """`text`, cut short with '…' where it would be wider than width_px."""
+    if draw.textlength(text, font=font) <= width_px:
+        return text
+    while text and draw.textlength(text + "…", font=font) > width_px:
+        text = text[:-1]
+    return text + "…"
+
+
 def compose_sheet(tiles: Sequence[SheetTile], columns: int, title: str,
                   classes: Sequence[str] = CLASSES_OF_INTEREST, keep: KeepRule | None = None):
     """(PIL image, SheetLayout): the tiles in a grid of `columns`, amodal boxes of `classes`
@@ -137,7 +146,8 @@ def compose_sheet(tiles: Sequence[SheetTile], columns: int, title: str,
             draw.rectangle([x0 + bx0, y0 + by0, x0 + bx1, y0 + by1],
                            outline=CLASS_COLOURS.get(obj.class_name, TEXT), width=2 if kept else 1)
         for i, line in enumerate(tile.caption[:CAPTION_LINES]):
-            draw.text((x0, y0 + tile_hw[0] + 1 + i * LINE_PX), line, fill=TEXT, font=font)
+            draw.text((x0, y0 + tile_hw[0] + 1 + i * LINE_PX), _fit(draw, line, font, tile_hw[1]), fill=TEXT,
+                      font=font)
     return sheet, layout
 
 
@@ -193,11 +203,11 @@ def lighting_caption(project) -> str:
 def features_caption(project) -> str:
     """The scene features that are switched on (issue 8: each is a switch)."""
     world = project.render.world
-    detail = getattr(project.city, "asset_detail", "simple")
-    words = [f"{detail} assets", f"{world.materials} materials"]
+    words = [f"{getattr(project.city, 'asset_detail', 'simple')} assets", f"{world.materials} surfaces"]
     if world.materials == "procedural" and world.wet_road_fraction > 0:
-        words.append(f"wet {100 * world.wet_road_fraction:.0f} %")
-    words += [f"{world.glass} glass"] + (["clear-coat paint"] if world.paint == "clearcoat" else [])
+        words[-1] += f" ({100 * world.wet_road_fraction:.0f} % wet)"
+    words += ["glass panes"] if world.glass == "dielectric" else []
+    words += ["clear coat"] if world.paint == "clearcoat" else []
     return ", ".join(words)
 
 

@@ -175,21 +175,26 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
     return result
 
 
-def tunnel_emitters(city, sampling_weight: float | None = None) -> dict:
-    """One emitter per tunnel (render/luminaire_row.py): its luminaires (scene/city/tunnel.py) as
-    full cut-off point sources of the tunnel's kind and flux, I = Φ/(2π) over the lower
-    hemisphere, at the points in its meta. sampling_weight: its share of Mitsuba's light
-    selection (by day 1, like the sun and the sky); None = the luminaires' total flux (lm), as
-    the street lamps at night."""
-    from workbench.render.luminaire_row import luminaire_row_emitter
+def tunnel_emitters(city, sampling_weight: float | None = None) -> dict[str, tuple[int, dict]]:
+    """The glowing lenses of every tunnel's luminaires (scene/city/tunnel.py) as Mitsuba shapes
+    that emit and share one sampler (render/luminaire_row.py): {shape id: (tunnel instance id,
+    shape dict)}. Each lens is a Lambertian emitter of the tunnel's kind whose luminous flux is
+    the luminaire's: on-axis intensity I₀ = Φ/π, radiance I₀(λ)/A. sampling_weight: the row's
+    share of Mitsuba's light selection (by day 1, like the sun and the sky); None = its total
+    flux (lm), as the street lamps at night."""
+    from workbench.render.luminaire_row import luminaire_row_shapes
 
     out = {}
     for obj in (o for o in city.objects if o.class_name == "tunnel"):
         kind, flux = obj.meta["luminaire_kind"], float(obj.meta["luminaire_flux_lm"])
-        points = np.asarray(obj.meta["luminaires_m"], dtype=np.float64)
-        weight = flux * len(points) if sampling_weight is None else sampling_weight
-        out[f"tunnel_luminaires_{obj.instance_id}"] = luminaire_row_emitter(
-            points, _spectrum(kind, hemisphere_intensity_cd(flux)), weight)
+        centres = np.asarray(obj.meta["luminaires_m"], dtype=np.float64)
+        hx, hy = obj.meta["lens_half_size_m"]
+        wl = LAMP_WAVELENGTHS_NM
+        radiance = luminous_intensity_spectrum(kind, flux / np.pi, wl) / (4 * hx * hy)
+        weight = flux * len(centres) if sampling_weight is None else sampling_weight
+        shapes = luminaire_row_shapes(centres, (hx, hy), {"type": "spectrum", "value": list(zip(
+            wl.tolist(), radiance.tolist()))}, weight)
+        out.update({f"tunnel_{obj.instance_id}_lens_{k}": (obj.instance_id, shape) for k, shape in enumerate(shapes)})
     return out
 
 

@@ -187,7 +187,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
     world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
         the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
-        tunnel's luminaires either way: lamps.tunnel_emitters), fog (fog.py: with model
+        tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
         'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
         fogs the render), glass and materials (WorldParams; procedural textures are seeded by
@@ -208,10 +208,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     world = WorldParams() if world is None else world
     if world.fog is not None and world.fog.model == "koschmieder":
         daylight = sun_through_layer(daylight, world.fog)
-    if world.lighting == "night":
-        lights = {**night_emitters(city, world.night), **tunnel_emitters(city)}
-    else:              # a tunnel's luminaires burn by day too; they weigh as much as the sun
-        lights = {**daylight_emitters(daylight), **tunnel_emitters(city, sampling_weight=1.0)}
+    night = world.lighting == "night"
+    lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
+    # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
+    lenses = tunnel_emitters(city, None if night else 1.0)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
@@ -250,6 +250,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             else:
                 scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
+    for sid, (instance_id, shape) in lenses.items():
+        scene[sid] = shape if medium is None else {**shape, "exterior": medium}
+        id_table[sid] = ShapeLabel("tunnel", int(instance_id))
     mi_scene = mi.load_dict(scene)
     if world.lighting == "night" and world.night.light_selection == "view":
         set_view_light_weights(mi_scene, lights)

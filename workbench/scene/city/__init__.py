@@ -1,6 +1,6 @@
 """Procedural city: recipe → City (streets, buildings, vehicles, people, furniture with spectral
 materials) and camera poses. See recipe.py for the parameters and CLASS_IDS for the labels."""
-from workbench.scene.city.assets import build_asset, variant_names
+from workbench.scene.city.catalog import build_asset, variant_names
 from workbench.scene.city.generate import generate_city
 from workbench.scene.city.layout import CityLayout, Lane
 from workbench.scene.city.materials import MATERIAL_WAVELENGTHS_NM, city_materials, reflectance

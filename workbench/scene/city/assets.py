@@ -11,8 +11,6 @@ Drillis & Contini 1966: shoulder at 0.818 H, hip 0.53 H, knee 0.285 H, chin 0.87
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
-
 import numpy as np
 
 from workbench.scene.city import geometry as g
@@ -45,7 +43,7 @@ class Asset:
         return out
 
 
-def _finish(class_name: str, variant: str, parts: dict[str, list[g.Part]],
+def finish_asset(class_name: str, variant: str, parts: dict[str, list[g.Part]],
             centre_xy: bool = True) -> Asset:
     """Merge parts per material; put the origin at the footprint centre (or keep x, y as built)."""
     merged = {m: g.merge(p) for m, p in parts.items() if p}
@@ -118,7 +116,7 @@ def _car(spec: CarSpec) -> Asset:
                    (xf - 0.005, s * (W / 2 - 0.30) + 0.16, lamp_z[1])) for s in (-1, 1)]
     tails = [g.box((xr + 0.005, s * (W / 2 - 0.22) - 0.13, belt - 0.25),
                    (xr + 0.15, s * (W / 2 - 0.22) + 0.13, belt - 0.12)) for s in (-1, 1)]
-    return _finish("car", spec.name, {PAINT: [body, roof], "glass_dark": [glass], "rubber": wheels,
+    return finish_asset("car", spec.name, {PAINT: [body, roof], "glass_dark": [glass], "rubber": wheels,
                                       "lens_clear": heads, "lens_red": tails})
 
 
@@ -180,7 +178,7 @@ def _person(spec: PersonSpec) -> Asset:
     head_rz = (H - z_chin) / 2
     head = g.ellipsoid((0.01, 0.0, z_chin + head_rz), (0.10, 0.078, head_rz), 6, 10)
     hair = g.ellipsoid((-0.005, 0.0, z_chin + 1.25 * head_rz), (0.104, 0.082, 0.75 * head_rz), 5, 10)
-    return _finish("pedestrian", spec.name, {
+    return finish_asset("pedestrian", spec.name, {
         spec.bottom: legs + [pelvis], "plastic_black": shoes, spec.top: [torso] + arms,
         spec.skin: hands + [neck, head], "hair_dark": [hair]})
 
@@ -238,7 +236,7 @@ def _bus(spec: BusSpec) -> Asset:
               for x in (xa, xa - spec.wheelbase_m) for s in (-1, 1)]
     heads = [g.box((xf - 0.05, s * (W / 2 - 0.3) - 0.15, 0.55), (xf + 0.004, s * (W / 2 - 0.3) + 0.15, 0.72))
              for s in (-1, 1)]
-    return _finish("bus", spec.name, {PAINT: [body], "glass_dark": glass, "rubber": wheels,
+    return finish_asset("bus", spec.name, {PAINT: [body], "glass_dark": glass, "rubber": wheels,
                                       "lens_clear": heads})
 
 
@@ -271,7 +269,7 @@ def _truck(spec: TruckSpec) -> Asset:
     r = 0.46
     wheels = [g.cylinder_y(r, s * (W / 2 - 0.3), s * (W / 2 - 0.02), (x, r), n=16)
               for x in (xf - 1.2, xr + 1.5) for s in (-1, 1)]
-    return _finish("truck", spec.name, {PAINT: [cab], "paint_white": [cargo],
+    return finish_asset("truck", spec.name, {PAINT: [cab], "paint_white": [cargo],
                                         "metal_dark": [chassis], "glass_dark": glass,
                                         "rubber": wheels})
 
@@ -289,7 +287,7 @@ def _tree(name: str, trunk_m: float, canopy_r_m: float, canopy_rz_m: float) -> A
     canopy = [g.ellipsoid((0.0, 0.0, bottom + canopy_rz_m), (canopy_r_m, canopy_r_m, canopy_rz_m), 6, 12),
               g.ellipsoid((0.25 * canopy_r_m, -0.2 * canopy_r_m, bottom + 1.45 * canopy_rz_m),
                           (0.65 * canopy_r_m, 0.65 * canopy_r_m, 0.6 * canopy_rz_m), 5, 10)]
-    return _finish("tree", name, {"bark": [trunk], "leaves": canopy})
+    return finish_asset("tree", name, {"bark": [trunk], "leaves": canopy})
 
 
 LAMP_VARIANTS = (("lamp_arm_8m", 8.0, 1.8), ("lamp_arm_6m", 6.0, 1.2))
@@ -302,7 +300,7 @@ def _lamp(name: str, pole_m: float, arm_m: float) -> Asset:
     head = g.box((arm_m - 0.25, -0.16, pole_m - 0.38), (arm_m + 0.35, 0.16, pole_m - 0.18))
     lens = g.quads(np.array([[[arm_m - 0.2, -0.12, pole_m - 0.385], [arm_m - 0.2, 0.12, pole_m - 0.385],
                               [arm_m + 0.3, 0.12, pole_m - 0.385], [arm_m + 0.3, -0.12, pole_m - 0.385]]]))
-    return _finish("lamp", name, {"metal_galvanized": [pole, arm], "metal_dark": [base, head],
+    return finish_asset("lamp", name, {"metal_galvanized": [pole, arm], "metal_dark": [base, head],
                                   "lens_clear": [lens]}, centre_xy=False)   # origin at the pole
 
 
@@ -316,7 +314,7 @@ def _bench(name: str, backrest: bool) -> Asset:
     if backrest:
         wood.append(g.box((-0.28, -0.9, 0.55), (-0.24, 0.9, 0.85)))
         legs += [g.box((-0.26, y - 0.03, 0.42), (-0.23, y + 0.03, 0.85)) for y in (-0.75, 0.75)]
-    return _finish("bench", name, {"wood": wood, "metal_dark": legs})
+    return finish_asset("bench", name, {"wood": wood, "metal_dark": legs})
 
 
 MAILBOX_VARIANTS = (("mailbox_collection", "mailbox_blue"), ("mailbox_pillar", "paint_red"))
@@ -327,64 +325,10 @@ def _mailbox(name: str, paint: str) -> Asset:
         body = [g.frustum(0.0, 1.35, (0.24, 0.24), (0.24, 0.24), n=14),
                 g.ellipsoid((0.0, 0.0, 1.35), (0.27, 0.27, 0.18), 4, 14)]
         slot = g.box((0.20, -0.12, 1.12), (0.245, 0.12, 1.16))
-        return _finish("mailbox", name, {paint: body, "plastic_black": [slot]})
+        return finish_asset("mailbox", name, {paint: body, "plastic_black": [slot]})
     legs = [g.box((x - 0.03, y - 0.03, 0.0), (x + 0.03, y + 0.03, 0.12))
             for x in (-0.2, 0.2) for y in (-0.22, 0.22)]
     t = np.linspace(0, np.pi, 9)
     top = g.extrude_xz(np.stack([0.25 * np.cos(t), 1.05 + 0.2 * np.sin(t)], -1), -0.26, 0.26)
     body = g.box((-0.25, -0.26, 0.12), (0.25, 0.26, 1.06))
-    return _finish("mailbox", name, {paint: [body, top], "metal_dark": legs})
-
-
-# ---------------------------------------------------------------- registry
-def _variants() -> dict[str, dict[str, tuple]]:
-    return {
-        "car": {s.name: (_car, s) for s in CAR_SPECS},
-        "pedestrian": {s.name: (_person, s) for s in PERSON_SPECS},
-        "bus": {s.name: (_bus, s) for s in BUS_SPECS},
-        "truck": {s.name: (_truck, s) for s in TRUCK_SPECS},
-        "tree": {v[0]: (_tree, *v) for v in TREE_VARIANTS},
-        "lamp": {v[0]: (_lamp, *v) for v in LAMP_VARIANTS},
-        "bench": {v[0]: (_bench, *v) for v in BENCH_VARIANTS},
-        "mailbox": {v[0]: (_mailbox, *v) for v in MAILBOX_VARIANTS},
-    }
-
-
-VARIANTS = _variants()
-DETAIL_LEVELS = ("simple", "detailed")
-# Detailed builders by class: {class: {variant: (builder, *args)}}; a class not listed here is
-# built by its simple builder at every detail level.
-DETAILED_BUILDERS: dict[str, dict[str, tuple]] = {}
-
-
-def _table(class_name: str, detail: str) -> dict[str, tuple]:
-    if detail not in DETAIL_LEVELS:
-        raise ValueError(f"asset detail '{detail}' is not one of {', '.join(DETAIL_LEVELS)}")
-    if class_name not in VARIANTS:
-        raise ValueError(f"no assets of class '{class_name}'; classes: {', '.join(VARIANTS)}")
-    if detail == "detailed" and class_name in DETAILED_BUILDERS:
-        return DETAILED_BUILDERS[class_name]
-    return VARIANTS[class_name]
-
-
-def variant_names(class_name: str, detail: str = "simple") -> tuple[str, ...]:
-    """Names of the variants of one asset class (e.g. 'car') at a detail level."""
-    return tuple(_table(class_name, detail))
-
-
-@lru_cache(maxsize=None)
-def build_asset(class_name: str, variant: str, detail: str = "simple") -> Asset:
-    """The (cached) asset of a class and variant at a detail level, in local coordinates."""
-    table = _table(class_name, detail)
-    if variant not in table:
-        raise ValueError(f"unknown {class_name} variant '{variant}' at detail '{detail}'; known: "
-                         f"{', '.join(table)}")
-    fn, *args = table[variant]
-    return fn(*args)
-
-# Detailed builders live in their own modules, which build on Asset and _finish above.
-from workbench.scene.city import people as _people  # noqa: E402
-from workbench.scene.city import vehicles as _vehicles  # noqa: E402
-
-DETAILED_BUILDERS["pedestrian"] = _people.DETAILED_PEDESTRIANS
-DETAILED_BUILDERS.update(_vehicles.detailed_builders())
+    return finish_asset("mailbox", name, {paint: [body, top], "metal_dark": legs})

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.scene.city import geometry as g
-from workbench.scene.city.assets import build_asset
+from workbench.scene.city.catalog import build_asset
 from workbench.scene.city.buildings import building_parts, plan_building, split_lot
 from workbench.scene.city.layout import CityLayout, build_layout, marking_rects
 from workbench.scene.city.materials import city_materials

@@ -38,7 +38,7 @@ Facts used (levels approximate, chosen inside the quoted ranges):
   ~0.05–0.08. White sneakers: TiO2-pigmented synthetics like white paint.
 - Hair: eumelanin absorption falls with wavelength, so hair reflectance rises into the NIR;
   dark ~0.04 → 0.2, brown ~0.06 → 0.4, blonde (less eumelanin) ~0.12 → 0.55, gray ~0.25 → 0.45
-  (hair-colour reflectance spectroscopy, e.g. Vaughn et al. hair-colour measurements).
+  (eumelanin absorption falling steeply with λ, as for skin: Jacques 2013).
 - Licence plates: retroreflective sheeting over aluminium, seen here diffusely: white ~0.8 with
   TiO2's edge below ~400 nm, yellow low in the blue with an edge near 500 nm; both stay bright
   in the NIR (ANPR cameras read plates at ~850 nm because the background reflects there and the

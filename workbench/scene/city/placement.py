@@ -2,7 +2,8 @@
 
 Rules (after isetauto's placeObjects, the paper's generator): vehicles ride in lanes along the
 travel direction (cars with a small heading jitter, buses and trucks in the kerb lane); people
-stand anywhere on sidewalks with a uniformly random heading; trees, lamps and mailboxes stand
+stand anywhere on sidewalks with a uniformly random heading (detailed cyclists ride along the
+sidewalk strip, either way, ± 5°); trees, lamps and mailboxes stand
 near the kerb, benches near the building line, facing the street. Every object has ground
 footprints (oriented rectangles) and, for trees and lamps, overhead footprints (canopy, arm);
 a candidate overlapping anything in the same layer is rejected and resampled (SAT test).
@@ -14,12 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.scene.city import geometry as g
-from workbench.scene.city.assets import build_asset, variant_names
+from workbench.scene.city.catalog import build_asset, variant_names
 from workbench.scene.city.layout import LANE_END_CLEARANCE_M, CityLayout
 from workbench.scene.city.materials import BUS_PAINTS, CAR_PAINTS
+from workbench.scene.city.people import CYCLISTS
 from workbench.scene.city.recipe import CityRecipe
 
 MAX_TRIES = 200
+CYCLIST_HEADING_JITTER_DEG = 5.0
 VEHICLE_GAP_M = 0.8          # bumper-to-bumper / side clearance between vehicles
 CAR_HEADING_JITTER_DEG = 4.0
 HEAVY_HEADING_JITTER_DEG = 1.5
@@ -159,7 +162,12 @@ def _place_pedestrians(n: int, layout: CityLayout, occ: Occupancy, rng, z_m: flo
         for _ in range(MAX_TRIES):
             x0, y0, x1, y1 = strips[int(rng.choice(len(strips), p=area / area.sum()))]
             xy = np.array([rng.uniform(x0 + r, x1 - r), rng.uniform(y0 + r, y1 - r)])
-            heading = float(rng.uniform(0.0, 360.0))
+            if variant in CYCLISTS:           # ride along the strip, either way
+                along = 0.0 if x1 - x0 >= y1 - y0 else 90.0
+                heading = float(along + 180.0 * rng.integers(2) +
+                                rng.uniform(-CYCLIST_HEADING_JITTER_DEG, CYCLIST_HEADING_JITTER_DEG)) % 360.0
+            else:
+                heading = float(rng.uniform(0.0, 360.0))
             rect = g.oriented_rect(xy, a.length_m, a.width_m, heading)
             if occ.free(rect, "ground", 0.15):
                 break

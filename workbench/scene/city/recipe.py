@@ -42,14 +42,14 @@ class TunnelParams(Params):
     x = street_index · pitch, between cross streets segment_index and segment_index + 1, centred on
     the segment. Concrete side walls stand behind both sidewalks (which become its walkways), a
     flat roof slab spans them at clearance_m above the road; the open ends are the portals.
-    Luminaires hang in one row over the centre line every luminaire_spacing_m, each a full
-    cut-off point source of luminaire_flux_lm (render/lamps.py), lit by day and by night.
+    Luminaires hang in one row over the centre line every luminaire_spacing_m, each a glowing
+    Lambertian lens of luminaire_flux_lm (render/luminaire_row.py), lit by day and by night.
 
     Defaults follow CIE 88:2004's interior zone (a road luminance of a few cd/m² for urban
-    traffic): a row of luminaires of flux Φ at spacing S and height h gives the road below
-    E ≈ Φ/(π S h) (the sum of Φ/(2π) · h/r³ over the row), and a Lambertian asphalt of
-    reflectance ρ ≈ 0.075 shows L = ρE/π; Φ = 20,000 lm, S = 8 m, h ≈ 4.9 m → E ≈ 160 lx,
-    L ≈ 4 cd/m² (more with the walls' inter-reflection)."""
+    traffic): a row of Lambertian luminaires of flux Φ (on-axis intensity Φ/π) at spacing S and
+    height h gives the road below E ≈ Σ (Φ/π) h²/r⁴ ≈ Φ/(2 S h), and a Lambertian asphalt of
+    reflectance ρ ≈ 0.075 shows L = ρE/π; Φ = 20,000 lm, S = 8 m, h ≈ 4.85 m → E ≈ 260 lx,
+    L ≈ 6 cd/m² (the walls' inter-reflection adds a little)."""
 
     street_index: int = Field(1, ge=0, le=20, description="which street along +Y (0 = westmost) the tunnel "
                                                           "covers (count); city tunnel")
@@ -85,7 +85,7 @@ class CityRecipe(Params):
     building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
     asset_detail: Literal["simple", "detailed"] = Field(
         "simple", description="object geometry: 'simple' (the original low-detail assets) or 'detailed' (the "
-                              "builders registered in scene.city.assets.DETAILED_BUILDERS); city generator")
+                              "builders registered in scene.city.catalog.DETAILED_BUILDERS); city generator")
     n_cars: int = Field(16, ge=0, le=2000, description="cars per arrangement (count); placement")
     n_pedestrians: int = Field(24, ge=0, le=5000, description="pedestrians per arrangement (count); placement")
     n_buses: int = Field(2, ge=0, le=200, description="buses per arrangement (count); placement")

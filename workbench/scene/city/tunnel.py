@@ -4,8 +4,8 @@ Cross-section (the street runs along +Y at x = c): the carriageway and both side
 inside; a side wall of wall_thickness_m stands on each outer sidewalk edge (into the building lot,
 where buildings keep ≥ 1 m back), a roof slab spans both walls from clearance_m above the road
 up by roof_thickness_m. The slab's end faces are the portals' head walls. Luminaire housings
-(housing + lens) hang under the roof over the centre line; their emitter points, 2 cm below each
-lens, are in the object's meta for render/lamps.py.
+hang under the roof over the centre line; the centres of their glowing lenses (horizontal
+rectangles facing down, just under each housing) are in the object's meta for render/lamps.py.
 """
 from __future__ import annotations
 
@@ -18,9 +18,9 @@ from workbench.scene.city.layout import CityLayout
 from workbench.scene.city.recipe import CityRecipe
 from workbench.scene.city.types import Mesh
 
-LUMINAIRE_SIZE_M = (0.4, 1.2, 0.15)   # housing across × along × tall
-LENS_M = 0.02                          # lens under the housing
-EMITTER_BELOW_LENS_M = 0.02
+LUMINAIRE_SIZE_M = (0.5, 1.3, 0.15)   # housing across × along × tall
+LENS_HALF_SIZE_M = (0.2, 0.6)         # lens (a 0.4 m × 1.2 m rectangle) half across, half along
+LENS_BELOW_HOUSING_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -55,18 +55,18 @@ def tunnel_frame(recipe: CityRecipe, layout: CityLayout) -> TunnelFrame:
 
 
 def luminaire_points(recipe: CityRecipe, frame: TunnelFrame) -> np.ndarray:
-    """Emitter points (N×3, m) of the luminaires: one row over the centre line, spaced
+    """Lens centres (N×3, m) of the luminaires: one row over the centre line, spaced
     luminaire_spacing_m and centred along the tunnel."""
     t = recipe.tunnel
     n = max(1, int(np.floor(t.length_m / t.luminaire_spacing_m)))
     y = (frame.y_south_m + frame.y_north_m) / 2 + t.luminaire_spacing_m * (np.arange(n) - (n - 1) / 2)
-    z = frame.soffit_z_m - LUMINAIRE_SIZE_M[2] - LENS_M - EMITTER_BELOW_LENS_M
+    z = frame.soffit_z_m - LUMINAIRE_SIZE_M[2] - LENS_BELOW_HOUSING_M
     return np.column_stack([np.full(n, frame.x_m), y, np.full(n, z)])
 
 
 def tunnel_object(recipe: CityRecipe, layout: CityLayout) -> tuple[list[Mesh], np.ndarray, dict]:
     """(meshes, ground footprint 4×2, meta) of the recipe's tunnel. meta: 'frame' (TunnelFrame),
-    'luminaires_m' (N×3 emitter points), 'luminaire_kind', 'luminaire_flux_lm'."""
+    'luminaires_m' (N×3 lens centres), 'lens_half_size_m', 'luminaire_kind', 'luminaire_flux_lm'."""
     t = recipe.tunnel
     f = tunnel_frame(recipe, layout)
     w, top = t.wall_thickness_m, f.soffit_z_m + t.roof_thickness_m
@@ -77,15 +77,13 @@ def tunnel_object(recipe: CityRecipe, layout: CityLayout) -> tuple[list[Mesh], n
                               [x1 + w, f.y_north_m, top]]))
     pts = luminaire_points(recipe, f)
     a, b, h = LUMINAIRE_SIZE_M
-    lens_top = pts[:, 2] + EMITTER_BELOW_LENS_M + LENS_M
-    housing = g.boxes(np.column_stack([pts[:, 0] - a / 2, pts[:, 1] - b / 2, lens_top]),
-                      np.column_stack([pts[:, 0] + a / 2, pts[:, 1] + b / 2, lens_top + h]))
-    lens = g.boxes(np.column_stack([pts[:, 0] - a / 2 + 0.02, pts[:, 1] - b / 2 + 0.02, lens_top - LENS_M]),
-                   np.column_stack([pts[:, 0] + a / 2 - 0.02, pts[:, 1] + b / 2 - 0.02, lens_top]))
+    bottom = pts[:, 2] + LENS_BELOW_HOUSING_M
+    housing = g.boxes(np.column_stack([pts[:, 0] - a / 2, pts[:, 1] - b / 2, bottom]),
+                      np.column_stack([pts[:, 0] + a / 2, pts[:, 1] + b / 2, bottom + h]))
     meshes = [Mesh(v.astype(np.float64), fc.astype(np.int32), mat)
-              for (v, fc), mat in ((shell, "concrete"), (housing, "metal_dark"), (lens, "lens_clear"))]
+              for (v, fc), mat in ((shell, "concrete"), (housing, "metal_dark"))]
     footprint = np.array([[x0 - w, f.y_south_m], [x1 + w, f.y_south_m], [x1 + w, f.y_north_m],
                           [x0 - w, f.y_north_m]])
-    meta = {"frame": f, "luminaires_m": pts, "luminaire_kind": t.luminaire_kind,
+    meta = {"frame": f, "luminaires_m": pts, "lens_half_size_m": LENS_HALF_SIZE_M, "luminaire_kind": t.luminaire_kind,
             "luminaire_flux_lm": t.luminaire_flux_lm, "length_m": t.length_m}
     return meshes, footprint, meta

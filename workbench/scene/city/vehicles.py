@@ -19,7 +19,7 @@ import numpy as np
 
 from workbench.scene.city import geometry as g
 from workbench.scene.city.assets import (BUS_SPECS, CAR_SPECS, PAINT, TRUCK_SPECS, Asset, BusSpec, CarSpec,
-                                         TruckSpec, _finish)
+                                         TruckSpec, finish_asset)
 
 PLATE_W_M, PLATE_H_M = 0.52, 0.11        # EU licence plate
 ROUND_M = 0.07                           # chamfer of body edges (the "rounded" body)
@@ -216,7 +216,7 @@ def detailed_car(spec: CarSpec, rear_plate: str = "plate_white") -> Asset:
     parts["plate_white"] = [_plate(xf, (bz0 + bz1) / 2, +1)]
     parts.setdefault(rear_plate, []).append(_plate(br - 0.012, tail_z - 0.10, -1))
     parts["plastic_black"] += _mirrors(x_ws - 0.12, belt + 0.03, W / 2, 0.11, (0.12, 0.05, 0.14))
-    return _finish("car", spec.name, parts)
+    return finish_asset("car", spec.name, parts)
 
 
 # ---------------------------------------------------------------- buses and trucks
@@ -264,7 +264,7 @@ def detailed_bus(spec: BusSpec) -> Asset:
     parts["lens_clear"] = _lamp_pair(bf - 0.05, bf + 0.012, W / 2 - 0.30, 0.15, 0.80, 0.94)
     parts["lens_red"] = _lamp_pair(br - 0.012, br + 0.05, W / 2 - 0.18, 0.08, 0.80, 1.20)
     parts["plate_white"] = [_plate(xf + 0.006, floor + 0.22, +1), _plate(br - 0.012, 1.05, -1)]
-    return _finish("bus", spec.name, parts)
+    return finish_asset("bus", spec.name, parts)
 
 
 def detailed_truck(spec: TruckSpec) -> Asset:
@@ -303,11 +303,11 @@ def detailed_truck(spec: TruckSpec) -> Asset:
     parts["lens_red"] = _lamp_pair(xr + 0.005, xr + 0.05, W / 2 - 0.25, 0.10, 0.98, 1.18)
     parts["plate_white"] = [_plate(xf, 0.68, +1)]
     parts["plate_yellow"] = [_plate(xr + 0.02, 0.475, -1)]
-    return _finish("truck", spec.name, parts)
+    return finish_asset("truck", spec.name, parts)
 
 
 def detailed_builders() -> dict[str, dict[str, tuple]]:
-    """{class: {variant: (builder, *args)}} for assets.DETAILED_BUILDERS (same variant names as
+    """{class: {variant: (builder, *args)}} for catalog.DETAILED_BUILDERS (same variant names as
     the simple assets; every third car has a yellow rear plate)."""
     return {"car": {s.name: (detailed_car, s, "plate_yellow" if i % 3 == 2 else "plate_white")
                     for i, s in enumerate(CAR_SPECS)},
