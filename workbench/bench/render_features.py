@@ -58,6 +58,8 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("night HPS, flux light selection", world={"lighting": "night",
                                                                   "night": NightParams(light_selection="flux")}),
             FeatureCase("night HPS, view, direct light only (max_depth 2)", world={"lighting": "night"}, max_depth=2),
+            FeatureCase("night HPS, flux, direct light only (max_depth 2)", max_depth=2,
+                        world={"lighting": "night", "night": NightParams(light_selection="flux")}),
             FeatureCase("glass dielectric", world={"glass": "dielectric"}),
             FeatureCase("materials procedural", world={"materials": "procedural"}),
             FeatureCase("paint clearcoat", world={"paint": "clearcoat"}),
