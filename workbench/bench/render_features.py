@@ -89,6 +89,11 @@ def _view(case: FeatureCase, cache: dict):
     return city(case.recipe), cache[key]
 
 
+def _sig(x: float) -> float:
+    """x to 3 significant figures (times span 10⁻⁴…10⁴ s)."""
+    return float(f"{x:.3g}")
+
+
 def _case_row(case: FeatureCase, city, pose, film, fov_deg: float, width: int, height: int,
               spps: tuple[int, int], seeds: int) -> dict:
     from workbench.jobs import run_job
@@ -136,9 +141,9 @@ def _case_row(case: FeatureCase, city, pose, film, fov_deg: float, width: int, h
     per_spp = per_spp if per_spp > 0 else t_hi / spps[1]
     spp = int(np.ceil((c / TARGET) ** 2)) if np.isfinite(c) else None
     t = None if spp is None else max(t_hi - per_spp * spps[1], 0.0) + per_spp * spp + fog_s
-    return {"case": case.name, "res": f"{width}x{height}", "cpu_s_per_spp": round(per_spp, 4),
-            "c_broadband": round(c, 3), "spp_for_2pct": spp, "fog_cpu_s": round(fog_s, 2),
-            "cpu_s_per_frame_2pct": None if t is None else round(t, 2),
+    return {"case": case.name, "res": f"{width}x{height}", "cpu_s_per_spp": _sig(per_spp),
+            "c_broadband": round(c, 3), "spp_for_2pct": spp, "fog_cpu_s": _sig(fog_s),
+            "cpu_s_per_frame_2pct": None if t is None else _sig(t),
             "mean_radiance_photons": float(f"{mean:.3g}")}
 
 
@@ -156,7 +161,7 @@ def feature_costs(film, fov_deg: float, resolutions, spps, cases: list[FeatureCa
     for r in rows:
         base = next(b["cpu_s_per_frame_2pct"] for b in rows if b["case"] == cases[0].name and b["res"] == r["res"])
         t = r["cpu_s_per_frame_2pct"]
-        r["x_baseline"] = None if not base or t is None else round(t / base, 2)
+        r["x_baseline"] = None if not base or t is None else _sig(t / base)
     return rows
 
 
