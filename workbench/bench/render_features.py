@@ -67,6 +67,8 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("detailed + clearcoat + glass", world={"paint": "clearcoat", "glass": "dielectric"},
                         recipe={"asset_detail": "detailed"}),
             FeatureCase("tunnel exit view (day, luminaires)", pose={"mode": "tunnel", "tunnel_view": "exit", "seed": 1},
+                        recipe={"seed": 1, "block_size_m": 180.0, "tunnel": TunnelParams(length_m=150.0)}),
+            FeatureCase("tunnel entrance view (day)", pose={"mode": "tunnel", "tunnel_view": "entrance", "seed": 1},
                         recipe={"seed": 1, "block_size_m": 180.0, "tunnel": TunnelParams(length_m=150.0)})]
 
 
