@@ -318,12 +318,12 @@ def check_spec(out: Path, fingerprint: str, project, irradiance_dtype: str) -> N
 def spec_differences(spec: dict, project) -> str:
     """Why a stored data-set spec does not match `project`, in words: the frame inputs that differ
     (down to the fields), or that the settings are the same but the frame code has changed since."""
-    from workbench.errors import WorkbenchError
-    from workbench.project import project_from_dict
+    from pydantic import ValidationError
+
     from workbench.render.city_frame import frame_input_differences
     try:
-        stored = project_from_dict(spec.get("project"))
-    except (WorkbenchError, ValueError, TypeError):
+        stored = type(project).model_validate(spec.get("project"))     # as written by this schema version
+    except (ValidationError, ValueError, TypeError):
         return "a different project or settings (its stored project no longer loads)"
     if not frame_input_differences(stored, project):
         return ("the same settings by an earlier version of the frame renderer (frame format "
