@@ -119,8 +119,14 @@ def test_cancelled_and_damaged_run_resumes_to_the_uninterrupted_result(tmp_path)
 
 def test_out_dir_of_another_project_is_refused(tmp_path):
     drive_until(run_dataset(Project(seed=1), 1, tmp_path, workers=0, renderer=tiny_renderer))
-    with pytest.raises(OutputPathError, match="different project"):
+    with pytest.raises(OutputPathError, match=r"different project or settings \(seed\)"):
         run_job(run_dataset(Project(seed=2), 1, tmp_path, workers=0, renderer=tiny_renderer))
+    spec_path = tmp_path / "dataset_spec.json"
+    spec = json.loads(spec_path.read_text())
+    spec["fingerprint"] = "0" * 64                       # same settings, frames of an older renderer
+    spec_path.write_text(json.dumps(spec))
+    with pytest.raises(OutputPathError, match="same settings by an earlier version of the frame renderer"):
+        run_job(run_dataset(Project(seed=1), 1, tmp_path, workers=0, renderer=tiny_renderer))
     with pytest.raises(ParameterError, match="frames: an integer"):
         run_job(run_dataset(Project(), 0, tmp_path / "x", renderer=tiny_renderer))
 

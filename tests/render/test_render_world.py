@@ -232,7 +232,8 @@ def test_exit_distance_and_path_airlight_closed_forms():
     """The layer path of a ray and the in-scattered integral ∫₀^s σe^{−σt} J(z₀ + t d_z) dt against
     closed forms: J constant → J(1 − e^{−σs});
     J = a + b z → a(1−T) + b[z₀(1−T) + d_z(1 − T(1+σs))/σ]."""
-    from workbench.render.fog import exit_distance_m, path_airlight, transmittance
+    from workbench.render.fog import exit_distance_m, transmittance
+    from workbench.render.koschmieder import path_airlight
     lo, hi = np.array([-100.0, -50.0, -1.0]), np.array([100.0, 50.0, 60.0])
     el = np.radians([5.0, 30.0, 90.0])
     dirs = np.stack([np.cos(el), np.zeros(3), np.sin(el)], axis=-1)
@@ -252,7 +253,7 @@ def test_exit_distance_and_path_airlight_closed_forms():
 
 
 def test_koschmieder_apply_is_beer_lambert_without_source():
-    from workbench.render.fog import KoschmiederFog
+    from workbench.render.koschmieder import KoschmiederFog
     rng = np.random.default_rng(0)
     rad = rng.random((4, 5, 3))
     path = rng.random((4, 5)) * 200.0
@@ -265,7 +266,7 @@ def test_source_profile_of_an_empty_layer(mi, albedo):
     """Under a uniform sky over a white ground, a conservative medium (albedo 1) is in equilibrium
     with the sky: J = L_sky at every height and along rising rays (a solution of the transfer
     equation); an absorbing one (albedo 0) scatters nothing: J = 0."""
-    from workbench.render.fog import airlight_profile, upward_airlight
+    from workbench.render.koschmieder import airlight_profile, upward_airlight
     film = box_bands(500, 700, 1)
     sky = {"sky": {"type": "constant", "radiance": {"type": "spectrum", "value": FLAT}}}
     white = {"type": "spectrum", "value": FLAT}
@@ -293,7 +294,7 @@ def test_koschmieder_matches_the_volumetric_fog_where_its_assumptions_hold(mi):
     scattering the fog in front of a dark object is lit mostly from behind it, i.e. by it, and
     Koschmieder's airlight there is too bright)."""
     from workbench.jobs import run_job
-    from workbench.render.fog import koschmieder_fog
+    from workbench.render.koschmieder import koschmieder_fog
     from workbench.render.params import RenderParams
     from workbench.render.spectral import render_loaded
     wl = np.array([350.0, 1000.0])

@@ -99,7 +99,7 @@ def _sig(x: float) -> float:
 def _case_row(case: FeatureCase, city, pose, film, fov_deg: float, width: int, height: int,
               spps: tuple[int, int], seeds: int) -> dict:
     from workbench.jobs import run_job
-    from workbench.render.fog import koschmieder_fog
+    from workbench.render.koschmieder import koschmieder_fog
     from workbench.render.labels import render_labels
     from workbench.render.params import DaylightParams, RenderParams, WorldParams
     from workbench.render.scene_builder import build_scene

@@ -215,7 +215,7 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
 
     fog = inputs.render.world.fog
     if fog is not None and fog.model == "koschmieder":
-        from workbench.render.fog import koschmieder_fog
+        from workbench.render.koschmieder import koschmieder_fog
         yield Progress(0.07, 1.0, f"frame {seeds.index}: fog airlight")
         fogged = koschmieder_fog(mi_scene, labels.depth_m, city, pose.pan_deg, film, inputs.render.daylight,
                                  inputs.render.world, max_depth=inputs.render.max_depth)

@@ -310,9 +310,35 @@ def check_spec(out: Path, fingerprint: str, project, irradiance_dtype: str) -> N
                                         "(an object); delete the folder or choose another output folder")
     old = spec.get("fingerprint")
     if old != fingerprint:
-        raise OutputPathError(out, f"holds a data set made from a different project or settings "
+        raise OutputPathError(out, f"holds a data set made from {spec_differences(spec, project)} "
                                    f"(fingerprint {str(old)[:12]}… ≠ {fingerprint[:12]}…); choose another "
                                    "output folder or delete that one")
+
+
+def spec_differences(spec: dict, project) -> str:
+    """Why a stored data-set spec does not match `project`, in words: the frame inputs that differ
+    (down to the fields), or that the settings are the same but the frame code has changed since."""
+    from pydantic import ValidationError
+
+    from workbench.render.city_frame import frame_input_differences
+    try:
+        stored = type(project).model_validate(spec.get("project"))     # as written by this schema version
+    except (ValidationError, ValueError, TypeError):
+        return "a different project or settings (its stored project no longer loads)"
+    if not frame_input_differences(stored, project):
+        return ("the same settings by an earlier version of the frame renderer (frame format "
+                f"{FRAME_VERSION} or its code changed since): its frames cannot be mixed with new ones")
+    a, b = json.loads(stored.model_dump_json()), json.loads(project.model_dump_json())
+    fields = [f for f in _leaf_differences(a, b) if not f.startswith(("name", "description", "experiment"))]
+    return "a different project or settings (" + ", ".join(fields[:8]) + (" …" if len(fields) > 8 else "") + ")"
+
+
+def _leaf_differences(a, b, prefix: str = "") -> list[str]:
+    """Dotted paths of the leaves where two JSON-like values differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return [p for k in sorted(set(a) | set(b))
+                for p in _leaf_differences(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else k)]
+    return [] if a == b else [prefix]
 
 
 def scan_frames(out: Path, frames: int) -> tuple[list[int], list[str]]:

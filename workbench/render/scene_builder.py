@@ -189,7 +189,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
         tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
-        'koschmieder' the scene stays clear, its sun dimmed by the layer, and fog.koschmieder_fog
+        'koschmieder' the scene stays clear, its sun dimmed by the layer, and koschmieder.koschmieder_fog
         fogs the render), glass and materials (WorldParams; procedural textures are seeded by
         city.seed); None = day, clear air, diffuse glass, uniform materials.
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
