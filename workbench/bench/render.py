@@ -14,6 +14,7 @@ of every scene type and feature switched on alone (render_features.py; extra['fe
 """
 from __future__ import annotations
 
+import gc
 import io
 import os
 import resource
@@ -198,6 +199,8 @@ def bench_render(args) -> BenchResult:
         extra["cost_640x480_2pct"].append(item)
         notes.append("640x480 @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
     from workbench.bench.render_features import feature_costs, feature_notes, feature_plan
+    scenes.clear()          # live scenes' shapes and emitters enter every later kernel's calls (and its compile)
+    gc.collect()
     f_res, f_spps = feature_plan(quick)
     extra["features_2pct"] = feature_costs(reps["sensor3"], fov, f_res, f_spps)
     for item in extra["features_2pct"]:
