@@ -22,16 +22,12 @@ import resource
 import numpy as np
 
 from workbench.bench import BenchResult, register_bench
+from workbench.bench.render_features import WL_RANGE_NM
+from workbench.bench.render_features import bench_qe as _qe
 from workbench.bench.timing import timed
 
 PAPER_CORE_MIN_PER_FRAME = 160.0     # iset3d/PBRT: ~10 min per 640×480 frame on 16 cores
-WL_RANGE_NM = (400.0, 700.0)
-QE_CENTRES_NM, QE_SIGMA_NM = (460.0, 540.0, 610.0), 35.0
 TARGET_BROADBAND = 0.02
-
-
-def _qe(wl: np.ndarray) -> np.ndarray:
-    return np.stack([np.exp(-0.5 * ((wl - c) / QE_SIGMA_NM) ** 2) for c in QE_CENTRES_NM])
 
 
 def _bench_scene():

@@ -25,6 +25,14 @@ import numpy as np
 from workbench.bench import BenchResult, register_bench
 from workbench.bench.timing import timed
 
+WL_RANGE_NM = (400.0, 700.0)                     # the render benches' camera: three Gaussian channels
+QE_CENTRES_NM, QE_SIGMA_NM = (460.0, 540.0, 610.0), 35.0
+
+
+def bench_qe(wl: np.ndarray) -> np.ndarray:
+    """3 × len(wl) quantum efficiency of the render benches' camera."""
+    return np.stack([np.exp(-0.5 * ((wl - c) / QE_SIGMA_NM) ** 2) for c in QE_CENTRES_NM])
+
 TARGET = 0.02
 BASELINE = "day baseline (uniform sky)"
 
@@ -169,11 +177,10 @@ def feature_costs(film, fov_deg: float, resolutions, spps, cases: list[FeatureCa
 
 def bench_camera_film():
     """The render bench's camera film (three Gaussian channels) and horizontal field of view (deg)."""
-    from workbench.bench.render import WL_RANGE_NM, _qe
     from workbench.render.film import sensor_channels
 
     qe_wl = np.arange(WL_RANGE_NM[0], WL_RANGE_NM[1] + 1e-9, 5.0)
-    return sensor_channels(qe_wl, _qe(qe_wl), ["B", "G", "R"]), 44.0
+    return sensor_channels(qe_wl, bench_qe(qe_wl), ["B", "G", "R"]), 44.0
 
 
 def feature_plan(quick: bool) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
