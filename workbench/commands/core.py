@@ -151,7 +151,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     report = write_outputs(result, project, Path(args.out))
     print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
     scene_range, sensor_range = report["scene_dynamic_range"], report["sensor_dynamic_range"]
-    if scene_range is not None and scene_range["dB"] is not None and sensor_range["dynamic_range_dB"] is not None:
+    if report["scene_exceeds_sensor_range"] is not None:          # both ranges known
         print(f"scene dynamic range {scene_range['dB']:.1f} dB (p{scene_range['percentiles'][1]:g}/"
               f"p{scene_range['percentiles'][0]:g} {scene_range['quantity']}), sensor "
               f"{sensor_range['dynamic_range_dB']:.1f} dB (saturation / read noise); "
