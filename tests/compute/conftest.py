@@ -15,9 +15,13 @@ def markers(tmp_path_factory):
     return folder
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def ray_cluster(markers):
-    """ray, initialised with a 2-CPU local cluster whose workers can import the test helpers."""
+    """ray, initialised with a 2-CPU local cluster whose workers can import the test helpers.
+
+    Module scope: the cluster is shut down before the rest of the suite runs. A driver left
+    connected aborts the whole pytest process (SIGABRT from Ray's core worker) when its raylet
+    misses heartbeats on a loaded machine, which once killed CI in an unrelated GUI test."""
     ray = pytest.importorskip("ray", reason="Ray is not installed (pip install 'camera-workbench[cluster]')")
     paths = [str(HERE), str(HERE.parent / "labels"), str(HERE.parents[1])]
     old = os.environ.get("PYTHONPATH")
