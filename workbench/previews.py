@@ -47,7 +47,17 @@ def channels_to_rgb(channels: np.ndarray, names: list[str]) -> np.ndarray:
 
 
 def save_png(path: str | Path, image01: np.ndarray) -> None:
-    """Save a [0,1] float image (H×W or H×W×3) as an 8-bit PNG."""
+    """Save a [0,1] float image (H×W or H×W×3) as an 8-bit PNG, atomically."""
     from PIL import Image
     arr = np.clip(np.nan_to_num(np.asarray(image01, dtype=np.float64)), 0.0, 1.0)
-    Image.fromarray(np.round(arr * 255).astype(np.uint8)).save(path)
+    save_image(path, Image.fromarray(np.round(arr * 255).astype(np.uint8)))
+
+
+def save_image(path: str | Path, image) -> None:
+    """Save a PIL image as PNG whole or not at all: a killed run leaves the old file or none."""
+    import io
+
+    from workbench.files import atomic_write_bytes
+    buf = io.BytesIO()
+    image.save(buf, format="PNG")
+    atomic_write_bytes(path, buf.getvalue())

@@ -153,3 +153,13 @@ def test_labels_of_the_tunnel_and_a_car_inside_are_exact(mi):
     obj = next(ob for ob in labels.objects if ob.instance_id == car_id)
     assert obj.class_name == "car" and obj.bbox_xywh == obj.amodal_bbox_xywh
     np.testing.assert_allclose(obj.bbox_xywh, want, atol=1.0)
+
+
+def test_the_row_registry_keeps_only_the_newest_rows(mi):
+    """Each distinct row is registered for its scene's loading; a long data set of tunnel cities
+    keeps at most MAX_ROWS of them, and the newest always loads."""
+    from workbench.render import luminaire_row
+    for k in range(luminaire_row.MAX_ROWS + 5):
+        lenses = _lenses([(0.0, float(k), 5.0)], "led", 1000.0)
+    assert len(luminaire_row._ROWS) == luminaire_row.MAX_ROWS
+    assert mi.load_dict(lenses[0]) is not None

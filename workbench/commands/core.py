@@ -95,7 +95,7 @@ def write_outputs(result, project, out: Path) -> dict:
     """PNG previews, stages.npz (arrays with units and wavelengths) and report.json; outputs of an
     earlier run that this one does not replace are removed (named in report['removed_stale'])."""
     from workbench.files import atomic_write_text, prepare_output_folder
-    from workbench.previews import channels_to_rgb, irradiance_preview, save_png
+    from workbench.previews import channels_to_rgb, irradiance_preview, save_image, save_png
     prepare_output_folder(out)
     oi, img, isp = result.optical_image, result.sensor_image, result.isp
     preview = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta)
@@ -103,7 +103,7 @@ def write_outputs(result, project, out: Path) -> dict:
     labels = getattr(result, "labels", None)
     if labels is not None:
         from workbench.commands.render import label_overlay
-        label_overlay(preview, labels).save(out / "labels.png")
+        save_image(out / "labels.png", label_overlay(preview, labels))
     save_png(out / "raw.png", isp.raw)
     lin = channels_to_rgb(isp.linear, img.channel_names)
     save_png(out / "linear.png", lin)

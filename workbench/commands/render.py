@@ -58,14 +58,14 @@ def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
 
 def cmd_render(args) -> int:
     from workbench.jobs import tqdm_progress
-    from workbench.previews import irradiance_preview, save_png
+    from workbench.previews import irradiance_preview, save_image, save_png
     from workbench.project import load_project
     from workbench.render.city_frame import frame_seeds, render_city_frame
     from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
     from workbench.errors import ParameterError
-    from workbench.files import prepare_output_folder
+    from workbench.files import atomic_write_text, prepare_output_folder
     project = load_project(args.project)
     if args.frame < 0:
         raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
@@ -79,12 +79,12 @@ def cmd_render(args) -> int:
     stem = f"frame_{args.frame:06d}"
     rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
     save_png(out / f"{stem}_irradiance.png", rgb)
-    label_overlay(rgb, frame.labels).save(out / f"{stem}_labels.png")
+    save_image(out / f"{stem}_labels.png", label_overlay(rgb, frame.labels))
     write_frame(out / f"{stem}.npz", frame,
                 {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
                  "seeds": asdict(seeds), "project": project.name}, "float32")
     coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
-    (out / f"{stem}_coco.json").write_text(json.dumps(coco, indent=1))
+    atomic_write_text(out / f"{stem}_coco.json", json.dumps(coco, indent=1))
     counts: dict[str, int] = {}
     for o in frame.labels.objects:
         if o.visible_px:

@@ -20,6 +20,7 @@ import hashlib
 import numpy as np
 
 _ROWS: dict[str, tuple] = {}       # row key → (centres N×3, half x, half y, radiance texture)
+MAX_ROWS = 64                      # newest rows kept; a row is read only while its scene is loaded
 _REGISTERED: set[str] = set()
 PLUGIN = "luminaire_row"
 
@@ -134,7 +135,10 @@ def luminaire_row_shapes(centres_m: np.ndarray, half_size_m: tuple[float, float]
     if not (hx > 0 and hy > 0 and sampling_weight > 0):
         raise ValueError(f"half sizes and sampling_weight must be > 0, got {half_size_m}, {sampling_weight}")
     key = hashlib.sha1(np.r_[pts.ravel(), hx, hy].tobytes() + repr(radiance_spectrum).encode()).hexdigest()
+    _ROWS.pop(key, None)
     _ROWS[key] = (pts, hx, hy, mi.load_dict(radiance_spectrum))
+    while len(_ROWS) > MAX_ROWS:                    # the oldest first: a long data set stays small
+        _ROWS.pop(next(iter(_ROWS)))
     _register()
     emitter = {"type": PLUGIN, "row": key, "sampling_weight": float(sampling_weight) / len(pts)}
     black = {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 0.0}}
