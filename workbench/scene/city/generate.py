@@ -41,6 +41,14 @@ def _mesh(part: g.Part, material: str) -> Mesh:
     return Mesh(part[0].astype(np.float64), part[1].astype(np.int32), material)
 
 
+def _frame(inner_m: tuple[float, float, float, float], width_m: float) -> np.ndarray:
+    """Four rectangles (N×4) that frame the rectangle inner_m (xmin, ymin, xmax, ymax) width_m wide."""
+    x0, y0, x1, y1 = inner_m
+    w = width_m
+    return np.array([(x0 - w, y0 - w, x1 + w, y0), (x0 - w, y1, x1 + w, y1 + w),
+                     (x0 - w, y0, x0, y1), (x1, y0, x1 + w, y1)])
+
+
 def _static_objects(recipe: CityRecipe, layout: CityLayout, rng: np.random.Generator):
     """Road, ground, sidewalks, lots, markings and buildings; also the building part rectangles.
 
@@ -49,11 +57,12 @@ def _static_objects(recipe: CityRecipe, layout: CityLayout, rng: np.random.Gener
     objs: list[tuple[str, list[Mesh], np.ndarray | None, dict]] = []
     x0, y0, x1, y1 = layout.road_bounds
     objs.append(("road", [_mesh(g.ground_rects(layout.road_rects, 0.0), "asphalt")], None, {}))
-    m = recipe.ground_margin_m
-    if m > 0:
-        frame = np.array([(x0 - m, y0 - m, x1 + m, y0), (x0 - m, y1, x1 + m, y1 + m),
-                          (x0 - m, y0, x0, y1), (x1, y0, x1 + m, y1)])
-        objs.append(("ground", [_mesh(g.ground_rects(frame, 0.0), "grass")], None, {"part": "margin"}))
+    m, f = recipe.ground_margin_m, recipe.horizon_field_m
+    outer = [_mesh(g.ground_rects(_frame((x0, y0, x1, y1), m), 0.0), "grass")] if m > 0 else []
+    if f > 0:              # a camera 1.5 m up sees its edge 1.5 m / distance rad below the horizon
+        outer.append(_mesh(g.ground_rects(_frame((x0 - m, y0 - m, x1 + m, y1 + m), f), 0.0), "grass"))
+    if outer:
+        objs.append(("ground", outer, None, {"part": "margin"}))
     curb = layout.curb_height_m
     building_rects = []
     buildings = []
@@ -116,7 +125,7 @@ def generate_city(recipe: CityRecipe) -> City:
     objects = [CityObject(cls, i + 1, meshes, fp, meta)
                for i, (cls, meshes, fp, meta) in enumerate(static + placed + tunnel)]
     x0, y0, x1, y1 = layout.road_bounds
-    m = recipe.ground_margin_m
+    m = recipe.ground_margin_m + recipe.horizon_field_m
     return City(objects, city_materials(), recipe.seed, (x0 - m, y0 - m, x1 + m, y1 + m),
                 meta={"recipe": recipe.model_dump(), "arrangement": recipe.arrangement,
                       "layout": layout})

@@ -81,6 +81,10 @@ class CityRecipe(Params):
     curb_height_m: float = Field(0.15, ge=0.0, le=0.3, description="sidewalk top above the road (m); city geometry")
     ground_margin_m: float = Field(30.0, ge=0.0, le=500.0, description="grass beyond the outer streets (m); "
                                                                       "city geometry")
+    horizon_field_m: float = Field(0.0, ge=0.0, le=5000.0, description=(
+        "a flat field this wide (m) around the grass margin, so the ground reaches nearly to the horizon "
+        "instead of ending where the perez and overcast skies are black; 0 = none; ≤ 5,000 m keeps it nearer than "
+        "the sky's background depth; city geometry"))
     building_height_min_m: float = Field(8.0, ge=3.0, le=400.0, description="lowest building (m); city buildings")
     building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
     asset_detail: Literal["simple", "detailed"] = Field(
