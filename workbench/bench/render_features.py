@@ -58,6 +58,8 @@ def feature_cases() -> list[FeatureCase]:
     fog = FogParams(visibility_m=150.0, height_m=60.0)
     return [FeatureCase(BASELINE),
             FeatureCase("sky perez", daylight={"sky_model": "perez"}),
+            FeatureCase("sky perez + horizon field 3 km", daylight={"sky_model": "perez"},
+                        recipe={"horizon_field_m": 3000.0}),
             FeatureCase("low sun 5 deg (perez)", daylight={"sun_elevation_deg": 5.0, "sky_model": "perez"}),
             FeatureCase("overcast", daylight={"sky_model": "overcast"}),
             FeatureCase("fog V=150 m koschmieder", world={"fog": fog}),
