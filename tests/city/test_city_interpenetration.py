@@ -47,12 +47,14 @@ def _depth(e1, e2):
     return -res.fun
 
 
-@pytest.mark.parametrize("seed,detail,tunnel", [(0, "simple", None), (7, "simple", None), (3, "detailed", None),
-                                                (5, "simple", TunnelParams(street_index=1, length_m=84.0))])
-def test_no_interpenetration(seed, detail, tunnel):
-    """(With a tunnel: trees and lamps stay out from under its roof, vehicles and people fit inside.)"""
+@pytest.mark.parametrize("seed,detail,tunnel,parked", [
+    (0, "simple", None, 0), (7, "simple", None, 0), (3, "detailed", None, 24),
+    (5, "simple", TunnelParams(street_index=1, length_m=84.0), 24)])
+def test_no_interpenetration(seed, detail, tunnel, parked):
+    """(With a tunnel: trees and lamps stay out from under its roof, vehicles and people fit inside;
+    parked cars stand clear of everything at the kerb.)"""
     city = generate_city(CityRecipe(seed=seed, arrangement=seed, n_cars=24, n_pedestrians=40,
-                                    asset_detail=detail, tunnel=tunnel))
+                                    n_parked_cars=parked, asset_detail=detail, tunnel=tunnel))
     pieces = _pieces(city)
     ids = np.array([p[0] for p in pieces])
     z = np.array([[p[1], p[2]] for p in pieces])

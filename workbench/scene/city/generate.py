@@ -104,7 +104,7 @@ def _placed_object(p: Placement) -> tuple[str, list[Mesh], np.ndarray, dict]:
               for m in asset.meshes(p.paint)]
     meta = {"variant": p.variant, "detail": p.detail, "position_m": p.position_m.copy(), "heading_deg": p.heading_deg,
             "size_m": (asset.length_m, asset.width_m, asset.height_m), "paint": p.paint,
-            "lane_index": p.lane_index, "to_world": _to_world(p)}
+            "lane_index": p.lane_index, "parked": p.parked, "to_world": _to_world(p)}
     return p.class_name, meshes, p.footprint_xy, meta
 
 

@@ -1,7 +1,10 @@
 """Placement of movable objects and street furniture, with no interpenetration.
 
 Rules (after isetauto's placeObjects, the paper's generator): vehicles ride in lanes along the
-travel direction (cars with a small heading jitter, buses and trucks in the kerb lane); people
+travel direction (cars with a small heading jitter, buses and trucks in the kerb lane); parked
+cars stand in the kerb lane, aligned with it, their kerb-side wheels PARKED_KERB_GAP_M from the
+kerb, with gaps as short as PARKED_GAP_M (never in a tunnel, placed last so that they move no
+other object); people
 stand anywhere on sidewalks with a uniformly random heading (detailed cyclists ride along the
 sidewalk strip, either way, ± 5°); trees, lamps and mailboxes stand
 near the kerb, benches near the building line, facing the street. Every object has ground
@@ -26,6 +29,9 @@ CYCLIST_HEADING_JITTER_DEG = 5.0
 VEHICLE_GAP_M = 0.8          # bumper-to-bumper / side clearance between vehicles
 CAR_HEADING_JITTER_DEG = 4.0
 HEAVY_HEADING_JITTER_DEG = 1.5
+PARKED_KERB_GAP_M = 0.25     # kerb to the parked car's side (m)
+PARKED_GAP_M = 0.5           # bumper to bumper between parked cars (m)
+PARKED_HEADING_JITTER_DEG = 0.5
 RENYI_PARKING = 0.7476       # jamming density of random sequential parking in 1-D (Rényi 1958)
 
 
@@ -41,6 +47,7 @@ class Placement:
     paint: str | None = None
     lane_index: int | None = None
     detail: str = "simple"       # CityRecipe.asset_detail the variant was drawn at
+    parked: bool = False         # a car parked at the kerb (else moving, or not a vehicle)
 
 
 class Occupancy:
@@ -149,6 +156,37 @@ def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, p
     return out
 
 
+def _place_parked_cars(n: int, lanes, occ: Occupancy, rng, detail: str) -> list[Placement]:
+    """Cars parked in `lanes` (kerb lanes) along the kerb, facing the travel direction (right-hand
+    traffic: the kerb is on the lane's right)."""
+    if n and not lanes:
+        raise ValueError(f"n_parked_cars={n} but no street segment has a kerb lane to park in")
+    names = variant_names("car", detail)
+    weights = np.array(list(CAR_PAINTS.values()))
+    paint_names = list(CAR_PAINTS)
+    lengths = np.clip(np.array([ln.length_m for ln in lanes]) - 2 * LANE_END_CLEARANCE_M, 0, None) if n else None
+    out = []
+    for k in range(n):
+        variant = names[int(rng.integers(len(names)))]
+        a = build_asset("car", variant, detail)
+        paint = paint_names[int(rng.choice(len(paint_names), p=weights / weights.sum()))]
+        for _ in range(MAX_TRIES):
+            lane = lanes[int(rng.choice(len(lanes), p=lengths / lengths.sum()))]
+            s = rng.uniform(LANE_END_CLEARANCE_M + a.length_m / 2,
+                            lane.length_m - LANE_END_CLEARANCE_M - a.length_m / 2)
+            xy = lane.point(s, -(lane.width_m / 2 - PARKED_KERB_GAP_M - a.width_m / 2))
+            heading = (lane.heading_deg + rng.uniform(-PARKED_HEADING_JITTER_DEG, PARKED_HEADING_JITTER_DEG)) % 360.0
+            rect = g.oriented_rect(xy, a.length_m, a.width_m, heading)
+            if g.rect_inside(rect, lane.segment_rect) and occ.free(rect, "ground", PARKED_GAP_M):
+                break
+        else:
+            raise _fail("parked car", k, n, "n_parked_cars", "enlarge the city (blocks_x, blocks_y)")
+        occ.add(rect, "ground")
+        out.append(Placement("car", variant, np.array([xy[0], xy[1], 0.0]), heading, rect, paint,
+                             lane.index, detail, parked=True))
+    return out
+
+
 def _place_pedestrians(n: int, layout: CityLayout, occ: Occupancy, rng, z_m: float,
                        detail: str) -> list[Placement]:
     names = variant_names("pedestrian", detail)
@@ -184,10 +222,11 @@ def check_capacity(recipe: CityRecipe, layout: CityLayout) -> None:
     30 % of their area at ~1 m² a person, 1.5 m² a tree or lamp, 2 m² a bench or mailbox)."""
     lane_len = sum(max(0.0, ln.length_m - 2 * LANE_END_CLEARANCE_M) for ln in layout.lanes)
     need = (recipe.n_cars * (4.6 + VEHICLE_GAP_M) + recipe.n_buses * (12.1 + VEHICLE_GAP_M)
-            + recipe.n_trucks * (7.9 + VEHICLE_GAP_M))
+            + recipe.n_trucks * (7.9 + VEHICLE_GAP_M) + recipe.n_parked_cars * (4.6 + PARKED_GAP_M))
     if need > RENYI_PARKING * lane_len:
         raise ValueError(
-            f"too many vehicles for the streets: n_cars={recipe.n_cars}, n_buses={recipe.n_buses}, "
+            f"too many vehicles for the streets: n_cars={recipe.n_cars}, n_parked_cars={recipe.n_parked_cars}, "
+            f"n_buses={recipe.n_buses}, "
             f"n_trucks={recipe.n_trucks} need ~{need:.0f} m of lane but random parking fills at most "
             f"{RENYI_PARKING * lane_len:.0f} m of the {lane_len:.0f} m available; lower the counts or "
             "enlarge the city (blocks_x, blocks_y, lanes_per_direction)")
@@ -210,13 +249,15 @@ def place_objects(recipe: CityRecipe, layout: CityLayout, building_rects: list[n
     occ = Occupancy()
     for rect in building_rects:
         occ.add(rect, "overhead")
+    kerb = tuple(ln for ln in layout.lanes if ln.rank == recipe.lanes_per_direction - 1)
+    parking = tuple(ln for ln in kerb             # not under a tunnel's roof (its footprint is overhead)
+                    if occ.free(_box_corners(ln.segment_rect), "overhead"))
     z, d = layout.curb_height_m, recipe.asset_detail
     out = _place_furniture("tree", recipe.n_trees, "n_trees", lambda a: 0.9, layout, occ, rng, z, d)
     out += _place_furniture("lamp", recipe.n_lamps, "n_lamps", lambda a: 0.5, layout, occ, rng, z, d)
     out += _place_furniture("mailbox", recipe.n_mailboxes, "n_mailboxes", lambda a: 0.7, layout, occ, rng, z, d)
     out += _place_furniture("bench", recipe.n_benches, "n_benches",
                             lambda a: layout.sidewalk_width_m - 0.5 - a.length_m / 2, layout, occ, rng, z, d)
-    kerb = tuple(ln for ln in layout.lanes if ln.rank == recipe.lanes_per_direction - 1)
     out += _place_vehicles("bus", recipe.n_buses, "n_buses", kerb, occ, rng,
                            BUS_PAINTS, HEAVY_HEADING_JITTER_DEG, d)
     out += _place_vehicles("truck", recipe.n_trucks, "n_trucks", kerb, occ, rng,
@@ -224,4 +265,10 @@ def place_objects(recipe: CityRecipe, layout: CityLayout, building_rects: list[n
     out += _place_vehicles("car", recipe.n_cars, "n_cars", layout.lanes, occ, rng,
                            CAR_PAINTS, CAR_HEADING_JITTER_DEG, d)
     out += _place_pedestrians(recipe.n_pedestrians, layout, occ, rng, z, d)
+    out += _place_parked_cars(recipe.n_parked_cars, parking, occ, rng, d)
     return out
+
+
+def _box_corners(box_xy) -> np.ndarray:
+    x0, y0, x1, y1 = box_xy
+    return np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], dtype=np.float64)

@@ -91,6 +91,8 @@ class CityRecipe(Params):
         "simple", description="object geometry: 'simple' (the original low-detail assets) or 'detailed' (the "
                               "builders registered in scene.city.catalog.DETAILED_BUILDERS); city generator")
     n_cars: int = Field(16, ge=0, le=2000, description="cars per arrangement (count); placement")
+    n_parked_cars: int = Field(0, ge=0, le=2000, description="cars parked along the kerb per arrangement, in "
+                                                          "the kerb lanes (count); placement")
     n_pedestrians: int = Field(24, ge=0, le=5000, description="pedestrians per arrangement (count); placement")
     n_buses: int = Field(2, ge=0, le=200, description="buses per arrangement (count); placement")
     n_trucks: int = Field(1, ge=0, le=200, description="trucks per arrangement (count); placement")
