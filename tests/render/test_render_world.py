@@ -194,6 +194,9 @@ def test_night_emitters_and_render(mi):
                   {**city.materials, "metal_dark": city.materials["white"]}, 0, city.extent_m)
     em2 = night_emitters(street, NightParams())
     assert sorted(k for k in em2 if k.startswith("headlight")) == heads          # a lamp's lens is no headlight
+    parked = City([CityObject(o.class_name, o.instance_id, o.meshes, o.footprint_xy, {**o.meta, "parked": True})
+                   if o.class_name == "car" else o for o in city.objects], city.materials, 0, city.extent_m)
+    assert not any(k.startswith(("headlight", "taillight")) for k in night_emitters(parked, NightParams()))
     lamp = [v for k, v in em2.items() if k.startswith("street_lamp")]
     assert len(lamp) == 1 and np.allclose(lamp[0]["to_world"].translation(), [20.1, 0.0, 5.98], atol=1e-6)
     # head-lights sit in front of the car's front face (+x), tail-lights behind the rear (−x)

@@ -199,14 +199,15 @@ def tunnel_emitters(city, sampling_weight: float | None = None) -> dict[str, tup
 
 
 def night_emitters(city, night) -> dict:
-    """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights, sky glow."""
+    """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights (not of parked
+    cars), sky glow."""
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM
 
     out = {}
     for i, p in enumerate(_lamp_head_points(city)):
         out[f"street_lamp_{i}"] = street_lamp_emitter(p, night.lamp_kind, night.lamp_flux_lm)
     if night.vehicle_lights:
-        for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES):
+        for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES and not o.meta.get("parked")):
             for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_clear")):
                 beam = d + np.array([0.0, 0.0, -0.03])          # low beam aimed ~1.7° down
                 out[f"headlight_{obj.instance_id}_{j}"] = spot_emitter(

@@ -70,7 +70,8 @@ class NightParams(Params):
                                                                                       "night render")
     lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6, description="luminous flux per lamp (lm); None = the "
                                                                          "kind's rated flux; night render")
-    vehicle_lights: bool = Field(True, description="vehicle head- and tail-lights on; night render")
+    vehicle_lights: bool = Field(True, description="head- and tail-lights of moving vehicles on (parked cars "
+                                                   "stay dark); night render")
     headlight_kind: Literal["halogen", "led"] = Field("led", description="head-light spectrum; night render")
     headlight_cd: float = Field(20000.0, gt=0.0, le=1e6, description="head-light peak intensity (cd); night render")
     taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
