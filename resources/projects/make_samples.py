@@ -67,18 +67,19 @@ def main() -> None:
         return WorldParams(materials="procedural", wet_road_fraction=wet_road_fraction, paint="clearcoat", **world)
 
     detailed = city.city.updated(asset_detail="detailed")   # wheels, glass, lights, mirrors, plates; posed people
+    street = detailed.updated(n_parked_cars=12, horizon_field_m=3000.0)   # kerbs parked; ground to the horizon
 
     samples += [
         city.updated(
             name="city_day_clear_sky",
-            city=detailed,
+            city=street,
             description="The city under a clear Perez/Preetham sky (brighter toward the sun and the horizon, "
                         "spectral to 1100 nm) with see-through, Fresnel-reflecting window glass and procedural "
                         "materials (worn and patched asphalt, stained concrete, bricks, grass with soil; dry road).",
             render=RenderParams(daylight=day.updated(sky_model="perez"), world=textured(0.0, glass="dielectric"))),
         city.updated(
             name="city_low_sun",
-            city=detailed,
+            city=street,
             description="The city with the sun 5 deg above the horizon in the east: "
                         "a long shadow, reddened sun (air mass ~10) and a Perez sky bright around the sun; "
                         "procedural materials with wet patches on 5 % of the road.",
@@ -86,15 +87,15 @@ def main() -> None:
                                                      sky_model="perez"), world=textured(0.05))),
         city.updated(
             name="city_overcast",
-            city=detailed,
+            city=street,
             description="The city under a CIE overcast sky (no direct sun; 30 % of the clear-sky global irradiance); "
                         "procedural materials with puddles on 15 % of the road.",
             render=RenderParams(daylight=day.updated(sky_model="overcast"), world=textured(0.15))),
         city.updated(
             name="city_night",
-            city=detailed,
+            city=street,
             description="The city at night: high-pressure sodium street lamps (15,000 lm), LED head-lights and red "
-                        "tail-lights on every car, a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
+                        "tail-lights on every moving car (parked cars dark), a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
                         "the sodium 819 nm line; procedural materials with puddles on 10 % of the road. As an "
                         "automotive night camera: f/2, exposure at most 1/30 s (30 fps video; auto-exposure would "
                         "otherwise open to seconds) and the MT9V024's largest analog gain, 4x.",
@@ -103,7 +104,7 @@ def main() -> None:
             render=RenderParams(world=textured(0.10, lighting="night"))),
         city.updated(
             name="city_fog",
-            city=detailed,
+            city=street,
             description="The city in fog of 150 m visibility (extinction 3.912/150 per m, albedo 0.98, forward "
                         "scattering g = 0.85) in a 60 m deep layer, under an overcast sky; procedural materials "
                         "with puddles on 15 % of the road; Koschmieder's law per pixel with a measured "
@@ -117,7 +118,7 @@ def main() -> None:
                         "interior zone, road ~6 cd/m2) against the sunlit street beyond the portal; blocks of 180 m "
                         "so the segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
                         "(MT9V024-like: 10-bit linear ADC, no IR cut; exposure at most 1/30 s).",
-            city=detailed.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
+            city=street.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
             pose=PoseParams(mode="tunnel", tunnel_view="exit", seed=1),
             sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S),
             render=RenderParams(world=textured(0.0))),

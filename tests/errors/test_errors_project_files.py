@@ -220,3 +220,15 @@ def test_schema_2_migrates_to_the_default_world():
     assert project.render.daylight.sky_model == "uniform"
     world = project.render.world
     assert (world.lighting, world.fog, world.glass) == ("day", None, "diffuse")
+
+
+def test_city_counts_that_do_not_fit_are_refused_at_run_naming_the_field():
+    """A valid document whose city cannot hold its objects (found by the big fuzz run): a
+    StageError of the 'city' stage naming the field, not a bare ValueError."""
+    from workbench.errors import StageError
+    from workbench.pipeline import Pipeline
+    project = load_project("city_low_sun")
+    project = project.updated(city=project.city.updated(n_mailboxes=4000),
+                              sensor=project.sensor.updated(rows=12, cols=16))
+    with pytest.raises(StageError, match=r"stage 'city': frame 0: too many pedestrians.*n_mailboxes=4000"):
+        Pipeline(project).run()

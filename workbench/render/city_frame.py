@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.errors import StageError
 from workbench.jobs import Job
 from workbench.render.labels import Labels
 
@@ -177,8 +178,11 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
         raise ValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
     yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
     recipe = inputs.city.updated(arrangement=seeds.arrangement)
-    city = generate_city(recipe)
-    pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
+    try:                  # counts that do not fit the streets, poses with nothing to aim at: say which
+        city = generate_city(recipe)
+        pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
+    except ValueError as exc:
+        raise StageError("city", f"frame {seeds.index}: {exc}") from None
     camera = inputs.camera
     height, width = camera.shape
     variant = select_variant(inputs.render.variant)

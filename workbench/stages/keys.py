@@ -1,5 +1,9 @@
 """Cache keys from what a stage consumes: a digest of its input objects (parameter models,
-frozen dataclasses such as the camera geometry, plain values)."""
+frozen dataclasses such as the camera geometry, plain values).
+
+A model is digested without the fields left at their defaults, so that a later version adding a
+field (a new scene switch, off by default) gives the same keys and data-set fingerprints as
+before for every project that does not use it: data sets made earlier still resume."""
 from __future__ import annotations
 
 import dataclasses
@@ -10,8 +14,8 @@ from pydantic import BaseModel
 
 
 def _plain(obj):
-    if isinstance(obj, BaseModel):
-        return {"__model__": type(obj).__qualname__, **obj.model_dump(mode="json")}
+    if isinstance(obj, BaseModel):          # defaults left out: a new switch, off, keeps old keys
+        return {"__model__": type(obj).__qualname__, **obj.model_dump(mode="json", exclude_defaults=True)}
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {"__dataclass__": type(obj).__qualname__,
                 **{f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}}
