@@ -2,7 +2,7 @@
 
 A project document is a sample project mutated 1–3 times (a value replaced by a wrong type, NaN,
 ±inf, an extreme or odd unicode, or scaled; a field deleted; an unknown field added; rarely the
-text truncated). `check_document` loads it and, if it loads, simulates it at 16×12 pixels and
+text truncated). `check_document` loads it and, if it loads, simulates it at 16×12 pixels (≤ 64 spp) and
 checks that every output is finite and that save → load gives the same project; it returns the
 outcome and fails on anything else (another exception, a refusal that names no field, NaN)."""
 from __future__ import annotations
@@ -23,6 +23,7 @@ from workbench.project import PROJECTS_DIR, load_project, save_project
 SAMPLES = {p.stem: json.loads(p.read_text()) for p in sorted(PROJECTS_DIR.glob("*.json"))}
 CHART_SAMPLES = tuple(k for k, v in SAMPLES.items() if v["scene"]["kind"] != "city")
 SMALL_ROWS, SMALL_COLS = 12, 16
+MAX_FUZZ_SPP = 64
 
 ODD_STRINGS = ["", " ", "\u0000", "\ud800", "\u202e" + "evil", "😀" * 3, "é" * 200, "x" * 5000, "\n\r\t", "NaN", "inf",
                "0.01", "120", "true", "../../etc/passwd", "/etc/passwd", "C:\\x", "null"]
@@ -87,9 +88,18 @@ def _finite(name: str, array) -> None:
         assert np.all(np.isfinite(arr)), f"{name} holds NaN/Inf"
 
 
+def _cheap_render(render):
+    """The render settings with at most MAX_FUZZ_SPP samples per pixel: a scaled-up spp (64 → 64,000)
+    is a valid document, checked at load; rendering it in 4,000 chunks would only cost time."""
+    cheap = {"max_spp": min(render.max_spp, MAX_FUZZ_SPP)}
+    if render.spp is not None:
+        cheap["spp"] = min(render.spp, MAX_FUZZ_SPP)
+    return render.updated(**cheap)
+
+
 def check_document(text: str, folder: Path) -> str:
     """Load `text` as a project file; refused → 'refused_field'/'refused_file'; loaded → simulate at
-    16×12, check finite outputs and the save round trip → 'simulated' (or 'refused_at_run' for a
+    16×12 and ≤ MAX_FUZZ_SPP spp, check finite outputs and the save round trip → 'simulated' (or 'refused_at_run' for a
     WorkbenchError from a stage). Anything else fails the calling test."""
     from workbench.pipeline import Pipeline
     path = folder / "fuzz.json"
@@ -105,7 +115,8 @@ def check_document(text: str, folder: Path) -> str:
         return "refused_file"
     saved = save_project(project, folder / "saved.json")
     assert load_project(saved).model_dump() == project.model_dump(), "save → load changed the project"
-    small = project.updated(sensor=project.sensor.updated(rows=SMALL_ROWS, cols=SMALL_COLS))
+    small = project.updated(sensor=project.sensor.updated(rows=SMALL_ROWS, cols=SMALL_COLS),
+                            render=_cheap_render(project.render))
     try:
         result = Pipeline(small).run()
     except WorkbenchError as exc:

@@ -1,6 +1,6 @@
 """Fuzzing: generated project documents and lens files either load (and a project simulates at
-16×12 px with finite outputs and survives save → load) or are refused with a WorkbenchError naming
-the field or file — never another exception, never NaN in an output.
+16×12 px and at most 64 spp with finite outputs, and survives save → load) or are refused with a
+WorkbenchError naming the field or file — never another exception, never NaN in an output.
 
 The fast subset runs in the normal tests; the big run (≥ 1,000 documents) is marked slow:
     WORKBENCH_FUZZ_REPORT=fuzz.json pytest tests/errors/test_errors_fuzz.py -m slow

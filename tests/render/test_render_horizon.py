@@ -22,7 +22,7 @@ from workbench.render.scene_builder import build_scene
 from workbench.render.spectral import render_loaded
 from workbench.scene.city import CameraPose, CityRecipe, generate_city
 
-from test_render_calibration import band_mean_photons, check
+from tests.render.test_render_calibration import band_mean_photons, check
 
 W, H, FOV_DEG, CAM_Z = 64, 48, 12.0, 1.5
 FIELD_M = 2000.0

@@ -99,3 +99,19 @@ def test_plane_under_perez_sky_reads_rho_times_diffuse_over_pi(mi):
     out = run_job(render_loaded(mi_scene, film, RenderParams(spp=32, chunk_spp=32, seed=3), fov_deg=20.0))
     wl = DAYLIGHT_WAVELENGTHS_NM
     check(out.radiance_photons, band_mean_photons(wl, RHO * sky_radiance(wl, 30.0, 3.0), film), "perez plane")
+
+
+@pytest.mark.parametrize("model", ["uniform", "perez"])
+def test_negligible_sky_or_sun_is_left_out_not_refused(mi, model):
+    """A scale so small (1e-300, 5e-324: valid, ≥ 0) that the spectrum underflows Mitsuba's float32
+    sampling tables leaves that light out, as a scale of 0 does (found by the big fuzz run)."""
+    from workbench.render.sky import daylight_emitters
+    for scales in ({"sky_scale": 1e-300}, {"sky_scale": 5e-324, "sun_scale": 5e-324}):
+        day = DaylightParams(sky_model=model, **scales)
+        em = daylight_emitters(day)
+        assert "sky" not in em and ("sun" in em) == ("sun_scale" not in scales)
+        film = box_bands(400.0, 700.0, 2)
+        pose = CameraPose(np.array([0.0, 0.0, 2.0]), pan_deg=0.0, tilt_deg=-30.0, roll_deg=0.0)
+        scene, _ = build_scene(flat_city(), pose, 30.0, 16, 12, film, day, max_depth=2)
+        out = run_job(render_loaded(scene, film, RenderParams(spp=4, chunk_spp=4), fov_deg=30.0))
+        assert np.all(np.isfinite(out.radiance_photons))

@@ -34,6 +34,7 @@ from workbench.render.daylight import (DAYLIGHT_WAVELENGTHS_NM, sky_radiance, su
 from workbench.render.params import DaylightParams
 
 SKY_MODELS = ("uniform", "perez", "overcast")
+NEGLIGIBLE_SPECTRUM = 1e-30   # W/m²/(sr·)nm: below it Mitsuba's float32 sampling tables underflow; left out
 _QUAD_THETA, _QUAD_PHI = 512, 1024
 
 
@@ -184,14 +185,15 @@ def _emitter_class():
 
 def sky_emitter(daylight: DaylightParams):
     """The chosen sky as a Mitsuba emitter (a spectral variant must be set): a `constant` emitter
-    dict for 'uniform', a SkyEmitter object otherwise; None when sky_scale is 0."""
+    dict for 'uniform', a SkyEmitter object otherwise; None when sky_scale is 0 or so small that
+    the radiance is negligible (NEGLIGIBLE_SPECTRUM: no image could show it, and Mitsuba refuses it)."""
     import mitsuba as mi
 
     if daylight.sky_model not in SKY_MODELS:
         raise ValueError(f"sky_model must be one of {SKY_MODELS}, got {daylight.sky_model!r}")
     wl = DAYLIGHT_WAVELENGTHS_NM
     spec = sky_spectrum(daylight, wl)
-    if daylight.sky_scale == 0 or not np.any(spec > 0):
+    if daylight.sky_scale == 0 or not np.max(spec) > NEGLIGIBLE_SPECTRUM:
         return None
     value = list(zip(wl.tolist(), spec.tolist()))
     if daylight.sky_model == "uniform":
@@ -206,13 +208,13 @@ def sky_emitter(daylight: DaylightParams):
 def daylight_emitters(daylight: DaylightParams) -> dict:
     """Mitsuba emitters {'sun': directional dict, 'sky': sky_emitter}, spectra over 300–1100 nm.
 
-    An emitter whose scale is 0 is left out (Mitsuba refuses an all-zero spectrum); an overcast
-    sky has no sun."""
+    An emitter whose scale is 0, or whose spectrum is negligible (NEGLIGIBLE_SPECTRUM), is left out
+    (Mitsuba refuses an all-zero spectrum); an overcast sky has no sun."""
     el, az = sun_angles(daylight)
     wl = DAYLIGHT_WAVELENGTHS_NM
     out = {}
-    if daylight.sun_scale > 0 and daylight.sky_model != "overcast":
-        sun = daylight.sun_scale * sun_irradiance(wl, el, daylight.turbidity)
+    sun = daylight.sun_scale * sun_irradiance(wl, el, daylight.turbidity)
+    if np.max(sun) > NEGLIGIBLE_SPECTRUM and daylight.sky_model != "overcast":
         out["sun"] = {"type": "directional", "direction": (-sun_direction(el, az)).tolist(),
                       "irradiance": {"type": "spectrum", "value": list(zip(wl.tolist(), sun.tolist()))}}
     sky = sky_emitter(daylight)
