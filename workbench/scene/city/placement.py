@@ -2,8 +2,8 @@
 
 Rules (after isetauto's placeObjects, the paper's generator): vehicles ride in lanes along the
 travel direction (cars with a small heading jitter, buses and trucks in the kerb lane); parked
-cars stand in the kerb lane, aligned with it, their kerb-side wheels PARKED_KERB_GAP_M from the
-kerb, with gaps as short as PARKED_GAP_M (never in a tunnel, placed last so that they move no
+cars stand in the kerb lane, aligned with it, their side PARKED_KERB_GAP_M from the kerb, with
+gaps as short as PARKED_GAP_M (never in a tunnel, placed last so that they move no
 other object); people
 stand anywhere on sidewalks with a uniformly random heading (detailed cyclists ride along the
 sidewalk strip, either way, ± 5°); trees, lamps and mailboxes stand
@@ -31,7 +31,7 @@ CAR_HEADING_JITTER_DEG = 4.0
 HEAVY_HEADING_JITTER_DEG = 1.5
 PARKED_KERB_GAP_M = 0.25     # kerb to the parked car's side (m)
 PARKED_GAP_M = 0.5           # bumper to bumper between parked cars (m)
-PARKED_HEADING_JITTER_DEG = 0.5
+PARKED_HEADING_JITTER_DEG = 0.5  # parked cars stand almost square to the kerb (deg)
 RENYI_PARKING = 0.7476       # jamming density of random sequential parking in 1-D (Rényi 1958)
 
 
@@ -123,8 +123,14 @@ def _furniture_rects(kind: str, a, xy, heading):
 
 
 def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, paints,
-                    jitter_deg: float, detail: str) -> list[Placement]:
-    """Vehicles in `lanes`, along the travel direction ± jitter_deg, inside their segment."""
+                    jitter_deg: float, detail: str, gap_m: float = VEHICLE_GAP_M,
+                    kerb_gap_m: float | None = None) -> list[Placement]:
+    """Vehicles in `lanes`, along the travel direction ± jitter_deg, inside their segment, gap_m
+    clear of others; with kerb_gap_m, parked: their side kerb_gap_m from the kerb on the lane's
+    right (right-hand traffic), instead of anywhere across the lane."""
+    if n and not lanes:
+        raise ValueError(f"{field}={n} but no street segment has a lane for it (parked cars need a kerb lane "
+                         f"outside a tunnel); set {field}=0 or add blocks")
     names = variant_names(kind, detail)
     weights = np.array(list(paints.values())) if isinstance(paints, dict) else None
     paint_names = list(paints)
@@ -142,48 +148,21 @@ def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, p
             lane = lanes[int(rng.choice(len(lanes), p=prob))]
             s = rng.uniform(LANE_END_CLEARANCE_M + a.length_m / 2,
                             lane.length_m - LANE_END_CLEARANCE_M - a.length_m / 2)
-            slack = max(0.0, (lane.width_m - a.width_m) / 2 - 0.15)
-            xy = lane.point(s, rng.uniform(-0.5, 0.5) * slack)
+            if kerb_gap_m is None:
+                slack = max(0.0, (lane.width_m - a.width_m) / 2 - 0.15)
+                offset = rng.uniform(-0.5, 0.5) * slack
+            else:
+                offset = -(lane.width_m / 2 - kerb_gap_m - a.width_m / 2)
+            xy = lane.point(s, offset)
             heading = (lane.heading_deg + rng.uniform(-jitter_deg, jitter_deg)) % 360.0
             rect = g.oriented_rect(xy, a.length_m, a.width_m, heading)
-            if g.rect_inside(rect, lane.segment_rect) and occ.free(rect, "ground", VEHICLE_GAP_M):
+            if g.rect_inside(rect, lane.segment_rect) and occ.free(rect, "ground", gap_m):
                 break
         else:
             raise _fail(kind, k, n, field, "enlarge the city (blocks_x, blocks_y, lanes_per_direction)")
         occ.add(rect, "ground")
         out.append(Placement(kind, variant, np.array([xy[0], xy[1], 0.0]), heading, rect, paint,
-                             lane.index, detail))
-    return out
-
-
-def _place_parked_cars(n: int, lanes, occ: Occupancy, rng, detail: str) -> list[Placement]:
-    """Cars parked in `lanes` (kerb lanes) along the kerb, facing the travel direction (right-hand
-    traffic: the kerb is on the lane's right)."""
-    if n and not lanes:
-        raise ValueError(f"n_parked_cars={n} but no street segment has a kerb lane to park in")
-    names = variant_names("car", detail)
-    weights = np.array(list(CAR_PAINTS.values()))
-    paint_names = list(CAR_PAINTS)
-    lengths = np.clip(np.array([ln.length_m for ln in lanes]) - 2 * LANE_END_CLEARANCE_M, 0, None) if n else None
-    out = []
-    for k in range(n):
-        variant = names[int(rng.integers(len(names)))]
-        a = build_asset("car", variant, detail)
-        paint = paint_names[int(rng.choice(len(paint_names), p=weights / weights.sum()))]
-        for _ in range(MAX_TRIES):
-            lane = lanes[int(rng.choice(len(lanes), p=lengths / lengths.sum()))]
-            s = rng.uniform(LANE_END_CLEARANCE_M + a.length_m / 2,
-                            lane.length_m - LANE_END_CLEARANCE_M - a.length_m / 2)
-            xy = lane.point(s, -(lane.width_m / 2 - PARKED_KERB_GAP_M - a.width_m / 2))
-            heading = (lane.heading_deg + rng.uniform(-PARKED_HEADING_JITTER_DEG, PARKED_HEADING_JITTER_DEG)) % 360.0
-            rect = g.oriented_rect(xy, a.length_m, a.width_m, heading)
-            if g.rect_inside(rect, lane.segment_rect) and occ.free(rect, "ground", PARKED_GAP_M):
-                break
-        else:
-            raise _fail("parked car", k, n, "n_parked_cars", "enlarge the city (blocks_x, blocks_y)")
-        occ.add(rect, "ground")
-        out.append(Placement("car", variant, np.array([xy[0], xy[1], 0.0]), heading, rect, paint,
-                             lane.index, detail, parked=True))
+                             lane.index, detail, parked=kerb_gap_m is not None))
     return out
 
 
@@ -265,10 +244,12 @@ def place_objects(recipe: CityRecipe, layout: CityLayout, building_rects: list[n
     out += _place_vehicles("car", recipe.n_cars, "n_cars", layout.lanes, occ, rng,
                            CAR_PAINTS, CAR_HEADING_JITTER_DEG, d)
     out += _place_pedestrians(recipe.n_pedestrians, layout, occ, rng, z, d)
-    out += _place_parked_cars(recipe.n_parked_cars, parking, occ, rng, d)
+    out += _place_vehicles("car", recipe.n_parked_cars, "n_parked_cars", parking, occ, rng, CAR_PAINTS,
+                           PARKED_HEADING_JITTER_DEG, d, PARKED_GAP_M, PARKED_KERB_GAP_M)
     return out
 
 
 def _box_corners(box_xy) -> np.ndarray:
+    """Corners (4×2) of an axis-aligned box (xmin, ymin, xmax, ymax)."""
     x0, y0, x1, y1 = box_xy
-    return np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], dtype=np.float64)
+    return g.oriented_rect(np.array([(x0 + x1) / 2, (y0 + y1) / 2]), x1 - x0, y1 - y0, 0.0)
