@@ -8,10 +8,8 @@ with the reason. QSettings, recent files and autosave go to a temporary folder (
 """
 from __future__ import annotations
 
+import contextlib
 import os
-import shutil
-import subprocess
-import time
 from pathlib import Path
 
 import pytest
@@ -26,58 +24,20 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.gui)
 
 
-def _die_with_parent() -> None:
-    """Xvfb gets SIGTERM when the test process dies (an aborted run leaves no X server behind)."""
-    import ctypes
-    import signal
-    try:
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)   # PR_SET_PDEATHSIG
-    except OSError:
-        pass
-
-
-def _free_display() -> int:
-    for n in range(99, 160):
-        if not Path(f"/tmp/.X11-unix/X{n}").exists() and not Path(f"/tmp/.X{n}-lock").exists():
-            return n
-    raise RuntimeError("no free X display number between :99 and :159")
-
-
 @pytest.fixture(scope="session")
-def xserver(tmp_path_factory):
+def xserver():
     """A DISPLAY for the session: the existing one, or a private Xvfb started here."""
+    from workbench.errors import WorkbenchError
+    from workbench.gui.display import virtual_display
     os.environ.pop("PYVISTA_OFF_SCREEN", None)
     if os.environ.get("QT_QPA_PLATFORM", "xcb") != "xcb":
         os.environ.pop("QT_QPA_PLATFORM")
-    if os.environ.get("DISPLAY"):
-        yield os.environ["DISPLAY"]
-        return
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        pytest.skip("GUI tests need an X server: no DISPLAY and Xvfb is not installed "
-                    "(apt-get install xvfb)")
-    num = _free_display()
-    log = tmp_path_factory.mktemp("xvfb") / "xvfb.log"
-    with open(log, "w") as fh:
-        proc = subprocess.Popen([xvfb, f":{num}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                                stdout=fh, stderr=subprocess.STDOUT, preexec_fn=_die_with_parent)
-    socket = Path(f"/tmp/.X11-unix/X{num}")
-    deadline = time.monotonic() + 15
-    while not socket.exists():
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            pytest.skip(f"Xvfb :{num} did not start: {log.read_text()[-400:]}")
-        time.sleep(0.05)
-    os.environ["DISPLAY"] = f":{num}"
-    try:
-        yield os.environ["DISPLAY"]
-    finally:
-        proc.terminate()
+    with contextlib.ExitStack() as stack:
         try:
-            proc.wait(5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        os.environ.pop("DISPLAY", None)
+            display = stack.enter_context(virtual_display("1280x1024x24"))
+        except WorkbenchError as exc:
+            pytest.skip(f"GUI tests need an X server: {exc}")
+        yield display
 
 
 @pytest.fixture(scope="session")
@@ -102,6 +62,24 @@ def qapp(xserver, gui_home, qapp_args):
     if app.platformName() != "xcb":
         pytest.skip(f"GUI tests need Qt's xcb platform on an X server, got '{app.platformName()}'")
     yield app
+
+
+@pytest.fixture(scope="module", autouse=True)
+def gc_on_gui_thread(qapp):
+    """As in the app: Python's cyclic collector runs only on the GUI thread (a worker thread that
+    collects garbage holding widgets crashes Qt), and runs automatically again after the module."""
+    from workbench.gui.gc_thread import GuiThreadGarbageCollection
+    with GuiThreadGarbageCollection():
+        yield
+
+
+@pytest.fixture(autouse=True)
+def no_worker_outlives_its_test(qtbot):
+    """Background workers of a test finish, and deliver their results, before its widgets go."""
+    yield
+    from superqt.utils._qthreading import WorkerBase
+    WorkerBase.await_workers(msecs=120_000)
+    qtbot.wait(10)
 
 
 def grab_array(widget):

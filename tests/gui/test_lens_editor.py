@@ -14,15 +14,6 @@ from workbench.optics.params import OpticsParams
 from workbench.project import Project
 
 
-@pytest.fixture(autouse=True)
-def _no_worker_outlives_its_test(qtbot):
-    """Background workers of a test finish, and deliver their results, before its widgets go."""
-    yield
-    from superqt.utils._qthreading import WorkerBase
-    WorkerBase.await_workers(msecs=120_000)
-    qtbot.wait(10)
-
-
 @pytest.fixture
 def user_lenses(tmp_path, monkeypatch):
     monkeypatch.setenv("WORKBENCH_LENS_DIR", str(tmp_path / "lenses"))

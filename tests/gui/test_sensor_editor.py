@@ -3,21 +3,11 @@ tile, the QE chart and the EMVA 1288 plot draw real pixels."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from PySide6.QtCore import Qt
 
 from workbench.gui.editors.sensor import SensorEditor
 from workbench.project import Project
 from workbench.sensor.params import SENSOR_PRESETS
-
-
-@pytest.fixture(autouse=True)
-def _no_worker_outlives_its_test(qtbot):
-    """Background workers of a test finish, and deliver their results, before its widgets go."""
-    yield
-    from superqt.utils._qthreading import WorkerBase
-    WorkerBase.await_workers(msecs=120_000)
-    qtbot.wait(10)
 
 
 def make_editor(qtbot):

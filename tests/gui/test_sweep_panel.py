@@ -11,15 +11,6 @@ from workbench.pipeline import Pipeline
 from workbench.project import load_project
 
 
-@pytest.fixture(autouse=True)
-def _no_worker_outlives_its_test(qtbot):
-    """Background workers of a test finish, and deliver their results, before its widgets go."""
-    yield
-    from superqt.utils._qthreading import WorkerBase
-    WorkerBase.await_workers(msecs=120_000)
-    qtbot.wait(10)
-
-
 @pytest.fixture(scope="module")
 def frame():
     base = load_project("paper_camera")

@@ -38,6 +38,12 @@ def main(argv: list[str] | None = None) -> int:
     app = QApplication.instance() or QApplication([sys.argv[0]])
     app.setApplicationName("Camera Workbench")
     app.setOrganizationName("camera-workbench")
+    from workbench.gui.gc_thread import GuiThreadGarbageCollection
+    with GuiThreadGarbageCollection():          # before any worker thread starts
+        return _run_window(app, args)
+
+
+def _run_window(app, args) -> int:
     project = args.project
     if project is None and not args.no_welcome:
         project = choose_start_project()

@@ -114,8 +114,14 @@ def run(quick: bool = False) -> dict:
     from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401  (PySide6 refcount guard)
-    from workbench.project import load_project
+    from workbench.gui.gc_thread import GuiThreadGarbageCollection
     app = QApplication.instance() or QApplication(["workbench-bench"])
+    with GuiThreadGarbageCollection():
+        return _measure(app, quick)
+
+
+def _measure(app, quick: bool) -> dict:
+    from workbench.project import load_project
     rows = []
     notes = []
 

@@ -1,14 +1,11 @@
 """The 3-D city view (pyvistaqt): the project's city, the camera with its view frustum, a gizmo
 to drag the camera, typed pose values, colour by class, and "look through camera".
 
-Generating the city (seed, arrangement) runs on a background thread; the meshes come back to the
-GUI thread, which alone touches VTK. Pose edits go through the document (one undoable edit)."""
+Generating the city (seed, arrangement) runs on a superqt worker thread; the meshes come back to
+the GUI thread, which alone touches VTK (and alone drops the last reference to this widget). Pose edits go through the document (one undoable edit)."""
 from __future__ import annotations
 
-import threading
-
 import numpy as np
-from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
@@ -27,6 +24,11 @@ def city_and_pose(project: Project):
     return city, pose
 
 
+def _city_job(project: Project, job: int, key):
+    """The worker's result: the request it answers, then the city and pose."""
+    return (job, key, *city_and_pose(project))
+
+
 def _city_key(project: Project):
     return (project.city, project.seed)
 
@@ -41,10 +43,7 @@ def _spin(lo: float, hi: float, decimals: int, suffix: str) -> QDoubleSpinBox:
 
 
 class CityView(QWidget):
-    """cityReady(object) is internal: the background job's (key, city, pose) for the GUI thread."""
-
-    cityReady = Signal(object)
-    failed = Signal(str)
+    """The city, the camera and its frustum, with pose and seed controls."""
 
     def __init__(self, document, parent=None):
         super().__init__(parent)
@@ -100,8 +99,6 @@ class CityView(QWidget):
         lay.addLayout(row3)
         lay.addLayout(form)
         lay.addWidget(self.status)
-        self.cityReady.connect(self._city_ready)
-        self.failed.connect(lambda msg: self.status.setText(f"city: {msg}"))
 
     # -- project → view --------------------------------------------------------------------
     def set_project(self, project: Project) -> None:
@@ -120,19 +117,19 @@ class CityView(QWidget):
         self._generate(project, key)
 
     def _generate(self, project: Project, key) -> None:
-        """Generate the city and pose on a background thread (latest request wins)."""
+        """Generate the city and pose on a worker thread (latest request wins). The worker holds
+        no reference to this widget: its signals reach bound methods, which Qt disconnects if the
+        widget goes first."""
+        from superqt.utils import create_worker
         self._job_id += 1
-        job = self._job_id
         self.status.setText("generating the city…")
+        worker = create_worker(_city_job, project, self._job_id, key, _start_thread=False, _ignore_errors=True)
+        worker.returned.connect(self._city_ready)
+        worker.errored.connect(self._city_failed)
+        worker.start()
 
-        def work():
-            try:
-                city, pose = city_and_pose(project)
-            except Exception as exc:  # noqa: BLE001 — shown in the view's status line
-                self.failed.emit(f"{type(exc).__name__}: {exc}")
-                return
-            self.cityReady.emit((job, key, city, pose))
-        threading.Thread(target=work, name="workbench-city", daemon=True).start()
+    def _city_failed(self, exc: Exception) -> None:
+        self.status.setText(f"city: {type(exc).__name__}: {exc}")
 
     def _city_ready(self, payload) -> None:
         job, key, city, pose = payload

@@ -3,20 +3,31 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import shutil
 import subprocess
 import tempfile
 import time
-from pathlib import Path
 
 from workbench.errors import WorkbenchError
 
 
-def _free_display() -> int:
-    for n in range(99, 160):
-        if not Path(f"/tmp/.X11-unix/X{n}").exists() and not Path(f"/tmp/.X{n}-lock").exists():
-            return n
-    raise WorkbenchError("no free X display number between :99 and :159")
+XVFB_START_S = 15.0      # how long Xvfb may take to accept connections
+
+
+def _read_display_number(fd: int, proc: subprocess.Popen, timeout_s: float) -> int:
+    """The display number Xvfb writes to its -displayfd pipe once it accepts connections."""
+    text = b""
+    deadline = time.monotonic() + timeout_s
+    while not text.endswith(b"\n"):
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([fd], [], [], left)[0]:
+            raise WorkbenchError(f"Xvfb did not start within {timeout_s:.0f} s")
+        chunk = os.read(fd, 16)
+        if not chunk:
+            raise WorkbenchError(f"Xvfb exited (code {proc.wait()}) before it took a display")
+        text += chunk
+    return int(text)
 
 
 def die_with_parent() -> None:
@@ -39,16 +50,22 @@ def virtual_display(size: str = "1600x1000x24"):
     xvfb = shutil.which("Xvfb")
     if xvfb is None:
         raise WorkbenchError("no display and no Xvfb: install xvfb or run with a display")
-    num = _free_display()
+    read_fd, write_fd = os.pipe()
     with tempfile.TemporaryFile() as log:
-        proc = subprocess.Popen([xvfb, f":{num}", "-screen", "0", size, "-nolisten", "tcp"],
-                                stdout=log, stderr=subprocess.STDOUT, preexec_fn=die_with_parent)
-        deadline = time.monotonic() + 15
-        while not Path(f"/tmp/.X11-unix/X{num}").exists():
-            if proc.poll() is not None or time.monotonic() > deadline:
-                proc.kill()
-                raise WorkbenchError(f"Xvfb :{num} did not start")
-            time.sleep(0.05)
+        # -displayfd: Xvfb itself takes a free display number (atomically, by its lock file), so two
+        # runs starting at once cannot share one server; it writes the number when it is ready.
+        proc = subprocess.Popen([xvfb, "-displayfd", str(write_fd), "-screen", "0", size, "-nolisten", "tcp"],
+                                stdout=log, stderr=subprocess.STDOUT, pass_fds=(write_fd,),
+                                preexec_fn=die_with_parent)
+        os.close(write_fd)
+        try:
+            num = _read_display_number(read_fd, proc, XVFB_START_S)
+        except WorkbenchError as exc:
+            proc.kill()
+            log.seek(0)
+            raise WorkbenchError(f"{exc}: {log.read()[-400:].decode(errors='replace')}") from None
+        finally:
+            os.close(read_fd)
         os.environ["DISPLAY"] = f":{num}"
         try:
             yield os.environ["DISPLAY"]

@@ -29,13 +29,21 @@ def _save(widget, path: Path) -> Path:
 
 
 def take(out: Path, results: Path | None, size=(240, 320)) -> list[Path]:
-    from PySide6.QtWidgets import QApplication, QMessageBox
+    from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401
+    from workbench.gui.gc_thread import GuiThreadGarbageCollection
+    app = QApplication.instance() or QApplication(["workbench-screenshots"])
+    with GuiThreadGarbageCollection():
+        return _take(app, out, results, size)
+
+
+def _take(app, out: Path, results: Path | None, size) -> list[Path]:
+    from PySide6.QtWidgets import QMessageBox
+
     from workbench.gui.document import Document
     from workbench.gui.main_window import MainWindow
     from workbench.project import load_project
-    app = QApplication.instance() or QApplication(["workbench-screenshots"])
     out.mkdir(parents=True, exist_ok=True)
     written = []
 
