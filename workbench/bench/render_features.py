@@ -60,6 +60,8 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("sky perez", daylight={"sky_model": "perez"}),
             FeatureCase("sky perez + horizon field 3 km", daylight={"sky_model": "perez"},
                         recipe={"horizon_field_m": 3000.0}),
+            FeatureCase("sky perez + field 3 km + skyline 250 m", daylight={"sky_model": "perez"},
+                        recipe={"horizon_field_m": 3000.0, "skyline_distance_m": 250.0}),
             FeatureCase("low sun 5 deg (perez)", daylight={"sun_elevation_deg": 5.0, "sky_model": "perez"}),
             FeatureCase("overcast", daylight={"sky_model": "overcast"}),
             FeatureCase("fog V=150 m koschmieder", world={"fog": fog}),

@@ -1,8 +1,8 @@
 """`generate_city`: recipe → City (streets, sidewalks, markings, buildings, placed objects).
 
-Two independent random streams come from the seed: one for the buildings (seed only) and one for
-the placements (seed and arrangement), so changing the arrangement moves the cars, people and
-street furniture but never a building.
+Independent random streams come from the seed: one for the buildings (seed only), one for the
+placements (seed and arrangement) and one for the distant skyline (seed only), so changing the
+arrangement moves the cars, people and street furniture but never a building.
 """
 from __future__ import annotations
 
@@ -15,11 +15,12 @@ from workbench.scene.city.layout import CityLayout, build_layout, marking_rects
 from workbench.scene.city.materials import city_materials
 from workbench.scene.city.placement import Placement, place_objects
 from workbench.scene.city.recipe import CityRecipe
+from workbench.scene.city.skyline import skyline_objects
 from workbench.scene.city.tunnel import tunnel_object
 from workbench.scene.city.types import City, CityObject, Mesh
 
 MARKING_LIFT_M = 0.005    # paint sits this far above the asphalt (no coplanar faces)
-_LAYOUT_STREAM, _PLACEMENT_STREAM = 1, 2
+_LAYOUT_STREAM, _PLACEMENT_STREAM, _SKYLINE_STREAM = 1, 2, 3
 
 
 def _rect_polygon(r) -> np.ndarray:
@@ -122,8 +123,12 @@ def generate_city(recipe: CityRecipe) -> City:
         tunnel = [("tunnel", meshes, footprint, meta)]
         building_rects = building_rects + [footprint]    # keeps tree canopies and lamp arms out
     placed = [_placed_object(p) for p in place_objects(recipe, layout, building_rects, rng_place)]
+    skyline = []
+    if recipe.skyline_distance_m > 0:      # last of all, for the same reason as the tunnel
+        skyline = skyline_objects(recipe, layout.road_bounds,
+                                  np.random.default_rng([recipe.seed, _SKYLINE_STREAM]))
     objects = [CityObject(cls, i + 1, meshes, fp, meta)
-               for i, (cls, meshes, fp, meta) in enumerate(static + placed + tunnel)]
+               for i, (cls, meshes, fp, meta) in enumerate(static + placed + tunnel + skyline)]
     x0, y0, x1, y1 = layout.road_bounds
     m = recipe.ground_margin_m + recipe.horizon_field_m
     return City(objects, city_materials(), recipe.seed, (x0 - m, y0 - m, x1 + m, y1 + m),

@@ -35,6 +35,8 @@ CLASS_IDS: dict[str, int] = {
 
 # Smallest building lot left inside a block once the sidewalk ring is taken off (m).
 MIN_LOT_M = 20.0
+# Depth of the ring of distant buildings (skyline_distance_m; scene/city/skyline.py), m.
+SKYLINE_DEPTH_M = 60.0
 
 
 class TunnelParams(Params):
@@ -85,6 +87,9 @@ class CityRecipe(Params):
         "a flat field this wide (m) around the grass margin, so the ground reaches nearly to the horizon "
         "instead of ending where the perez and overcast skies are black; 0 = none; ≤ 5,000 m keeps it nearer than "
         "the sky's background depth; city geometry"))
+    skyline_distance_m: float = Field(0.0, ge=0.0, le=4900.0, description=(
+        "a ring of distant buildings (60 m deep) this far (m) beyond the grass margin, standing on the horizon "
+        "field, so views out of the city end in buildings; 0 = none; city geometry"))
     building_height_min_m: float = Field(8.0, ge=3.0, le=400.0, description="lowest building (m); city buildings")
     building_height_max_m: float = Field(40.0, ge=3.0, le=400.0, description="tallest building (m); city buildings")
     asset_detail: Literal["simple", "detailed"] = Field(
@@ -115,6 +120,11 @@ class CityRecipe(Params):
                 f"block_size_m={self.block_size_m} leaves a {lot:.1f} m building lot after two "
                 f"sidewalks of sidewalk_width_m={self.sidewalk_width_m}; need block_size_m >= "
                 f"{2 * self.sidewalk_width_m + MIN_LOT_M:.1f}")
+        if self.skyline_distance_m > 0 and self.horizon_field_m < self.skyline_distance_m + SKYLINE_DEPTH_M:
+            raise ValueError(
+                f"skyline_distance_m={self.skyline_distance_m} puts the distant buildings ({SKYLINE_DEPTH_M:.0f} m "
+                f"deep) beyond the horizon field of horizon_field_m={self.horizon_field_m}; set horizon_field_m "
+                f">= {self.skyline_distance_m + SKYLINE_DEPTH_M:.0f} or lower skyline_distance_m")
         t = self.tunnel
         if t is not None:
             if t.street_index > self.blocks_x or t.segment_index >= self.blocks_y:
