@@ -67,7 +67,8 @@ def main() -> None:
         return WorldParams(materials="procedural", wet_road_fraction=wet_road_fraction, paint="clearcoat", **world)
 
     detailed = city.city.updated(asset_detail="detailed")   # wheels, glass, lights, mirrors, plates; posed people
-    street = detailed.updated(n_parked_cars=12, horizon_field_m=3000.0)   # kerbs parked; ground to the horizon
+    # kerbs parked; ground to the horizon, with distant blocks on it
+    street = detailed.updated(n_parked_cars=12, horizon_field_m=3000.0, skyline_distance_m=250.0)
 
     samples += [
         city.updated(
@@ -123,6 +124,13 @@ def main() -> None:
             sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S),
             render=RenderParams(world=textured(0.0))),
     ]
+    tunnel_exit = samples[-1]
+    samples.append(tunnel_exit.updated(
+        name="city_tunnel_entrance",
+        description="The same road tunnel seen from the sunlit street 20-60 m before its entrance (the other HDR "
+                    "case: exposed for the street, the portal is a dark hole whose inside a 10-bit linear sensor "
+                    "cannot show); the auto_rccc sensor (exposure at most 1/30 s).",
+        pose=tunnel_exit.pose.updated(tunnel_view="entrance")))
     detection = city.updated(
         name="city_detection_quick",
         description="Data for the detection experiments (workbench experiment isp|exposure, quick profile): the "

@@ -7,7 +7,7 @@ import sys
 
 # The city scene types among the sample projects (the default list).
 SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog",
-                      "city_tunnel", "city_detection_quick")
+                      "city_tunnel", "city_tunnel_entrance", "city_detection_quick")
 
 
 def register(sub) -> None:
