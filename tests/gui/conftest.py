@@ -69,8 +69,8 @@ def gc_on_gui_thread(qapp):
     """As in the app: Python's cyclic collector runs only on the GUI thread (a worker thread that
     collects garbage holding widgets crashes Qt), and runs automatically again after the module."""
     from workbench.gui.gc_thread import GuiThreadGarbageCollection
-    with GuiThreadGarbageCollection():
-        yield
+    with GuiThreadGarbageCollection() as collector:
+        yield collector
 
 
 @pytest.fixture(autouse=True)

@@ -1,9 +1,15 @@
 """Cyclic garbage that holds widgets is freed on the GUI thread, never by a worker thread that
-happens to allocate (Qt crashes when a worker destroys widgets while the GUI thread paints)."""
+happens to allocate (Qt crashes when a worker destroys widgets while the GUI thread paints); the
+GUI thread collects the generations CPython would have, a full collection only once the oldest
+generation grew by a quarter, and a burst of new objects is collected once and then frozen."""
 from __future__ import annotations
 
 import gc
 import threading
+
+import pytest
+
+from workbench.gui.gc_thread import due_generation
 
 
 def test_a_worker_allocating_does_not_collect_widgets(qapp, qtbot):
@@ -32,3 +38,26 @@ def test_a_worker_allocating_does_not_collect_widgets(qapp, qtbot):
     assert freed_on_gui_thread == []
     qtbot.waitUntil(lambda: len(freed_on_gui_thread) == 20, timeout=10_000)
     assert all(freed_on_gui_thread)
+
+
+@pytest.mark.parametrize(("count", "oldest_now", "expected"), [
+    ((700, 11, 11), 1300, None),       # the youngest generation has not reached its threshold
+    ((701, 3, 3), 1300, 0),
+    ((701, 11, 3), 1300, 1),
+    ((701, 11, 11), 1200, 1),          # the oldest grew 20 %: the middle generation only
+    ((701, 11, 11), 1300, 2),          # grew 30 %: a full collection
+])
+def test_a_full_collection_waits_until_the_oldest_generation_grew_by_a_quarter(count, oldest_now, expected):
+    assert due_generation(count, (700, 10, 10), oldest_now, 1000) == expected
+
+
+def test_a_burst_is_collected_once_then_frozen(gc_on_gui_thread):
+    gc_on_gui_thread.collect_due()                   # whatever is due from earlier
+    frozen_before = gc.get_freeze_count()
+    burst = [[i] for i in range(60_000)]
+    assert gc_on_gui_thread.collect_due() == 1
+    assert gc.get_freeze_count() >= frozen_before + len(burst)
+    assert gc.get_count()[0] < 100
+    small = [[i] for i in range(1_000)]
+    assert gc_on_gui_thread.collect_due() in (0, 1, 2)    # an ordinary collection: no new freeze
+    assert gc.get_freeze_count() < frozen_before + len(burst) + len(small)
