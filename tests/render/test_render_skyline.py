@@ -10,19 +10,12 @@ from workbench.render.film import box_bands
 from workbench.render.labels import render_labels
 from workbench.render.params import DaylightParams
 from workbench.render.scene_builder import build_scene
-from workbench.scene.city.buildings import WINDOW_PROUD_M
 from workbench.scene.city import CameraPose, CityRecipe, generate_city
+from workbench.scene.city.buildings import WINDOW_PROUD_M
+
+from tests.render.test_render_horizon import north_rays
 
 W, H, HFOV_DEG, CAM_Z = 120, 40, 60.0, 1.5
-
-
-def _rays():
-    """Unit pixel-centre ray directions (H×W×3) of the pinhole looking along +y."""
-    f_px = (W / 2) / np.tan(np.radians(HFOV_DEG / 2))
-    u = (np.arange(W) + 0.5 - W / 2) / f_px
-    v = (H / 2 - np.arange(H) - 0.5) / f_px
-    d = np.stack(np.broadcast_arrays(u[None, :], 1.0, v[:, None]), -1).astype(np.float64)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def _slab_hits(origin, d, lo, hi):
@@ -45,7 +38,7 @@ def test_skyline_pixels_are_labelled_at_their_depth(mi):
     scene, ids = build_scene(city, pose, HFOV_DEG, W, H, box_bands(400.0, 700.0, 2), DaylightParams(sky_model="perez"))
     labels = render_labels(scene, ids, W, H)
 
-    d = _rays()
+    d = north_rays(W, H, HFOV_DEG)
     best_t, best_t_panes = np.full((H, W), np.inf), np.full((H, W), np.inf)
     best_id = np.zeros((H, W), dtype=np.int64)
     proud = np.array([WINDOW_PROUD_M, WINDOW_PROUD_M, 0.0]) + 1e-3
