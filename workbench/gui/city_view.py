@@ -2,7 +2,8 @@
 to drag the camera, typed pose values, colour by class, and "look through camera".
 
 Generating the city (seed, arrangement) runs on a superqt worker thread; the meshes come back to
-the GUI thread, which alone touches VTK (and alone drops the last reference to this widget). Pose edits go through the document (one undoable edit)."""
+the GUI thread, which alone touches VTK (and alone drops the last reference to this widget). Pose
+edits go through the document (one undoable edit)."""
 from __future__ import annotations
 
 import numpy as np

@@ -25,7 +25,7 @@ def _read_display_number(fd: int, proc: subprocess.Popen, timeout_s: float) -> i
             raise WorkbenchError(f"Xvfb did not start within {timeout_s:.0f} s")
         chunk = os.read(fd, 16)
         if not chunk:
-            raise WorkbenchError(f"Xvfb exited (code {proc.wait()}) before it took a display")
+            raise WorkbenchError(f"Xvfb closed its display pipe (exit code {proc.poll()}) before it took a display")
         text += chunk
     return int(text)
 
