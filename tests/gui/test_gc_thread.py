@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import gc
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -61,3 +62,13 @@ def test_a_burst_is_collected_once_then_frozen(gc_on_gui_thread):
     small = [[i] for i in range(1_000)]
     assert gc_on_gui_thread.collect_due() in (0, 1, 2)    # an ordinary collection: no new freeze
     assert gc.get_freeze_count() < frozen_before + len(burst) + len(small)
+
+
+def test_the_gui_starts_threads_only_through_superqt_workers_or_the_live_runner():
+    """A plain thread whose closure holds a widget can drop the widget's last reference off the GUI
+    thread. superqt's workers hold none; LiveRunner's thread holds only the runner, a QObject its
+    window owns."""
+    import workbench.gui
+    package = Path(workbench.gui.__file__).parent
+    starts = sorted(str(p.relative_to(package)) for p in package.rglob("*.py") if "threading.Thread(" in p.read_text())
+    assert starts == ["live.py"]
