@@ -8,7 +8,7 @@ the GUI thread collects instead, the generations CPython itself would have colle
 
 pyqtgraph's GarbageCollector does the same, but it forces a full collection every tenth middle
 one, and in the window's process (about 380,000 tracked objects) a full collection holds the GUI
-thread for 130–250 ms. Here, as in CPython, a full collection waits until the oldest generation
+thread for 210–280 ms. Here, as in CPython, a full collection waits until the oldest generation
 has grown by a quarter. A burst of new objects (startup, the first render importing Mitsuba)
 is collected once and then frozen with everything older (gc.freeze), so no later collection walks
 it again.
