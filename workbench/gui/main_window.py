@@ -10,7 +10,7 @@ from pydantic import ValidationError
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
-                               QProgressBar, QPushButton, QScrollArea, QTabBar)
+                               QProgressBar, QPushButton, QTabBar)
 
 from workbench.gui.document import LOAD_ERRORS, Document, find_recoverable, sample_projects
 from workbench.gui.live import LiveRunner
@@ -74,7 +74,7 @@ class MainWindow(QMainWindow):
             self.editors[title] = editor
             area = Qt.DockWidgetArea.BottomDockWidgetArea if title in ("Exposure sweep", "Experiments") \
                 else Qt.DockWidgetArea.RightDockWidgetArea
-            self._add_dock(title, editor, area, scroll=True)
+            self._add_dock(title, editor, area)
         for group in DOCK_TABS:
             present = [self.docks[t] for t in group if t in self.docks]
             if present:
@@ -96,16 +96,12 @@ class MainWindow(QMainWindow):
         self._update_title()
 
     # -- layout ----------------------------------------------------------------------------
-    def _add_dock(self, title: str, widget, area, scroll: bool = False) -> QDockWidget:
-        """A movable, floatable dock; scroll=True lets a tall panel shrink below its own minimum."""
+    def _add_dock(self, title: str, widget, area) -> QDockWidget:
+        """A movable, floatable dock holding the widget itself. Editors scroll their own forms: a
+        dock-wide scroll area around an editor that has one inside recursed in Qt's layout until
+        the stack overflowed (a segfault on the Sensor dock's 'QE curves' tab)."""
         dock = QDockWidget(title, self)
         dock.setObjectName(f"dock-{title}")
-        if scroll:
-            holder = QScrollArea()
-            holder.setWidgetResizable(True)
-            holder.setFrameShape(QScrollArea.Shape.NoFrame)
-            holder.setWidget(widget)
-            widget = holder
         dock.setWidget(widget)
         dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
                          | QDockWidget.DockWidgetFeature.DockWidgetFloatable
