@@ -164,11 +164,63 @@ def test_zero_and_saturated_images_are_finite(level, correction, normalize):
         assert res.srgb.min() > 0.5
 
 
-def test_default_params_follow_the_design():
-    """DESIGN.md §4: bilinear, Macbeth/D65 matrix, gray world, sRGB; 'swing' keeps EV bias."""
+def test_default_params_are_a_cameras():
+    """DESIGN.md §4's pipeline (bilinear, Macbeth/D65 matrix, gray-world family, sRGB; 'swing' keeps
+    EV bias), with what a camera does beyond ISETCam: greys kept grey, blown highlights white."""
     p = ISPParams()
-    assert (p.demosaic, p.colour_transform, p.illuminant_correction, p.normalize) == \
-        ("bilinear", "macbeth_d65_lsq", "gray_world", "swing")
+    assert (p.demosaic, p.colour_transform, p.illuminant_correction, p.normalize, p.highlights) == \
+        ("bilinear", "macbeth_d65_wp", "gray_pixels", "swing", "neutral")
+
+
+@pytest.mark.parametrize("qe_fn", [cie_like_qe, camera_like_qe])
+def test_white_preserving_fit_maps_white_to_white_and_stays_close(qe_fn):
+    from workbench.isp.color import fit_sensor_to_xyz
+    qe = qe_fn()
+    S, s_white, X, x_white = macbeth_responses(qe, WL, "D65")
+    wp = fit_sensor_to_xyz(qe, WL, preserve_white=True)
+    lsq = fit_sensor_to_xyz(qe, WL)
+    np.testing.assert_allclose((s_white / s_white.max()) @ wp.matrix, x_white / x_white[1], rtol=1e-10)
+    free = (s_white / s_white.max()) @ lsq.matrix
+    print(f"\n{qe_fn.__name__}: unconstrained white → {free / free[1]} (x_white {x_white / x_white[1]})")
+    assert wp.residual_rms < 1.5 * lsq.residual_rms + 1e-4      # the constraint costs little elsewhere
+
+
+def test_clipped_highlights_render_white_and_are_left_out_of_the_white_balance():
+    """A white that saturates every channel renders neutral white (the clipped triple through the
+    matrix is pink); the saturated pixels do not steer gray world; unsaturated colours keep theirs."""
+    qe = camera_like_qe()
+    img, _ = macbeth_chart(qe, white_level=2.0)                 # white and neutral 8 clip
+    img = np.clip(img, 0.0, 1.0)
+    si = sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe)
+    clip = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none", highlights="clip"))
+    neutral = sensor_image_to_srgb(si, ISPParams(illuminant_correction="none"))
+    white = 18
+    assert np.ptp(patch_means(clip.srgb)[white]) > 0.02                 # clipped: not neutral
+    np.testing.assert_allclose(patch_means(neutral.srgb)[white], 1.0, atol=1e-3)
+    dark = patch_means(img).max(axis=1) < 0.85                          # no channel near saturation
+    assert dark.sum() >= 8
+    np.testing.assert_allclose(patch_means(neutral.srgb)[dark], patch_means(clip.srgb)[dark], atol=1e-6)
+    gains = sensor_image_to_srgb(si, ISPParams(illuminant_correction="gray_world")).gains
+    unclipped = sensor_image(np.where(img.max(axis=2, keepdims=True) >= 0.98, 0.0, img)[:, :, :],
+                             BAYER_TILES["RGGB"], "RGB", qe)
+    np.testing.assert_allclose(gains, sensor_image_to_srgb(unclipped, ISPParams(illuminant_correction="gray_world"))
+                               .gains, rtol=0.02)
+
+
+def test_gray_pixels_keeps_the_greys_of_a_coloured_scene_grey():
+    """On the Macbeth chart under D65 (whose mean is not grey) the right white balance is none:
+    gray_pixels stays within 3 % of it (the greys are not spectrally flat) and gray world does not;
+    under tungsten light it finds the grey patch's colour."""
+    for qe in (camera_like_qe(), cie_like_qe()):
+        img, _ = macbeth_chart(qe, white_level=0.9)
+        si = sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe)
+        pixels = sensor_image_to_srgb(si, ISPParams(illuminant_correction="gray_pixels")).gains
+        world = sensor_image_to_srgb(si, ISPParams(illuminant_correction="gray_world")).gains
+        assert np.abs(pixels - 1).max() < 0.03 < np.abs(world - 1).max(), (pixels, world)
+    qe = camera_like_qe()
+    grey = sensor_image(_uniform_under(qe, "A", NEUTRAL_5), BAYER_TILES["RGGB"], "RGB", qe)
+    srgb = sensor_image_to_srgb(grey, ISPParams(illuminant_correction="gray_pixels")).srgb.reshape(-1, 3).mean(axis=0)
+    assert np.ptp(srgb) < 0.01
 
 
 def test_bad_input_is_refused():
@@ -223,7 +275,8 @@ def test_gray_world_cost_on_the_macbeth_chart():
     """Gray world assumes the scene averages to grey; the Macbeth chart nearly does (report ΔE)."""
     qe = cie_like_qe()
     img, xyz_ref = macbeth_chart(qe)
-    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe), ISPParams())
+    res = sensor_image_to_srgb(sensor_image(img, BAYER_TILES["RGGB"], "RGB", qe),
+                               ISPParams(illuminant_correction="gray_world"))
     de = delta_e_2000(patch_means(res.xyz), xyz_ref)
     print(f"\ngray world on the Macbeth chart under D65: gains {np.round(res.gains, 3)}, "
           f"ΔE2000 mean {de.mean():.2f} max {de.max():.2f}")

@@ -58,8 +58,12 @@ def macbeth_responses(qe: np.ndarray, wavelengths_nm: np.ndarray,
 
 
 def fit_sensor_to_xyz(qe: np.ndarray, wavelengths_nm: np.ndarray,
-                      max_condition: float = 1.0e4) -> ColourFit:
+                      max_condition: float = 1.0e4, preserve_white: bool = False) -> ColourFit:
     """Least-squares K×3 matrix T with S·T ≈ X on the 24 Macbeth patches under D65 (cached per QE).
+
+    preserve_white: the least-squares solution under the constraint s_white·T = x_white, so the
+    D65 white (and every grey) maps exactly onto the neutral axis; the unconstrained fit lets the
+    greys drift (a few per cent of red on a typical Bayer sensor).
 
     Ill-conditioning: channels whose responses are linearly dependent (fewer than 3 singular
     values above RANK_TOLERANCE × the largest; e.g. a mono sensor or two identical channels)
@@ -68,12 +72,12 @@ def fit_sensor_to_xyz(qe: np.ndarray, wavelengths_nm: np.ndarray,
     and the returned notes say so."""
     qe = np.ascontiguousarray(qe, dtype=np.float64)
     wl = np.ascontiguousarray(wavelengths_nm, dtype=np.float64)
-    return _fit_cached(qe.tobytes(), qe.shape, wl.tobytes(), float(max_condition))
+    return _fit_cached(qe.tobytes(), qe.shape, wl.tobytes(), float(max_condition), bool(preserve_white))
 
 
 @lru_cache(maxsize=64)
 def _fit_cached(qe_bytes: bytes, qe_shape: tuple[int, int], wl_bytes: bytes,
-                max_condition: float) -> ColourFit:
+                max_condition: float, preserve_white: bool) -> ColourFit:
     qe = np.frombuffer(qe_bytes, dtype=np.float64).reshape(qe_shape)
     wl = np.frombuffer(wl_bytes, dtype=np.float64)
     S, s_white, X, x_white = macbeth_responses(qe, wl, "D65")
@@ -106,6 +110,11 @@ def _fit_cached(qe_bytes: bytes, qe_shape: tuple[int, int], wl_bytes: bytes,
                      f"ridge-regularised (λ = {ridge:.3g}) — colours are approximate")
     # Solve in the SVD basis: T_A = V diag(s / (s² + λ)) Uᵀ X (plain least squares when λ = 0).
     T_A = Vt.T @ ((sv / (sv ** 2 + ridge))[:, None] * (U.T @ X))
+    if preserve_white:
+        # min ‖A·T_A − X‖² (+ λ‖T_A‖²) s.t. a_w·T_A = x_w: T_A += G⁻¹a_wᵀ (x_w − a_w·T_A) / (a_w G⁻¹ a_wᵀ)
+        a_w = (s_white / np.max(s_white)) / norms
+        g_inv_a = Vt.T @ ((1.0 / (sv ** 2 + ridge)) * (Vt @ a_w))
+        T_A = T_A + np.outer(g_inv_a, (x_white / x_white[1]) - a_w @ T_A) / float(a_w @ g_inv_a)
     T = T_A / norms[:, None]
     residual = float(np.sqrt(np.mean((S @ T - X) ** 2)))
     T.setflags(write=False)

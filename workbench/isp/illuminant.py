@@ -44,6 +44,32 @@ def _gray_world(flat, to_ics, white, white_world_fraction, manual_gains):
     return _gains_to_white("gray_world", _channel_means(flat) @ to_ics, white)  # the mean commutes with the map
 
 
+GREY_PIXEL_TOLERANCES = (0.12, 0.06, 0.03, 0.03)   # chromatic distance from white, per round
+GREY_PIXEL_MIN_SHARE = 0.005    # fewer grey pixels than this share of the image: gray world
+
+
+@ILLUMINANT_CORRECTIONS.register("gray_pixels")
+def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains):
+    """Gray world over the pixels that are nearly grey once corrected (r, g, b chromaticity within
+    a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
+    so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
+    ics = pixels_matmul(flat, to_ics)
+    gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
+    target = white / white.sum()
+    for tolerance in GREY_PIXEL_TOLERANCES:
+        corrected = ics * gains
+        total = corrected.sum(axis=1, keepdims=True)
+        lit = total[:, 0] > 0.02 * np.percentile(total, 99)
+        chroma = corrected / np.where(total > 0, total, 1.0)
+        grey = lit & (np.abs(chroma - target).max(axis=1) < tolerance)
+        if grey.sum() < GREY_PIXEL_MIN_SHARE * len(ics):
+            notes.append(f"gray_pixels: fewer than {100 * GREY_PIXEL_MIN_SHARE:g} % of the pixels are near grey; "
+                         "gray world over all of them")
+            break
+        gains, notes = _gains_to_white("gray_pixels", _channel_means(ics[grey]), white)
+    return gains, notes
+
+
 @ILLUMINANT_CORRECTIONS.register("white_world")
 def _white_world(flat, to_ics, white, white_world_fraction, manual_gains):
     """The mean of the pixels ≥ white_world_fraction × max of the brightest ics channel gets it."""
@@ -62,8 +88,8 @@ def _manual(flat, to_ics, white, white_world_fraction, manual_gains):
 
 
 def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white: np.ndarray, *,
-                     white_world_fraction: float = 0.7,
-                     manual_gains: tuple[float, ...] = (1.0, 1.0, 1.0)) -> tuple[np.ndarray, list[str]]:
+                     white_world_fraction: float = 0.7, manual_gains: tuple[float, ...] = (1.0, 1.0, 1.0),
+                     saturated: float | None = None) -> tuple[np.ndarray, list[str]]:
     """Gains (3,) for the internal colour space ics = linear @ to_ics that correct the illuminant.
 
     linear: H×W×K sensor channels; to_ics: K×3 matrix into the internal colour space (XYZ, or
@@ -71,11 +97,21 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
     (the image mean gets the chromaticity of `white`), 'white_world' (the mean of the pixels ≥
     white_world_fraction × max of the brightest ics channel gets it), 'manual' (manual_gains).
     white: the output white in the internal space (3,), e.g. the XYZ of sRGB's D65 white.
+    saturated: pixels with a sensor channel ≥ this (full scale 1) are left out of the statistics
+    (their colour is the clipping's, not the scene's); when every pixel is, all are used, with a note.
     Returns (gains, notes); a zero statistic leaves the image unchanged, with a note."""
     correct = ILLUMINANT_CORRECTIONS[method]
     k = linear.shape[-1]
     if linear.ndim != 3 or to_ics.shape != (k, 3):
         raise ValueError(f"illuminant correction needs an H×W×K image and a K×3 matrix, got "
                          f"shapes {linear.shape} and {to_ics.shape}")
-    return correct(linear.reshape(-1, k), to_ics, np.asarray(white, dtype=np.float64),
-                   white_world_fraction, manual_gains)
+    flat = linear.reshape(-1, k)
+    notes: list[str] = []
+    if saturated is not None and method in ("gray_world", "white_world"):
+        unsaturated = flat.max(axis=1) < saturated
+        if unsaturated.any():
+            flat = flat[unsaturated]
+        else:
+            notes.append(f"{method}: every pixel is saturated; the statistic uses them all")
+    gains, more = correct(flat, to_ics, np.asarray(white, dtype=np.float64), white_world_fraction, manual_gains)
+    return gains, notes + more

@@ -25,6 +25,10 @@ from workbench.sensor.image import SensorImage
 
 # SensorImage.meta key of the black level (dn) that the ISP subtracts ("zero level" in ISETCam).
 BLACK_LEVEL_KEY = "black_level_dn"
+# A sensor channel at or above this fraction of full scale is saturated: its pixel's colour is
+# not the scene's (left out of white balance statistics; 'neutral' highlights start here).
+SATURATED_FRACTION = 0.98
+HIGHLIGHT_START = 0.90        # 'neutral' highlights blend from here to SATURATED_FRACTION
 # Channels that can stand for luminance in a grey rendering, in order of preference.
 GREY_CHANNELS = ("C", "W", "M", "Y", "G")
 
@@ -96,6 +100,20 @@ def linear_to_xyz(linear: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return pixels_matmul(linear.reshape(-1, k), matrix).reshape(h, w, 3)
 
 
+def neutral_highlights(rgb_linear: np.ndarray, linear: np.ndarray) -> np.ndarray:
+    """Pixels whose brightest sensor channel nears saturation blend towards a neutral of their
+    brightest output channel: weight 0 below HIGHLIGHT_START of full scale, 1 from
+    SATURATED_FRACTION on (smoothstep between), so a clipped white renders white, not pink, and
+    unsaturated colours are untouched."""
+    peak = linear.max(axis=2, keepdims=True)
+    t = np.clip((peak - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0.0, 1.0)
+    if not np.any(t):
+        return rgb_linear
+    w = (t * t * (3.0 - 2.0 * t)).astype(np.float32)
+    grey = rgb_linear.max(axis=2, keepdims=True)
+    return rgb_linear + w * (grey - rgb_linear)
+
+
 def _normalise(rgb_linear: np.ndarray, normalize: str, notes: list[str]) -> np.ndarray:
     if normalize == "swing":
         return rgb_linear
@@ -137,8 +155,9 @@ def _colour_path(image: SensorImage, params: ISPParams, notes: list[str]):
     names = list(image.channel_names)
     upper = [n.upper() for n in names]
     transform = params.colour_transform
-    if transform == "macbeth_d65_lsq" and np.asarray(image.wavelengths_nm).size == 0:
-        transform = "none"
+    fitted = transform in ("macbeth_d65_wp", "macbeth_d65_lsq")
+    if fitted and np.asarray(image.wavelengths_nm).size == 0:
+        transform, fitted = "none", False
         notes.append("SensorImage has no QE (wavelengths_nm is empty): no colour matrix can be fitted; "
                      "the sensor channels are shown as they are (colour_transform 'none')")
     if len(names) == 1:
@@ -146,9 +165,10 @@ def _colour_path(image: SensorImage, params: ISPParams, notes: list[str]):
     if set(upper) == {"R", "C"}:
         return None, None, None, (f"{image.pattern} has only red and clear pixels: no colour can be "
                                   "reconstructed (red alone cannot separate green from blue)")
-    if transform == "macbeth_d65_lsq":
+    if fitted:
         try:
-            fit = fit_sensor_to_xyz(image.qe, image.wavelengths_nm, params.max_condition)
+            fit = fit_sensor_to_xyz(image.qe, image.wavelengths_nm, params.max_condition,
+                                    preserve_white=transform == "macbeth_d65_wp")
         except ColourFitError as exc:
             return None, None, None, f"no colour transform: {exc}"
         notes.extend(fit.notes)
@@ -194,7 +214,8 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     else:
         gains, gain_notes = illuminant_gains(linear, to_ics, params.illuminant_correction, white,
                                              white_world_fraction=params.white_world_fraction,
-                                             manual_gains=params.manual_gains)
+                                             manual_gains=params.manual_gains,
+                                             saturated=SATURATED_FRACTION)
         notes.extend(gain_notes)
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
         if fit is not None:
@@ -202,6 +223,8 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
             rgb_linear = linear_to_xyz(linear, to_ics @ xyz_to_linear_srgb_matrix().T)
         else:
             rgb_linear = linear_to_xyz(linear, to_ics)
+        if params.highlights == "neutral":
+            rgb_linear = neutral_highlights(rgb_linear, linear)
     srgb = srgb_encode(_normalise(rgb_linear, params.normalize, notes))
     for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
         if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum

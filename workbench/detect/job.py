@@ -1,0 +1,61 @@
+"""One training-and-testing run as an independent job of plain data: `run_detection_job(job)`
+is a module-level function of picklable input that returns a plain dict, so it runs in-process,
+in a process pool or on a cluster through workbench.compute's run_jobs."""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass
+
+from workbench.detect.engine import TrainConfig
+
+BOOTSTRAP_RESAMPLES = 1000
+
+
+@dataclass(frozen=True)
+class DetectionJob:
+    """Train `config` on the data set, then test on its test frames at each of test_evs (the
+    training representation), with test-set bootstrap resamples of every mAP. checkpoint: the
+    run's checkpoint file (a finished one is tested, not retrained)."""
+
+    key: str
+    dataset_dir: str
+    config: TrainConfig
+    test_evs: tuple[float, ...]
+    checkpoint: str
+    with_curves: bool = False
+    bootstrap: int = BOOTSTRAP_RESAMPLES
+
+    def __repr__(self) -> str:
+        return f"DetectionJob({self.key})"
+
+
+def run_detection_job(job: DetectionJob, cancel=None) -> dict:
+    """Train (or resume) and test one run; return a plain dict: key, config, train figures (loss
+    and train-mAP curves, train mAP on every training frame at the curve EV) and one entry per
+    test EV (mAP, AP per class, COCO AP@0.5, bootstrap mAPs, inference ms per image)."""
+    from workbench.detect.data import DetectionDataset, DetectionView
+    from workbench.detect.devices import pick_device
+    from workbench.detect.engine import train_detector
+    from workbench.detect.inference import evaluate_detector
+
+    dataset = DetectionDataset(job.dataset_dir)
+    model, tr = train_detector(dataset, job.config, job.checkpoint, cancel)
+    device = pick_device(job.config.device)
+    cfg = job.config
+
+    def test(positions, ev: float, **kw) -> dict:
+        view = DetectionView(dataset, positions, cfg.representation, (ev,), cache_mb=cfg.cache_mb)
+        t0 = time.perf_counter()
+        res = evaluate_detector(model, view, dataset.class_names, device=device, batch_size=cfg.eval_batch_size,
+                                workers=cfg.loader_workers, precision=cfg.precision, **kw)
+        res.update({"ev": float(ev), "seconds": time.perf_counter() - t0})
+        return res
+
+    train = asdict(tr)
+    train_test = test(dataset.indices("train"), cfg.curve_ev)
+    train.update(train_map=train_test["map"], train_map_ev=cfg.curve_ev)
+    tests = [test(dataset.indices("test"), ev, with_curves=job.with_curves, bootstrap=job.bootstrap)
+             for ev in job.test_evs]
+    return {"key": job.key, "config": json.loads(cfg.to_json()), "train": train, "tests": tests,
+            "classes": list(dataset.class_names), "device": device}

@@ -1,0 +1,100 @@
+"""Render noise of a data set against the sensor's shot noise: is the Monte-Carlo noise baked into
+the stored irradiance small beside the photon noise the experiments study?
+
+For a few frames of a `workbench dataset` folder, the frame is rendered again from its own seeds
+with `reference_spp` samples (multijitter, independent of the stored render), both are turned into
+the experiment sensor's mean electron rate per pixel, and every pixel's render error
+e = (rate − reference rate)·t is compared with its photon shot noise √N, N = reference rate · t,
+at the lowest EV the experiment tests (t = auto-exposure · 2^EV_min). Reported per frame:
+
+    median_ratio   median |e|/√N ÷ 0.6745 (the σ ratio for Gaussian errors): the criterion,
+                   ≤ TARGET_RATIO (⅓) passes;
+    p90_ratio      90th percentile |e|/√N ÷ 1.645;
+    power_ratio    √(Σe² / ΣN): render noise power over shot noise power, all pixels (fireflies
+                   weigh in here);
+    median_render_rel, median_shot_rel: the two noises as fractions of the signal (÷ 0.6745 for
+                   the render error).
+The reference's own noise is left in e, so every figure is an upper bound.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Generator
+
+import numpy as np
+
+from workbench.jobs import Progress
+
+TARGET_RATIO = 1.0 / 3.0
+REFERENCE_SEED_TAG = 0x52454631       # 'REF1': the reference render's own noise stream
+RESULT_FILE = "render-noise.json"
+
+
+def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float) -> dict:
+    """The figures of the module docstring for one frame (rates in e⁻/s per pixel)."""
+    n = np.asarray(reference_rate, np.float64) * exposure_s
+    e = (np.asarray(rate, np.float64) - np.asarray(reference_rate, np.float64)) * exposure_s
+    lit = n > 0
+    if not lit.any():
+        raise ValueError("render noise: the reference collects no electrons at this exposure")
+    n, e = n[lit], e[lit]
+    r = np.abs(e) / np.sqrt(n)
+    return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645),
+            "power_ratio": float(np.sqrt(np.sum(e * e) / np.sum(n))),
+            "median_render_rel": float(np.median(np.abs(e) / n) / 0.6745),
+            "median_shot_rel": float(np.median(1.0 / np.sqrt(n))), "mean_electrons": float(n.mean()),
+            "pixels": int(lit.sum())}
+
+
+def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int = 4096,
+                         chunk_spp: int = 256) -> Generator[Progress, None, dict]:
+    """Measure the first `frames` frames of a data set (module docstring); a long job that yields
+    Progress and returns the report, also written to FOLDER/render-noise.json (atomically)."""
+    from workbench.detect.data import DetectionDataset, experiment_sensor, load_signal_rates
+    from workbench.files import atomic_write_text
+    from workbench.render.city_frame import FrameSeeds, city_optical_image, city_scene_inputs, city_scene_job
+    from workbench.sensor import auto_exposure, irradiance_to_signal_rate
+
+    dataset = DetectionDataset(folder)
+    project = dataset.project
+    sensor = experiment_sensor(project)
+    ev_min = float(min(project.experiment.ev_biases))
+    render = project.render
+    inputs = city_scene_inputs(project.updated(render=render.updated(
+        spp=reference_spp, target_rel_error=None, shot_noise_ratio=None, sampler="multijitter",
+        chunk_spp=chunk_spp, preview_spp=chunk_spp)))
+    records = dataset.frames[:frames]
+    rows = []
+    for k, rec in enumerate(records):
+        t0 = time.perf_counter()
+        seeds = FrameSeeds(**{k: int(rec.seeds[k]) for k in ("index", "arrangement", "pose", "render")})
+        seeds = replace(seeds, render=int(np.random.SeedSequence([seeds.render, REFERENCE_SEED_TAG])
+                                          .generate_state(1)[0]))
+        job = city_scene_job(inputs, seeds)
+        while True:
+            try:
+                step = next(job)
+            except StopIteration as stop:
+                ref_render = stop.value
+                break
+            yield Progress(k + step.fraction, len(records),
+                           f"frame {rec.index}: reference at {reference_spp} spp ({step.message})")
+        ref_rate = irradiance_to_signal_rate(city_optical_image(ref_render, project.optics,
+                                                                project.scene.adjust_illuminance_lux), sensor)
+        rate = load_signal_rates(rec, sensor, dataset.fingerprint)[0]
+        exposure_s = min(float(auto_exposure(ref_rate, sensor)) * 2.0 ** ev_min, sensor.max_exposure_s)
+        rows.append({"frame": rec.index, "exposure_s": exposure_s, **noise_ratios(rate, ref_rate, exposure_s),
+                     "reference_seconds": time.perf_counter() - t0})
+        yield Progress(k + 1, len(records), f"frame {rec.index}: median σ ratio {rows[-1]['median_ratio']:.3f}")
+    worst = max(r["median_ratio"] for r in rows)
+    report = {"dataset": str(dataset.folder), "fingerprint": dataset.fingerprint,
+              "render": {"sampler": render.sampler, "spp": render.spp, "chunk_spp": render.chunk_spp,
+                         "preview_spp": render.preview_spp},
+              "reference": {"spp": reference_spp, "sampler": "multijitter", "chunk_spp": chunk_spp},
+              "lowest_ev": ev_min, "target_ratio": TARGET_RATIO, "frames": rows,
+              "worst_median_ratio": worst, "passes": worst <= TARGET_RATIO}
+    atomic_write_text(Path(folder) / RESULT_FILE, json.dumps(report, indent=1) + "\n")
+    return report
