@@ -199,7 +199,8 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
                                        weight="irradiance")
     check()
     mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
-                                     lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world)
+                                     lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world,
+                                     sampler=inputs.render.sampler)
     yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
     labels = render_labels(mi_scene, id_table, width, height)
     params = inputs.render.updated(seed=seeds.render)

@@ -178,7 +178,7 @@ def surface_bsdf(mi, surface: Surface, materials: dict[str, Material], film_rang
 
 def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height: int,
                 film_srfs: FilmSRFs, daylight: DaylightParams, sensor: dict | None = None, *,
-                max_depth: int = 6, world: WorldParams | None = None):
+                max_depth: int = 6, world: WorldParams | None = None, sampler: str = "independent"):
     """Load the city into Mitsuba (the spectral variant must already be set: variants.py).
 
     film_srfs: the film's response curves (film.py: box_bands, raised_cosine_basis,
@@ -192,6 +192,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         'koschmieder' the scene stays clear, its sun dimmed by the layer, and koschmieder.koschmieder_fog
         fogs the render), glass and materials (WorldParams; procedural textures are seeded by
         city.seed); None = day, clear air, diffuse glass, uniform materials.
+    sampler: the Mitsuba sampler type (RenderParams.sampler).
     Returns (mi.Scene, id_table: dict[shape id → ShapeLabel, or None for unlabelled helpers])."""
     import mitsuba as mi
 
@@ -204,7 +205,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         raise ValueError(f"max_depth must be in 1…64, got {max_depth}")
     cam = dict(sensor) if sensor is not None else pinhole_sensor(pose, fov_deg)
     cam["film"] = film_srfs.mitsuba_film(width, height)
-    cam["sampler"] = {"type": "independent", "sample_count": 1}
+    cam["sampler"] = {"type": sampler, "sample_count": 1}
     world = WorldParams() if world is None else world
     if world.fog is not None and world.fog.model == "koschmieder":
         daylight = sun_through_layer(daylight, world.fog)

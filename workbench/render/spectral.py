@@ -198,7 +198,7 @@ def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width
     select_variant(params.variant)
     film = film_for(params, sensor_qe)
     mi_scene, _ = build_scene(city, pose, fov_deg, width, height, film, params.daylight,
-                              lens_sensor, max_depth=params.max_depth)
+                              lens_sensor, max_depth=params.max_depth, sampler=params.sampler)
     return (yield from render_loaded(mi_scene, film, params, fov_deg=fov_deg, cancel=cancel, name=name))
 
 
