@@ -47,7 +47,7 @@ def slow_renderer(project, seeds):
 def thread_budget(_job):
     """(Dr.Jit threads after the variant is chosen, OMP_NUM_THREADS, torch threads a training run
     would use) as a worker sees them."""
-    from workbench.detect.train import choose_threads
+    from workbench.detect.devices import choose_threads
     from workbench.render.variants import select_variant
     select_variant("llvm_ad_spectral")
     import drjit as dr

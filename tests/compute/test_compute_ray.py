@@ -158,8 +158,8 @@ def test_experiment_runs_as_ray_tasks_with_the_in_process_results(ray_cluster, t
 
     from workbench.detect.synthetic import make_synthetic_dataset, synthetic_project
     from workbench.experiments.detection import PROFILES, run_experiment
-    tiny = replace(PROFILES["quick"], name="tiny", image_hw=(48, 64), epochs={"isp": 1, "exposure": 1},
-                   crop_hw=None, batch_size=4)
+    tiny = replace(PROFILES["quick"], name="tiny", image_hw=(48, 64), epochs={"mobile": 1}, crop_hw=None,
+                   batch_size=4, curve_points=1)
     make_synthetic_dataset(tmp_path / "data", frames=14)
     project = synthetic_project()
     runs = {}

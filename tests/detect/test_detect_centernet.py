@@ -81,3 +81,25 @@ def test_loss_is_small_for_perfect_outputs_and_empty_images_work():
     total, _ = centernet_loss(prior, targets)
     assert math.isfinite(total.item()) and total.item() > 1
     assert decode(prior, score_threshold=0.02)[1]["boxes"].shape == (0, 4)
+
+
+def test_ignored_boxes_carry_no_loss_of_their_class():
+    """A confident detection on an ignored road user costs nothing in its class (it is neither a
+    positive nor a negative target) but still counts as a false alarm for the other classes."""
+    kept, ignored = [[4, 4, 20, 28]], [[40, 8, 52, 24]]              # 64×64 image: output cells 16×16
+    targets = collate_targets([encode_targets(kept, [0], 2, (64, 64), ignored_xyxy=ignored, ignored_classes=[1])])
+    ignore = targets["ignore"][0]
+    assert ignore[1, 2:6, 10:13].eq(1).all() and ignore[1].sum() == 12 and ignore[0].sum() == 0
+    base = perfect_outputs(targets)
+    for k, cost in ((1, 0.0), (0, None)):
+        fired = {key: v.clone() for key, v in base.items()}
+        fired["heatmap"][0, k, 2:6, 10:13] = 6.0                     # p ≈ 0.998 over the ignored box
+        extra = (centernet_loss(fired, targets)[1]["heatmap"] - centernet_loss(base, targets)[1]["heatmap"]).item()
+        if cost is not None:
+            assert extra == pytest.approx(cost, abs=1e-9)
+        else:
+            assert extra > 1.0                                      # class 0 is not ignored there
+    unmasked = {k: v for k, v in targets.items() if k != "ignore"}
+    fired = {key: v.clone() for key, v in base.items()}
+    fired["heatmap"][0, 1, 2:6, 10:13] = 6.0
+    assert centernet_loss(fired, unmasked)[1]["heatmap"] > centernet_loss(base, unmasked)[1]["heatmap"] + 1.0

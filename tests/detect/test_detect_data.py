@@ -6,8 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from workbench.detect.data import (TEST_FRACTION, DetectionDataset, DetectionView, drop_ignored_detections,
-                                   keep_box, split_of)
+from workbench.detect.boxes import drop_ignored_detections, keep_box
+from workbench.detect.data import TEST_FRACTION, DetectionDataset, DetectionView, split_of
 from workbench.errors import InputFileError, ParameterError
 from workbench.sensor import irradiance_to_signal_rate
 
@@ -65,13 +65,62 @@ def test_an_ev_mix_gives_every_ev_an_equal_share_each_epoch(synthetic_dir):
 
 
 def test_training_crops_keep_the_cfa_phase_and_move_the_boxes(synthetic_dir):
+    from workbench.detect.boxes import clip_boxes, crop_boxes, mirror_boxes
+    from workbench.detect.data import load_signal_rates
+    from workbench.detect.representations import packed_sites
     ds = DetectionDataset(synthetic_dir)
     view = DetectionView(ds, ds.indices("train"), "raw", augment=True, crop_hw=(32, 40), seed=2)
+    h, w = ds.image_hw
+    mirrored_seen = False
     for i in range(len(view)):
         x, t = view[i]
-        assert tuple(x.shape) == (4, 16, 20)                    # packed raw of a 32×40 window
-        b = t["boxes_xyxy"].numpy()
-        assert (b[:, [0, 2]] >= 0).all() and (b[:, [0, 2]] <= 40).all() and (b[:, [1, 3]] <= 32).all()
+        r0, c0 = t["window"]
+        assert tuple(x.shape) == (4, 16, 20) and r0 % 2 == 0 and c0 % 2 == 0       # packed raw of a 32×40 window
+        rec = view.frame_record(i)
+        boxes, ignored = rec.boxes_xyxy, rec.ignored_xyxy
+        rate = load_signal_rates(rec, view.sensor, ds.fingerprint)[int(t["mirrored"])]
+        if t["mirrored"]:
+            boxes, ignored, mirrored_seen = mirror_boxes(boxes, w), mirror_boxes(ignored, w), True
+        kept, kept_cls, _, lost, _ = crop_boxes(boxes, rec.classes, rec.truncation, r0, c0, 32, 40, h)
+        np.testing.assert_array_equal(t["boxes_xyxy"].numpy(), kept)
+        np.testing.assert_array_equal(t["classes"].numpy(), kept_cls)
+        assert len(t["ignored_xyxy"]) == len(clip_boxes(ignored, rec.ignored_classes, r0, c0, 32, 40)[0]) + len(lost)
+        # each packed plane holds its CFA site: plane means follow the noise-free rates of those sites
+        window = rate[r0:r0 + 32, c0:c0 + 40]
+        expected = np.array([window[r::2, c::2].mean() for r, c in packed_sites(view.sensor.cfa_pattern)])
+        got = x.numpy().reshape(4, -1).mean(axis=1)
+        np.testing.assert_allclose(got / got.sum(), expected / expected.sum(), rtol=0.05)
+    assert mirrored_seen
+
+
+def test_a_crop_turns_a_cut_road_user_into_an_ignored_box_not_background():
+    from workbench.detect.boxes import crop_boxes
+    boxes = np.array([[10, 10, 30, 70], [100, 20, 120, 90]], np.float32)    # 20×60 px each
+    kept, cls, trunc, lost, lost_cls = crop_boxes(boxes, np.array([0, 1]), np.array([0.0, 0.3], np.float32),
+                                                  0, 20, 128, 96, 240)
+    # box 0 keeps half its width: truncation 0.5, still kept; box 1 keeps 16 of 20 columns, but was
+    # 30 % outside the frame already: 1 − 0.7·0.8 = 0.44 → kept
+    np.testing.assert_allclose(kept, [[0, 10, 10, 70], [80, 20, 96, 90]])
+    np.testing.assert_allclose(trunc, [0.5, 0.44], rtol=1e-6)
+    kept, _, _, lost, lost_cls = crop_boxes(boxes, np.array([0, 1]), np.array([0.0, 0.3], np.float32), 0, 22, 128, 94, 240)
+    assert len(kept) == 1 and lost_cls.tolist() == [0]                   # 8 of 20 columns: 60 % cut, ignored
+    np.testing.assert_allclose(lost, [[0, 10, 8, 70]])
+    boxes = np.array([[10, 10, 30, 70], [100, 70, 120, 90]], np.float32)
+    kept, _, _, lost, _ = crop_boxes(boxes, np.array([0, 1]), np.zeros(2, np.float32), 60, 0, 128, 320, 240)
+    np.testing.assert_allclose(kept, [[100, 10, 120, 30]])
+    np.testing.assert_allclose(lost, [[10, 0, 30, 10]])                 # box 0 left 10 rows tall (< 16): ignored
+
+
+def test_crop_windows_hold_the_centre_of_a_kept_box():
+    from workbench.detect.boxes import crop_corner
+    rng = np.random.default_rng(0)
+    boxes = np.array([[290.0, 200.0, 318.0, 238.0]], np.float32)       # near the bottom-right corner
+    for _ in range(200):
+        r0, c0 = crop_corner(boxes, (240, 320), (128, 160), rng)
+        assert r0 % 2 == 0 and c0 % 2 == 0 and 0 <= r0 <= 112 and 0 <= c0 <= 160
+        assert c0 <= 304 < c0 + 160 and r0 <= 219 < r0 + 128
+    corners = {crop_corner(np.zeros((0, 4), np.float32), (240, 320), (128, 160), rng) for _ in range(200)}
+    assert len(corners) > 50
 
 
 def test_split_is_a_fixed_function_of_the_frame_seeds():
@@ -162,15 +211,3 @@ def test_a_project_that_renders_other_frames_is_refused(synthetic_dir):
     DetectionDataset(synthetic_dir, project=project.updated(sensor=project.sensor.updated(read_noise_V=0.01)))
     with pytest.raises(ParameterError, match="pose"):
         DetectionDataset(synthetic_dir, project=project.updated(pose=project.pose.updated(height_m=2.0)))
-
-
-def test_crop_windows_hold_the_centre_of_a_kept_box():
-    from workbench.detect.data import _crop_corner
-    rng = np.random.default_rng(0)
-    boxes = np.array([[290.0, 200.0, 318.0, 238.0]], np.float32)       # near the bottom-right corner
-    for _ in range(200):
-        r0, c0 = _crop_corner(boxes, 240, 320, 128, 160, rng)
-        assert r0 % 2 == 0 and c0 % 2 == 0 and 0 <= r0 <= 112 and 0 <= c0 <= 160
-        assert c0 <= 304 < c0 + 160 and r0 <= 219 < r0 + 128
-    corners = {_crop_corner(np.zeros((0, 4), np.float32), 240, 320, 128, 160, rng) for _ in range(200)}
-    assert len(corners) > 50

@@ -10,7 +10,7 @@ from workbench.detect.centernet import centernet_loss, collate_targets, decode, 
 from workbench.detect.evaluate import evaluate_map
 from workbench.detect.models import build_detector
 from workbench.detect.representations import pack_raw
-from workbench.detect.train import autocast, autocast_dtype
+from workbench.detect.devices import autocast, autocast_dtype
 
 SIZE_PX = 64
 STEPS = 120

@@ -1,19 +1,16 @@
-"""Network inputs: exact raw packing for every CFA, fixed scaling, CFA-aware crops and flips."""
+"""Network inputs: exact raw packing for every CFA, fixed scaling."""
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from workbench.detect.representations import (
-    crop, hflip, input_channels, input_stride, network_input, pack_raw, packed_channel_names, packed_sites,
+    input_channels, input_stride, network_input, pack_raw, packed_channel_names, packed_sites,
     raw_scaled, unpack_raw)
 from workbench.errors import ParameterError
 from workbench.isp import BLACK_LEVEL_KEY, ISPParams, sensor_image_to_srgb
-from workbench.sensor import CFA_PATTERNS, cfa_layout
+from workbench.sensor import CFA_PATTERNS
 from workbench.sensor.image import SensorImage
-
-FLIPPED = {"RGGB": "GRBG", "GRBG": "RGGB", "GBRG": "BGGR", "BGGR": "GBRG", "RCCC": "CRCC", "RCCB": "CRBC",
-           "RGBW": "GRWB"}
 
 
 @pytest.mark.parametrize("pattern", CFA_PATTERNS)
@@ -42,21 +39,6 @@ def test_plane_order_is_documented_one():
     assert packed_channel_names("RCCB") == ["R", "B", "C", "C"]
     assert packed_channel_names("RGBW") == ["R", "G", "B", "W"]
     assert packed_sites("MONO") == [(0, 0), (0, 1), (1, 0), (1, 1)]
-
-
-@pytest.mark.parametrize("pattern", sorted(FLIPPED))
-def test_packed_flip_is_the_flipped_mosaic_packed(pattern):
-    """Flipping the planes equals packing the mirrored mosaic under its mirrored pattern, plane by plane."""
-    mosaic = np.random.default_rng(2).random((4, 8))
-    flipped_planes, _ = hflip(pack_raw(mosaic, pattern), np.zeros((0, 4)), "raw")
-    mirrored = mosaic[:, ::-1]
-    tile, names = cfa_layout(FLIPPED[pattern])
-    src_tile, src_names = cfa_layout(pattern)
-    for plane, (r, c) in zip(flipped_planes, packed_sites(pattern)):
-        mr, mc = r, 1 - c              # the site's column parity is mirrored (W even)
-        assert names[tile[mr, mc]] == src_names[src_tile[r, c]]
-        assert np.array_equal(plane, mirrored[mr::2, mc::2])
-    assert np.array_equal(flipped_planes, pack_raw(mirrored, FLIPPED[pattern]))
 
 
 def test_odd_mosaic_refused():
@@ -103,27 +85,3 @@ def test_strides_and_channels():
     assert input_channels("linear", "RGBW") == 4 and input_channels("srgb", "MONO") == 3
     with pytest.raises(ParameterError, match="representation"):
         input_stride("jpeg")
-
-
-@pytest.mark.parametrize("representation", ["raw", "srgb"])
-def test_crop_even_offsets_and_boxes(representation):
-    s = input_stride(representation)
-    x = np.arange(4 * 12 * 16 // s // s, dtype=np.float32).reshape(4, 12 // s, 16 // s)
-    boxes = np.array([[2.0, 2.0, 6.0, 6.0], [6.0, 4.0, 12.0, 8.0], [0.0, 8.0, 16.0, 12.0]])
-    out, kept, keep = crop(x, boxes, 2, 4, 8, 10, representation)
-    assert out.shape == (4, 8 // s, 10 // s)
-    assert np.array_equal(out, x[:, 2 // s:10 // s, 4 // s:14 // s])
-    # window x 4…14, y 2…10: box 0 half visible (kept at 0.5), box 1 inside, box 2 only 20/64 visible
-    assert keep.tolist() == [0, 1]
-    np.testing.assert_allclose(kept, [[0, 0, 2, 4], [2, 2, 8, 6]])
-    with pytest.raises(ParameterError, match="even"):
-        crop(x, boxes, 1, 0, 8, 8, representation)
-
-
-def test_hflip_boxes_and_involution():
-    x = np.random.default_rng(4).random((3, 6, 8)).astype(np.float32)
-    boxes = np.array([[1.0, 2.0, 3.0, 5.0]])
-    y, b = hflip(x, boxes, "srgb")
-    np.testing.assert_allclose(b, [[5.0, 2.0, 7.0, 5.0]])
-    z, b2 = hflip(y, b, "srgb")
-    assert np.array_equal(z, x) and np.allclose(b2, boxes)

@@ -1,5 +1,6 @@
-"""Training: the warm-up + cosine schedule, thread budget, atomic weights-only checkpoints, and a
-run stopped after an epoch that resumes to the same weights as an uninterrupted one."""
+"""Training: the warm-up + cosine schedule, thread budget, atomic weights-only checkpoints, a run
+stopped after an epoch that resumes to the same weights as an uninterrupted one, and the loss and
+train-mAP curves a run records."""
 import pickle
 
 import numpy as np
@@ -7,13 +8,15 @@ import pytest
 import torch
 
 from workbench.detect.data import DetectionDataset
-from workbench.detect.train import (DetectionJob, TrainConfig, autocast_dtype, choose_threads, learning_rate,
-                                    load_checkpoint, pick_device, run_detection_job, save_checkpoint,
-                                    train_detector)
+from workbench.detect.checkpoint import load_checkpoint, save_checkpoint
+from workbench.detect.devices import autocast_dtype, choose_threads, pick_device
+from workbench.detect.engine import TrainConfig, curve_epochs, last_quarter_gain, learning_rate, train_detector
+from workbench.detect.job import DetectionJob, run_detection_job
 from workbench.errors import InputFileError, ParameterError
 from workbench.jobs import CancelToken, JobCancelled
 
-TINY = dict(net="mobile", representation="srgb", epochs=2, batch_size=4, threads=1, device="cpu")
+TINY = dict(net="mobile", representation="srgb", epochs=2, batch_size=4, threads=1, device="cpu", curve_points=2,
+            curve_frames=4)
 
 
 def test_learning_rate_warms_up_then_decays_to_zero():
@@ -26,8 +29,11 @@ def test_learning_rate_warms_up_then_decays_to_zero():
     assert all(a >= b for a, b in zip(lrs, lrs[1:]))
 
 
-def test_threads_leave_room_for_a_second_process():
+def test_threads_leave_room_for_a_second_process(monkeypatch):
     import os
+
+    from workbench.compute.local import THREAD_BUDGET_ENV
+    monkeypatch.delenv(THREAD_BUDGET_ENV, raising=False)
     cores = len(os.sched_getaffinity(0))
     assert choose_threads() == max(1, cores // 2)
     assert choose_threads(concurrent_processes=cores) == 1
@@ -36,12 +42,20 @@ def test_threads_leave_room_for_a_second_process():
         choose_threads(0)
 
 
-def test_config_needs_exactly_one_budget():
-    with pytest.raises(ParameterError, match="epochs/minutes"):
-        TrainConfig(epochs=None, minutes=None)
-    with pytest.raises(ParameterError, match="epochs/minutes"):
-        TrainConfig(epochs=3, minutes=1.0)
-    TrainConfig(epochs=None, minutes=0.5)
+def test_config_refuses_what_cannot_train():
+    for field, value in (("epochs", 0), ("epochs", None), ("batch_size", 0), ("lr", 0.0), ("lr", float("nan")),
+                         ("warmup_fraction", 1.0), ("train_evs", ())):
+        with pytest.raises(ParameterError, match=field):
+            TrainConfig(**{**TINY, field: value})
+
+
+def test_curve_points_are_spread_over_the_budget_and_end_on_it():
+    assert curve_epochs(40, 4) == [10, 20, 30, 40]
+    assert curve_epochs(3, 6) == [1, 2, 3]
+    assert curve_epochs(40, 0) == []
+    curve = [{"epoch": e, "train_map": m} for e, m in ((10, 0.2), (20, 0.4), (30, 0.55), (40, 0.57))]
+    assert last_quarter_gain(curve, 40) == pytest.approx(0.02)       # 40 vs 30 (= ¾ of 40)
+    assert last_quarter_gain(curve[:3], 40) is None                  # the run has not ended
 
 
 def test_checkpoints_are_atomic_and_weights_only(tmp_path):
@@ -91,6 +105,11 @@ def test_a_run_is_a_picklable_job_returning_plain_data(synthetic_dir, tmp_path):
     assert [t["ev"] for t in result["tests"]] == [0.0, 2.0]
     assert 0.0 <= result["tests"][0]["map"] <= 1.0
     assert result["train"]["sensor_isp_ms_per_image"] > 0 and result["train"]["train_ms_per_image"] > 0
+    assert 0.0 <= result["train"]["train_map"] <= 1.0 and result["train"]["train_map_ev"] == 0.0
+    assert [c["epoch"] for c in result["train"]["curve"]] == [1]              # curve_points 2 of a 1-epoch budget
+    assert {"loss", "heatmap", "size", "offset"} <= set(result["train"]["history"][0])
+    boot = result["tests"][0]["bootstrap_map"]
+    assert len(boot) == 1000 and min(boot) <= result["tests"][0]["map"] <= max(boot)
 
 
 def test_loader_workers_give_the_same_training(synthetic_dir, tmp_path):
@@ -103,27 +122,9 @@ def test_loader_workers_give_the_same_training(synthetic_dir, tmp_path):
     assert result.sensor_isp_ms_per_image > 0
 
 
-def test_a_wall_clock_budget_stops_training(synthetic_dir, tmp_path):
-    ds = DetectionDataset(synthetic_dir)
-    _, result = train_detector(ds, TrainConfig(**{**TINY, "epochs": None, "minutes": 0.02}), tmp_path / "t.pt")
-    assert result.seconds >= 1.2 and result.seconds < 10
-
-
-def test_a_run_can_start_from_another_runs_weights(synthetic_dir, tmp_path):
-    ds = DetectionDataset(synthetic_dir)
-    base, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "base.pt")
-    config = TrainConfig(**{**TINY, "epochs": 1, "lr": 1e-12, "warmup_fraction": 0.0, "init": "base"})
-    tuned, _ = train_detector(ds, config, tmp_path / "tuned.pt", init_checkpoint=tmp_path / "base.pt")
-    for (name, a), b in zip(base.state_dict().items(), tuned.state_dict().values()):
-        if a.dtype.is_floating_point and "running" not in name:
-            assert torch.allclose(a, b, atol=1e-6), name                # lr ≈ 0: the start is kept
-    with pytest.raises(InputFileError, match="missing.pt"):
-        train_detector(ds, config, tmp_path / "other.pt", init_checkpoint=tmp_path / "missing.pt")
-
-
 def test_testing_through_loader_workers_gives_the_same_map(synthetic_dir, tmp_path):
     from workbench.detect.data import DetectionView
-    from workbench.detect.train import evaluate_detector
+    from workbench.detect.inference import evaluate_detector
     ds = DetectionDataset(synthetic_dir)
     model, _ = train_detector(ds, TrainConfig(**{**TINY, "epochs": 1}), tmp_path / "m.pt")
     results = [evaluate_detector(model, DetectionView(ds, ds.indices("test"), "srgb", (1.0,)), ds.class_names,

@@ -1,13 +1,18 @@
 """`workbench bench detect`: what one image costs the detection study, per representation and network.
 
-Rows of two kinds, at 320×240 and 640×480 (--quick: 320×240 only):
+Rows of three kinds; view and network rows at 320×240 and 640×480 (--quick: 320×240 only):
   view     sensor (exposure, noise, ADC) + ISP + network_input ms per image, from the cached pixel
            signal of the paper camera's Macbeth chart (what a data view does per frame; raw needs no ISP);
   network  forward+backward (one training step without the optimiser) and inference (eval mode,
            no grad) ms per image at batch 4, for each built-in net on sRGB (3×H×W) and packed-raw
            (4×H/2×W/2) input; on the CPU with torch.set_num_threads(1), and on CUDA too when present,
            at the precision training uses there (train.autocast_dtype(device, 'auto'): bf16 autocast
-           on a bf16-capable GPU), with training images per second.
+           on a bf16-capable GPU), with training images per second;
+  train    what one training image of the experiments costs on one CPU thread: a 160×128 crop
+           (the profiles' crop_hw) through a whole optimiser step (forward, loss, backward,
+           AdamW) at the profiles' batch size in channels-last order, plus the view's sensor +
+           ISP + input for that crop; fp32 and bf16 autocast (the CPU has no faster path: the
+           bf16 row says whether that still holds on this CPU).
 """
 from __future__ import annotations
 
@@ -19,6 +24,8 @@ from workbench.bench.timing import median_times_ms
 BATCH = 4
 NUM_CLASSES = 3
 NETWORKS = ("mobile", "resnet18")
+TRAIN_CROP_HW = (128, 160)
+TRAIN_BATCH = 16
 
 
 def _view_rows(rows: int, cols: int, repeats: int) -> list[dict]:
@@ -58,8 +65,8 @@ def _network_rows(rows: int, cols: int, repeats: int, device: str) -> list[dict]
     import torch
 
     from workbench.detect.centernet import centernet_loss, collate_targets, encode_targets
+    from workbench.detect.devices import autocast, autocast_dtype, prepare_input, prepare_model
     from workbench.detect.models import build_detector
-    from workbench.detect.train import autocast, autocast_dtype
 
     dtype = autocast_dtype(device, "auto")
 
@@ -74,8 +81,8 @@ def _network_rows(rows: int, cols: int, repeats: int, device: str) -> list[dict]
     for name in NETWORKS:
         for rep, channels, stride in (("srgb", 3, 1), ("raw", 4, 2)):
             torch.manual_seed(0)
-            net = build_detector(name, channels, NUM_CLASSES, stride).to(device)
-            x = torch.rand(BATCH, channels, rows // stride, cols // stride, device=device)
+            net = prepare_model(build_detector(name, channels, NUM_CLASSES, stride), device)
+            x = prepare_input(torch.rand(BATCH, channels, rows // stride, cols // stride), device)
 
             def train_step():
                 net.train()
@@ -100,6 +107,44 @@ def _network_rows(rows: int, cols: int, repeats: int, device: str) -> list[dict]
     return out
 
 
+def _train_rows(repeats: int, view_ms: dict) -> list[dict]:
+    import torch
+
+    from workbench.detect.centernet import centernet_loss, collate_targets, encode_targets
+    from workbench.detect.devices import autocast, prepare_input, prepare_model
+    from workbench.detect.models import build_detector
+
+    rows, cols = TRAIN_CROP_HW
+    boxes = [[cols * 0.2, rows * 0.3, cols * 0.4, rows * 0.6], [cols * 0.6, rows * 0.5, cols * 0.7, rows * 0.9]]
+    targets = collate_targets([encode_targets(boxes, [0, 1], NUM_CLASSES, (rows, cols))] * TRAIN_BATCH)
+    out = []
+    for name in NETWORKS:
+        for rep, channels, stride in (("srgb", 3, 1), ("raw", 4, 2)):
+            for dtype in (None, torch.bfloat16):
+                torch.manual_seed(0)
+                net = prepare_model(build_detector(name, channels, NUM_CLASSES, stride), "cpu")
+                opt = torch.optim.AdamW(net.parameters(), lr=1e-3)
+                x = prepare_input(torch.rand(TRAIN_BATCH, channels, rows // stride, cols // stride), "cpu")
+                net.train()
+
+                def step():
+                    with autocast("cpu", dtype):
+                        y = net(x)
+                    loss = centernet_loss({k: v.float() for k, v in y.items()}, targets)[0]
+                    opt.zero_grad(set_to_none=True)
+                    loss.backward()
+                    opt.step()
+                t = median_times_ms(step, repeats)
+                step_ms = t.wall_ms / TRAIN_BATCH
+                data_ms = view_ms[rep]
+                out.append({"kind": "train", "size": f"{cols}x{rows}", "what": f"{name} {rep}", "device": "cpu",
+                            "precision": "bf16" if dtype is not None else "fp32",
+                            "step_ms_per_image": step_ms, "view_ms_per_image": data_ms,
+                            "train_ms_per_image": step_ms + data_ms, "train_images_per_s": 1e3 / (step_ms + data_ms),
+                            "step_cpu_ms_per_image": t.cpu_ms / TRAIN_BATCH})
+    return out
+
+
 @register_bench("detect", help="sensor + ISP + input ms per image per representation; detector train/infer ms")
 def bench_detect(args) -> BenchResult:
     import torch
@@ -111,8 +156,10 @@ def bench_detect(args) -> BenchResult:
     torch.set_num_threads(1)
     try:
         rows = []
-        for r, c in sizes:
+        for r, c in [TRAIN_CROP_HW] + sizes:
             rows += _view_rows(r, c, 3 * repeats)
+        crop_view = {row["what"]: row["total_ms_per_image"] for row in rows[:3]}
+        rows += _train_rows(max(repeats, 3), crop_view)
         devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
         for device in devices:
             for r, c in sizes:
@@ -125,6 +172,9 @@ def bench_detect(args) -> BenchResult:
              "view: paper camera, Macbeth chart; sensor = signal_rate_to_sensor_image (noise, ADC) from the cached pixel signal; "
              "raw skips the ISP; input = network_input (scaling, packing, layout)",
              "network train = forward + loss + backward (no optimiser step); raw input is packed 4×H/2×W/2",
+             f"train = one training image of the experiments: a {TRAIN_CROP_HW[1]}×{TRAIN_CROP_HW[0]} crop, a whole "
+             f"AdamW step at batch {TRAIN_BATCH} in channels-last order (step_ms) + sensor, ISP and input for the crop "
+             "(view_ms, the view row of that size)",
              "*_ms = wall clock; *_cpu_ms = process CPU time (the robust figure when other processes share the cores)"]
     return BenchResult("bench detect: ms per image for data views and detectors", rows, notes,
                        extra={"batch": BATCH, "torch_threads": 1, "devices": devices})

@@ -5,7 +5,9 @@ A network returns, at output stride 4 in ORIGINAL image pixels (h = ceil(H/4), w
     size     B×2×h×w  box (width, height) in output cells (pixels / stride)
     offset   B×2×h×w  (dx, dy) of the true centre inside its cell, in cells (0…1)
 The loss is the penalty-reduced focal loss on the heat-map (α = 2, β = 4) plus L1 on size
-(weight 0.1) and offset (weight 1), read only at the object centres. Decoding keeps the 3×3
+(weight 0.1) and offset (weight 1), read only at the object centres. Ignored boxes (see
+workbench.detect.boxes) are no target at all: the heat-map cells of their class that they touch
+carry no negative loss (the `ignore` map), and they have no centre. Decoding keeps the 3×3
 max-pool peaks of sigmoid(heatmap). Everything here runs on the tensors' own device.
 
 Boxes are (x1, y1, x2, y2) in image pixels with pixel edges at integers: a box covering pixel
@@ -69,14 +71,27 @@ def _draw_gaussian(heatmap: np.ndarray, cx: int, cy: int, radius: int) -> None:
     np.maximum(window, g[radius - top:radius + bottom, radius - left:radius + right], out=window)
 
 
+def ignore_map(boxes_xyxy, classes, num_classes: int, out_hw: tuple[int, int], stride: int = OUTPUT_STRIDE_PX
+               ) -> np.ndarray:
+    """K×h×w float32: 1 in the output cells of class k that an ignored box of class k touches."""
+    out = np.zeros((num_classes, *out_hw), dtype=np.float32)
+    for (x0, y0, x1, y1), k in zip(np.asarray(boxes_xyxy, np.float64).reshape(-1, 4), np.asarray(classes).reshape(-1)):
+        c0, r0 = max(int(np.floor(x0 / stride)), 0), max(int(np.floor(y0 / stride)), 0)
+        c1, r1 = min(int(np.ceil(x1 / stride)), out_hw[1]), min(int(np.ceil(y1 / stride)), out_hw[0])
+        out[int(k), r0:r1, c0:c1] = 1.0
+    return out
+
+
 def encode_targets(boxes_xyxy, classes, num_classes: int, image_hw: tuple[int, int],
-                   stride: int = OUTPUT_STRIDE_PX, max_objects: int = MAX_OBJECTS) -> dict[str, torch.Tensor]:
+                   stride: int = OUTPUT_STRIDE_PX, max_objects: int = MAX_OBJECTS,
+                   ignored_xyxy=None, ignored_classes=None) -> dict[str, torch.Tensor]:
     """Training targets of one image (CPU tensors; stack a batch with collate_targets).
 
-    boxes_xyxy: N×4 in image pixels (clipped to the image here); classes: N ints in [0, num_classes).
+    boxes_xyxy: N×4 in image pixels (clipped to the image here); classes: N ints in [0, num_classes);
+    ignored_xyxy, ignored_classes: the image's ignored boxes (none by default).
     Returns heatmap K×h×w (a Gaussian of radius gaussian_radius at each centre cell, peak 1),
-    size M×2 and offset M×2 (in cells, as the network predicts them), index M (flat cell y·w + x)
-    and mask M (1 for the first N rows) with M = max_objects."""
+    ignore K×h×w (ignore_map), size M×2 and offset M×2 (in cells, as the network predicts them),
+    index M (flat cell y·w + x) and mask M (1 for the first N rows) with M = max_objects."""
     boxes = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
     labels = np.asarray(classes, dtype=np.int64).reshape(-1)
     if labels.size != boxes.shape[0]:
@@ -106,7 +121,9 @@ def encode_targets(boxes_xyxy, classes, num_classes: int, image_hw: tuple[int, i
         offset[i] = cx - ix, cy - iy
         index[i] = iy * w + ix
         mask[i] = 1.0
-    return {"heatmap": torch.from_numpy(heatmap), "size": torch.from_numpy(size),
+    ignore = ignore_map(np.zeros((0, 4)) if ignored_xyxy is None else ignored_xyxy,
+                        np.zeros(0, np.int64) if ignored_classes is None else ignored_classes, num_classes, (h, w), stride)
+    return {"heatmap": torch.from_numpy(heatmap), "ignore": torch.from_numpy(ignore), "size": torch.from_numpy(size),
             "offset": torch.from_numpy(offset), "index": torch.from_numpy(index), "mask": torch.from_numpy(mask)}
 
 
@@ -115,15 +132,16 @@ def collate_targets(targets: list[dict[str, torch.Tensor]]) -> dict[str, torch.T
     return {key: torch.stack([t[key] for t in targets]) for key in targets[0]}
 
 
-def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def focal_loss(logits: torch.Tensor, target: torch.Tensor, ignore: torch.Tensor | None = None) -> torch.Tensor:
     """Penalty-reduced focal loss, summed and divided by the number of peaks (cells where target = 1).
 
-    Positives: −(1 − p)^α log p; others: −(1 − y)^β p^α log(1 − p), with log p = logsigmoid(x)
-    (numerically exact where the clamped-sigmoid form is not)."""
+    Positives: −(1 − p)^α log p; others: −(1 − y)^β p^α log(1 − p) · (1 − ignore), with
+    log p = logsigmoid(x) (numerically exact where the clamped-sigmoid form is not)."""
     p = torch.sigmoid(logits)
     positive = target.eq(1).to(logits.dtype)
     pos = (1 - p).pow(FOCAL_ALPHA) * F.logsigmoid(logits) * positive
-    neg = (1 - target).pow(FOCAL_BETA) * p.pow(FOCAL_ALPHA) * F.logsigmoid(-logits) * (1 - positive)
+    negative = 1 - positive if ignore is None else (1 - positive) * (1 - ignore)
+    neg = (1 - target).pow(FOCAL_BETA) * p.pow(FOCAL_ALPHA) * F.logsigmoid(-logits) * negative
     return -(pos.sum() + neg.sum()) / positive.sum().clamp(min=1.0)
 
 
@@ -149,7 +167,7 @@ def centernet_loss(outputs: dict[str, torch.Tensor], targets: dict[str, torch.Te
                              f"the network's heat-map shape {tuple(outputs['heatmap'].shape)} "
                              "(encode with the input image's size and stride 4)")
     out = {key: outputs[key].float() for key in ("heatmap", "size", "offset")}   # float32 also under autocast
-    heat = focal_loss(out["heatmap"], targets["heatmap"])
+    heat = focal_loss(out["heatmap"], targets["heatmap"], targets.get("ignore"))
     size = _masked_l1(_at_centres(out["size"], targets["index"]), targets["size"], targets["mask"])
     offset = _masked_l1(_at_centres(out["offset"], targets["index"]), targets["offset"], targets["mask"])
     total = heat + SIZE_WEIGHT * size + OFFSET_WEIGHT * offset

@@ -14,20 +14,17 @@ Test views use epoch 0 and a fixed seed, so every network is tested on the same 
 Split (`split_of`): a frame is a test frame when u < 0.3, u uniform from its own render seeds
 (SeedSequence([arrangement, pose, SPLIT_TAG])): fixed per frame, so growing a set keeps the split.
 
-Labels (the rule, stated once): classes car, pedestrian, bus and truck (a class is used only
-when the training frames hold a kept box of it). A box is kept when its visible height is at
-least MIN_BOX_HEIGHT_FRAC of the image rows (KITTI's 25 px of 375: 16 px at 240 rows, 32 px at
-480), at least MIN_BOX_WIDTH_PX wide, at most MAX_OCCLUSION occluded and at most MAX_TRUNCATION
-outside the image. Other boxes of these classes are 'ignored': not training targets, not ground
-truth, and a detection that overlaps one (IoU ≥ 0.5, same class) while matching no kept box is
-dropped before scoring (VOC's 'difficult' rule, `drop_ignored_detections`).
+Labels: classes car, pedestrian, bus and truck (a class is used only when the training frames
+hold a kept box of it); which boxes are kept and which ignored is the rule of
+workbench.detect.boxes, for evaluation and training alike.
 
 Augmentation (training views): the scene is mirrored before the sensor (the irradiance is flipped,
 then sampled by the same CFA, so the mosaic stays physically right: exact where flipping the
 packed mosaic would shift colours by a pixel) and a crop_hw window is cut from the signal rate at
 even row/column offsets (the CFA phase is kept), placed to hold the centre of a kept box drawn at
-random; the exposure still comes from the whole frame. Crops cut before the sensor make sensor +
-ISP cost only the window.
+random; the exposure still comes from the whole frame. A crop applies the label rule to what it
+leaves of each box (boxes.crop_boxes). Crops cut before the sensor make sensor + ISP cost only
+the window.
 """
 from __future__ import annotations
 
@@ -40,14 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.detect.boxes import clip_boxes, crop_boxes, crop_corner, keep_box, mirror_boxes
 from workbench.errors import InputFileError, ParameterError
 from workbench.render.dataset_stats import CLASSES_OF_INTEREST
 
 DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
-MIN_BOX_HEIGHT_FRAC = 25.0 / 375.0
-MIN_BOX_WIDTH_PX = 4
-MAX_OCCLUSION = 0.8
-MAX_TRUNCATION = 0.5
 TEST_FRACTION = 0.3
 SPLIT_TAG = 0x73706C74                 # 'splt': separates the split draw from other seed uses
 TEST_NOISE_SEED = 0x74657374           # 'test': the seed of every test view's captures
@@ -73,13 +67,6 @@ def split_of(seeds: dict, test_fraction: float = TEST_FRACTION) -> str:
     return "test" if word / 2.0 ** 32 < test_fraction else "train"
 
 
-def keep_box(ann: dict, image_rows: int) -> bool:
-    """The label rule of the module docstring for one COCO annotation (with occlusion/truncation)."""
-    _, _, w, h = ann["bbox"]
-    return (h >= MIN_BOX_HEIGHT_FRAC * image_rows and w >= MIN_BOX_WIDTH_PX
-            and ann.get("occlusion", 0.0) <= MAX_OCCLUSION and ann.get("truncation", 0.0) <= MAX_TRUNCATION)
-
-
 def _check_same_frames(project, rendered, manifest_path: Path) -> None:
     """ParameterError unless `project` makes the same frames as `rendered` (the data set's)."""
     from workbench.render.city_frame import frame_input_differences
@@ -92,7 +79,7 @@ def _check_same_frames(project, rendered, manifest_path: Path) -> None:
 @dataclass(frozen=True)
 class FrameRecord:
     """One frame's file, seeds, split and boxes (x0, y0, x1, y1 in pixels; classes index
-    DetectionDataset.class_names), kept and ignored."""
+    DetectionDataset.class_names), kept (with their truncation, 0…1) and ignored."""
 
     index: int
     path: Path
@@ -100,6 +87,7 @@ class FrameRecord:
     split: str
     boxes_xyxy: np.ndarray
     classes: np.ndarray
+    truncation: np.ndarray
     ignored_xyxy: np.ndarray
     ignored_classes: np.ndarray
 
@@ -182,6 +170,7 @@ class DetectionDataset:
             ignored = [a for a in anns if not keep_box(a, rows)]
             self.frames.append(FrameRecord(index, path, seeds, split_of(seeds, test_fraction),
                                            _xyxy(kept), _class_indices(kept, cat_names, cls_index),
+                                           np.asarray([a.get("truncation", 0.0) for a in kept], np.float32),
                                            _xyxy(ignored), _class_indices(ignored, cat_names, cls_index)))
         if not self.frames:
             raise InputFileError(manifest_path, "lists no frames")
@@ -263,35 +252,6 @@ def experiment_sensor(project):
                                   auto_exposure_level=exp.auto_exposure_level)
 
 
-def _mirror_boxes(boxes: np.ndarray, width: int) -> np.ndarray:
-    out = boxes.copy()
-    out[:, 0], out[:, 2] = width - boxes[:, 2], width - boxes[:, 0]
-    return out
-
-
-def _crop_boxes(boxes: np.ndarray, classes: np.ndarray, r0: int, c0: int, h: int, w: int):
-    """Boxes shifted into a crop window and clipped to it; boxes left under 2 px are dropped."""
-    out = boxes - np.asarray([c0, r0, c0, r0], np.float32)
-    out[:, [0, 2]] = out[:, [0, 2]].clip(0, w)
-    out[:, [1, 3]] = out[:, [1, 3]].clip(0, h)
-    ok = ((out[:, 2] - out[:, 0]) >= 2) & ((out[:, 3] - out[:, 1]) >= 2)
-    return out[ok], classes[ok]
-
-
-def _crop_corner(boxes: np.ndarray, h: int, w: int, ch: int, cw: int, rng: np.random.Generator) -> tuple[int, int]:
-    """Even (row, col) corner of a ch×cw window: uniform among the windows that hold the centre
-    of one kept box drawn at random (uniform over the frame when there is none)."""
-    lo_r, hi_r, lo_c, hi_c = 0, h - ch, 0, w - cw
-    if len(boxes):
-        x0, y0, x1, y1 = boxes[int(rng.integers(len(boxes)))]
-        cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
-        lo_r, hi_r = max(0, int(np.ceil(cy - ch + 1))), min(h - ch, int(cy))
-        lo_c, hi_c = max(0, int(np.ceil(cx - cw + 1))), min(w - cw, int(cx))
-    r0 = 2 * int(rng.integers((lo_r + 1) // 2, hi_r // 2 + 1)) if hi_r >= lo_r + 1 else 2 * (hi_r // 2)
-    c0 = 2 * int(rng.integers((lo_c + 1) // 2, hi_c // 2 + 1)) if hi_c >= lo_c + 1 else 2 * (hi_c // 2)
-    return r0, c0
-
-
 class DetectionView:
     """A torch-style Dataset (len, getitem) of network inputs and box targets.
 
@@ -302,7 +262,8 @@ class DetectionView:
     cache_mb: the limit of the process's signal-rate cache (RATES). A key is an item number (in the epoch set by
     set_epoch) or an (item, epoch) pair, so loader worker processes need no epoch state.
     Item: (input C×h×w float32 tensor, target dict with boxes_xyxy, classes, ignored_xyxy,
-    ignored_classes, frame index, ev, exposure_s, sensor_isp_s). `timing` sums seconds spent
+    ignored_classes, frame index, ev, exposure_s, sensor_isp_s, window (row, col of the crop's
+    corner) and mirrored). `timing` sums seconds spent
     loading and in sensor + ISP in this process."""
 
     def __init__(self, dataset: DetectionDataset, positions, representation: str, evs=(0.0,), *,
@@ -376,16 +337,18 @@ class DetectionView:
         h, w = self.dataset.image_hw
         boxes, classes = rec.boxes_xyxy, rec.classes
         ignored, ignored_cls = rec.ignored_xyxy, rec.ignored_classes
-        rate = rates[0]
-        if self.augment and rng.random() < 0.5:
-            rate = rates[1]
-            boxes, ignored = _mirror_boxes(boxes, w), _mirror_boxes(ignored, w)
+        mirrored = bool(self.augment and rng.random() < 0.5)
+        rate = rates[int(mirrored)]
+        if mirrored:
+            boxes, ignored = mirror_boxes(boxes, w), mirror_boxes(ignored, w)
+        r0 = c0 = 0
         if self.crop_hw is not None:
             ch, cw = self.crop_hw
-            r0, c0 = _crop_corner(boxes, h, w, ch, cw, rng)
+            r0, c0 = crop_corner(boxes, (h, w), (ch, cw), rng)
             rate = rate[r0:r0 + ch, c0:c0 + cw]
-            boxes, classes = _crop_boxes(boxes, classes, r0, c0, ch, cw)
-            ignored, ignored_cls = _crop_boxes(ignored, ignored_cls, r0, c0, ch, cw)
+            ignored, ignored_cls = clip_boxes(ignored, ignored_cls, r0, c0, ch, cw)
+            boxes, classes, _, lost, lost_cls = crop_boxes(boxes, classes, rec.truncation, r0, c0, ch, cw, h)
+            ignored, ignored_cls = np.concatenate([ignored, lost]), np.concatenate([ignored_cls, lost_cls])
         image = signal_rate_to_sensor_image(np.ascontiguousarray(rate), self._sensor_for(*rate.shape), exposure_s, rng,
                        wavelengths_nm=self._qe_wl)
         isp = None if self.representation == "raw" else sensor_image_to_srgb(image, self.dataset.project.isp)
@@ -398,41 +361,31 @@ class DetectionView:
                   "classes": torch.from_numpy(np.ascontiguousarray(classes)),
                   "ignored_xyxy": torch.from_numpy(np.ascontiguousarray(ignored)),
                   "ignored_classes": torch.from_numpy(np.ascontiguousarray(ignored_cls)),
-                  "frame": rec.index, "ev": ev, "exposure_s": exposure_s, "sensor_isp_s": t2 - t1}
+                  "frame": rec.index, "ev": ev, "exposure_s": exposure_s, "sensor_isp_s": t2 - t1,
+                  "window": (r0, c0), "mirrored": mirrored}
         return torch.as_tensor(np.ascontiguousarray(x)), target
+
+
+def batches(n: int, batch_size: int, rng: np.random.Generator | None, epoch: int = 0):
+    """Batches of (item, epoch) keys: a seeded permutation (rng) or the items in order."""
+    order = rng.permutation(n) if rng is not None else np.arange(n)
+    return [[(int(i), epoch) for i in order[k:k + batch_size]] for k in range(0, n, batch_size)]
+
+
+def iterate_batches(view, keys, workers: int):
+    """(inputs, targets) of each batch: in this process (workers 0) or from a torch DataLoader
+    with that many worker processes (each keeps its own cache of signal rates)."""
+    if workers == 0:
+        for batch in keys:
+            yield collate([view[key] for key in batch])
+        return
+    import torch
+    from torch.utils.data import DataLoader
+    yield from DataLoader(view, batch_sampler=keys, num_workers=workers, collate_fn=collate,
+                          pin_memory=torch.cuda.is_available(), prefetch_factor=4)
 
 
 def collate(batch):
     """Stack inputs (same size within a batch); keep targets as a list."""
     import torch
     return torch.stack([x for x, _ in batch]), [t for _, t in batch]
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU matrix of xyxy boxes a (n×4) and b (m×4)."""
-    a, b = np.asarray(a, np.float64).reshape(-1, 4), np.asarray(b, np.float64).reshape(-1, 4)
-    lt = np.maximum(a[:, None, :2], b[None, :, :2])
-    rb = np.minimum(a[:, None, 2:], b[None, :, 2:])
-    inter = np.prod(np.clip(rb - lt, 0, None), axis=2)
-    area_a = np.prod(np.clip(a[:, 2:] - a[:, :2], 0, None), axis=1)
-    area_b = np.prod(np.clip(b[:, 2:] - b[:, :2], 0, None), axis=1)
-    union = area_a[:, None] + area_b[None, :] - inter
-    return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
-
-
-def drop_ignored_detections(boxes, scores, classes, gt_boxes, gt_classes, ignored_boxes, ignored_classes,
-                            iou: float = 0.5):
-    """Detections without a kept box of their class at IoU ≥ iou but with an ignored one removed
-    (the module docstring's rule); returns the kept (boxes, scores, classes)."""
-    boxes, scores, classes = np.asarray(boxes), np.asarray(scores), np.asarray(classes)
-    if len(boxes) == 0 or len(ignored_boxes) == 0:
-        return boxes, scores, classes
-    same_ign = np.asarray(classes)[:, None] == np.asarray(ignored_classes)[None, :]
-    hits_ignored = ((box_iou(boxes, ignored_boxes) >= iou) & same_ign).any(axis=1)
-    if len(gt_boxes):
-        same_gt = np.asarray(classes)[:, None] == np.asarray(gt_classes)[None, :]
-        hits_kept = ((box_iou(boxes, gt_boxes) >= iou) & same_gt).any(axis=1)
-    else:
-        hits_kept = np.zeros(len(boxes), bool)
-    keep = ~(hits_ignored & ~hits_kept)
-    return boxes[keep], scores[keep], classes[keep]

@@ -121,26 +121,6 @@ def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: 
     return {k: v.to(device) for k, v in collate_targets(encoded).items()}
 
 
-def batches(n: int, batch_size: int, rng: np.random.Generator | None, epoch: int = 0):
-    """Batches of (item, epoch) keys: a seeded permutation (rng) or the items in order."""
-    order = rng.permutation(n) if rng is not None else np.arange(n)
-    return [[(int(i), epoch) for i in order[k:k + batch_size]] for k in range(0, n, batch_size)]
-
-
-def iterate_batches(view, keys, workers: int):
-    """(inputs, targets) of each batch: in this process (workers 0) or from a torch DataLoader
-    with that many worker processes (each keeps its own cache of signal rates)."""
-    from workbench.detect.data import collate
-    if workers == 0:
-        for batch in keys:
-            yield collate([view[key] for key in batch])
-        return
-    import torch
-    from torch.utils.data import DataLoader
-    yield from DataLoader(view, batch_sampler=keys, num_workers=workers, collate_fn=collate,
-                          pin_memory=torch.cuda.is_available(), prefetch_factor=4)
-
-
 @dataclass
 class TrainResult:
     """What a finished training reports (plain numbers): budget used, speed (ms per training
@@ -190,6 +170,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
     import torch
 
     from workbench.detect.centernet import centernet_loss
+    from workbench.detect.data import batches, iterate_batches
     from workbench.detect.inference import evaluate_detector
     from workbench.detect.models import build_detector
     from workbench.detect.representations import input_channels, input_stride

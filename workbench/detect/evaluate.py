@@ -3,6 +3,8 @@
     result = evaluate_map(detections, ground_truth, class_names)            # VOC all-point AP@0.5
     result.ap["car"], result.mean_ap, result.curves["car"]                  # recall, precision arrays
     coco = pycocotools_ap50(detections, ground_truth, class_names)          # the same data through COCO
+    table = match_table(detections, ground_truth, len(class_names))         # for test-set bootstraps
+    maps = table.mean_ap(bootstrap_weights(len(ground_truth), 1000))        # 1000 resampled mAPs
 
 detections: one dict per image with boxes N×4 (x1, y1, x2, y2 in pixels), scores N, classes N
 (ints indexing class_names); ground_truth: one dict per image with boxes and classes.
@@ -23,6 +25,13 @@ against closed-form cases.
 
 A class without ground-truth boxes has AP NaN and is left out of the mean (as COCO does); a class
 with ground truth and no detections has AP 0. mean_ap is NaN when no class has ground truth.
+
+Test-set bootstrap (`MatchTable`): matching is per image, so a resample of the test images (with
+replacement) keeps every detection's true/false flag; a resample is a vector of image
+multiplicities, and AP on it weights each detection and ground-truth box by its image's
+multiplicity. With all multiplicities 1 this is evaluate_map's 'voc' AP exactly (tests). Every
+run draws the same resamples (bootstrap_weights with one seed), so the differences between two
+runs on the same resamples are paired.
 """
 from __future__ import annotations
 
@@ -33,6 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.detect.boxes import box_iou
 from workbench.errors import ParameterError
 
 METHODS = ("voc", "coco101")
@@ -61,20 +71,6 @@ class MapResult:
                 "ap": {k: num(v) for k, v in self.ap.items()}, "n_ground_truth": self.n_ground_truth,
                 "curves": {k: {"recall": r.tolist(), "precision": p.tolist()} for k, (r, p) in self.curves.items()},
                 "notes": self.notes}
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """N×M IoU of xyxy boxes (float64; 0 where boxes do not overlap or have no area)."""
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 4)
-    b = np.asarray(b, dtype=np.float64).reshape(-1, 4)
-    w = np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0])
-    h = np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1])
-    inter = np.where((w > 0) & (h > 0), w * h, 0.0)
-    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
-    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    union = area_a[:, None] + area_b[None, :] - inter
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(union > 0, inter / union, 0.0)
 
 
 def _match_image(det_boxes: np.ndarray, gt_boxes: np.ndarray, iou_threshold: float) -> np.ndarray:
@@ -212,3 +208,72 @@ def pycocotools_ap50(detections: list[dict], ground_truth: list[dict], class_nam
             ap[name] = float(column.mean()) if np.all(column > -1) else math.nan
     with_gt = [v for v in ap.values() if not math.isnan(v)]
     return {"ap": ap, "mean_ap": float(np.mean(with_gt)) if with_gt else math.nan}
+
+
+BOOTSTRAP_SEED = 0x626F6F74            # 'boot': every run draws the same test-set resamples
+
+
+def bootstrap_weights(n_images: int, resamples: int, seed: int = BOOTSTRAP_SEED) -> np.ndarray:
+    """resamples × n_images multiplicities (int32) of test-set resamples drawn with replacement."""
+    rng = np.random.default_rng([seed, n_images])
+    return rng.multinomial(n_images, np.full(n_images, 1.0 / n_images), size=resamples).astype(np.int32)
+
+
+@dataclass
+class MatchTable:
+    """Every detection of a test set, ranked by score per class, with its true-positive flag under
+    the module's matching rule, and the ground-truth count of every image and class."""
+
+    classes: np.ndarray          # D int: class of each detection
+    images: np.ndarray           # D int: image of each detection
+    tp: np.ndarray               # D bool
+    order: list[np.ndarray]      # per class: indices into the arrays above, best score first
+    n_gt: np.ndarray             # images × classes int
+
+    def mean_ap(self, weights: np.ndarray, chunk: int = 128) -> np.ndarray:
+        """VOC all-point mAP (over classes with ground truth in the resample) for each row of
+        image multiplicities `weights` (R × images) → R float64 (NaN where no class has any)."""
+        weights = np.atleast_2d(np.asarray(weights, dtype=np.float64))
+        aps = np.full((weights.shape[0], self.n_gt.shape[1]), np.nan)
+        for k, idx in enumerate(self.order):
+            n_gt = weights @ self.n_gt[:, k]
+            for lo in range(0, weights.shape[0], chunk):
+                w = weights[lo:lo + chunk][:, self.images[idx]]
+                tp_cum = np.cumsum(w * self.tp[idx], axis=1)
+                fp_cum = np.cumsum(w * ~self.tp[idx], axis=1)
+                n = n_gt[lo:lo + chunk, None]
+                recall = tp_cum / np.where(n > 0, n, 1.0)
+                precision = tp_cum / np.maximum(tp_cum + fp_cum, 1e-12)
+                envelope = np.maximum.accumulate(precision[:, ::-1], axis=1)[:, ::-1]
+                steps = np.diff(recall, axis=1, prepend=0.0)
+                ap = (steps * envelope).sum(axis=1) if idx.size else np.zeros(len(n))
+                aps[lo:lo + chunk, k] = np.where(n[:, 0] > 0, ap, np.nan)
+        with np.errstate(invalid="ignore"):
+            counted = ~np.isnan(aps)
+            return np.where(counted.any(axis=1), np.nansum(aps, axis=1) / np.maximum(counted.sum(axis=1), 1), np.nan)
+
+
+def match_table(detections: list[dict], ground_truth: list[dict], num_classes: int,
+                iou: float = 0.5) -> MatchTable:
+    """The MatchTable of a test set (same matching and ranking as evaluate_map)."""
+    if len(detections) != len(ground_truth):
+        raise ParameterError("detections", len(detections), f"one entry per image ({len(ground_truth)} images)")
+    classes, images, tp, scores = [], [], [], []
+    n_gt = np.zeros((len(ground_truth), num_classes), dtype=np.int64)
+    for i, (det, gt) in enumerate(zip(detections, ground_truth)):
+        for k in range(num_classes):
+            gt_boxes, _ = _class_arrays(gt, k, need_scores=False)
+            boxes, sc = _class_arrays(det, k, need_scores=True)
+            n_gt[i, k] = len(gt_boxes)
+            order = np.argsort(-sc, kind="mergesort")
+            tp.append(_match_image(boxes[order], gt_boxes, iou))
+            scores.append(sc[order])
+            classes.append(np.full(len(order), k))
+            images.append(np.full(len(order), i))
+    cat = (lambda parts, dtype: np.concatenate(parts).astype(dtype) if parts else np.zeros(0, dtype))
+    classes, images, tp, scores = cat(classes, np.int64), cat(images, np.int64), cat(tp, bool), cat(scores, np.float64)
+    ranked = []
+    for k in range(num_classes):
+        idx = np.flatnonzero(classes == k)        # image order, then rank in the image …
+        ranked.append(idx[np.argsort(-scores[idx], kind="mergesort")])      # … then score, stable
+    return MatchTable(classes, images, tp, ranked, n_gt)

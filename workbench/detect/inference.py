@@ -18,7 +18,7 @@ def detect_view(model, view, *, device: str = "cpu", batch_size: int = 16, worke
     from workbench.detect.boxes import drop_ignored_detections
     from workbench.detect.centernet import decode
     from workbench.detect.devices import autocast, autocast_dtype, prepare_input
-    from workbench.detect.engine import batches, iterate_batches
+    from workbench.detect.data import batches, iterate_batches
 
     detections, truths = [], []
     infer_s, sensor_isp_s = 0.0, 0.0

@@ -1,4 +1,4 @@
-"""Network inputs for the paper's three image representations, and CFA-aware augmentation (numpy only).
+"""Network inputs for the paper's three image representations (numpy only).
 
 Fixed scaling, never per-image normalisation (which would erase the exposure bias being studied):
     raw     the mosaic as (DN − black level) / (max DN − black level), clipped to [0, 1] — no white
@@ -11,8 +11,8 @@ Packed-raw plane order (pack_raw, for every 2×2 pattern: CFA_PATTERNS and their
 tile sorted by channel letter in the sensor's order R, G, B, C, W, M; sites with the same letter in the
 order: same row as plane 0's site, same column, diagonal. Every Bayer phase therefore packs as
 (R, G on the red row, G on the red column, B); RCCB as (R, B, C, C); RCCC as (R, C, C, C);
-RGBW as (R, G, B, W); MONO as the sites (0,0), (0,1), (1,0), (1,1). A horizontal flip of the
-planes keeps this order (see hflip).
+RGBW as (R, G, B, W); MONO as the sites (0,0), (0,1), (1,0), (1,1). (Training mirrors the scene
+before the CFA samples it, workbench.detect.data, so no packed mosaic is ever flipped.)
 """
 from __future__ import annotations
 
@@ -95,53 +95,6 @@ def network_input(sensor_image, isp_result, representation: str) -> np.ndarray:
         raise ParameterError("isp_result", None, f"an ISPResult for representation '{representation}'")
     image = isp_result.linear if representation == "linear" else isp_result.srgb
     return np.ascontiguousarray(np.moveaxis(np.asarray(image, dtype=np.float32), 2, 0))
-
-
-def crop(x: np.ndarray, boxes_xyxy: np.ndarray, top_px: int, left_px: int, height_px: int, width_px: int,
-         representation: str, min_visible: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Crop a network input to an image window; returns (x, boxes, kept box indices).
-
-    Window corner and size are in image pixels and must be even (the CFA phase is kept, also for
-    linear and sRGB so every representation sees the same crops). Boxes are shifted and clipped
-    to the window; a box is kept when at least min_visible of its area stays inside."""
-    s = input_stride(representation)
-    h_px, w_px = x.shape[1] * s, x.shape[2] * s
-    for name, v in (("top_px", top_px), ("left_px", left_px), ("height_px", height_px), ("width_px", width_px)):
-        if int(v) != v or v % 2:
-            raise ParameterError(name, v, "an even number of pixels (keeps the CFA phase)")
-    if top_px < 0 or left_px < 0 or height_px < 2 or width_px < 2 or top_px + height_px > h_px \
-            or left_px + width_px > w_px:
-        raise ParameterError("crop window", (top_px, left_px, height_px, width_px),
-                             f"inside the {h_px}×{w_px} image")
-    out = x[:, top_px // s:(top_px + height_px) // s, left_px // s:(left_px + width_px) // s]
-    boxes = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
-    area = np.prod(boxes[:, 2:] - boxes[:, :2], axis=1)
-    moved = np.clip(boxes - [left_px, top_px, left_px, top_px], 0.0, [width_px, height_px, width_px, height_px])
-    visible = np.prod(np.maximum(moved[:, 2:] - moved[:, :2], 0.0), axis=1)
-    keep = np.flatnonzero((visible > 0) & (visible >= min_visible * area))
-    return np.ascontiguousarray(out), moved[keep], keep
-
-
-def random_crop(x: np.ndarray, boxes_xyxy: np.ndarray, height_px: int, width_px: int, representation: str,
-                rng: np.random.Generator, min_visible: float = 0.5):
-    """crop() at a uniformly drawn even corner; same return value."""
-    s = input_stride(representation)
-    h_px, w_px = x.shape[1] * s, x.shape[2] * s
-    top = 2 * int(rng.integers(0, (h_px - height_px) // 2 + 1))
-    left = 2 * int(rng.integers(0, (w_px - width_px) // 2 + 1))
-    return crop(x, boxes_xyxy, top, left, height_px, width_px, representation, min_visible)
-
-
-def hflip(x: np.ndarray, boxes_xyxy: np.ndarray, representation: str) -> tuple[np.ndarray, np.ndarray]:
-    """Mirror a network input and its boxes left–right; returns (x, boxes).
-
-    For packed raw the planes are flipped and keep their order: the result is the packed mosaic
-    of the mirrored scene shifted by one pixel so each site keeps its colour (every colour sample
-    lies within one pixel of its mirror position); boxes are mirrored exactly about the image."""
-    width_px = x.shape[2] * input_stride(representation)
-    boxes = np.asarray(boxes_xyxy, dtype=np.float64).reshape(-1, 4)
-    flipped = np.stack([width_px - boxes[:, 2], boxes[:, 1], width_px - boxes[:, 0], boxes[:, 3]], axis=1)
-    return np.ascontiguousarray(x[:, :, ::-1]), flipped
 
 
 def _check_representation(representation: str) -> None:

@@ -38,13 +38,17 @@ class FPNLite(nn.Module):
 
 
 class CenterNetHead(nn.Module):
-    """Three branches (3×3 conv + ReLU + 1×1 conv): class heat-map logits, box size, centre offset."""
+    """Three branches: class heat-map logits, box size, centre offset. Each is a depthwise-separable
+    3×3 convolution (3×3 per channel, then 1×1 to head_channels) + ReLU + 1×1 output convolution:
+    the same receptive field as CenterNet's full 3×3 convolution at a tenth of its cost, which
+    on the CPU was more than the whole 'mobile' backbone (bench detect)."""
 
     def __init__(self, channels: int, num_classes: int, head_channels: int):
         super().__init__()
 
         def branch(c_out: int) -> nn.Sequential:
-            return nn.Sequential(nn.Conv2d(channels, head_channels, 3, padding=1), nn.ReLU(inplace=True),
+            return nn.Sequential(nn.Conv2d(channels, channels, 3, padding=1, groups=channels),
+                                 nn.Conv2d(channels, head_channels, 1), nn.ReLU(inplace=True),
                                  nn.Conv2d(head_channels, c_out, 1))
         self.heatmap, self.size, self.offset = branch(num_classes), branch(2), branch(2)
         init_heatmap_bias(self.heatmap[-1])
