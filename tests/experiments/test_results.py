@@ -1,5 +1,5 @@
 """Result-folder schema: the reader accepts a well-formed results.json and refuses others by name;
-both charts draw from the summary alone."""
+both charts draw the summary's means and the contrasts' paired differences."""
 from __future__ import annotations
 
 import json
@@ -27,8 +27,17 @@ def make_doc(kind: str, nets=("mobile",), seeds=3) -> dict:
                     summary.append({"net": net, "representation": "srgb", "condition": cond, "test_ev": ev,
                                     "n": seeds, "mean_map": m, "sd": 0.02, "ci95_low": m - 0.04,
                                     "ci95_high": m + 0.04})
-    return {"format": "camera-workbench-experiment", "schema_version": 1, "kind": kind, "project": "test",
-            "profile": "quick", "complete": True, "settings": {"seeds": seeds}, "runs": [], "summary": summary}
+    contrasts = []
+    for net in nets:
+        names = (("raw − srgb", 0.0), ("linear − srgb", 0.0)) if kind == "isp" else \
+            tuple(("ev_mix − ev0_trained", ev) for ev in (-4.0, -2.0, 0.0, 2.0, 4.0)) + (("under − over", 2.0),)
+        for k, (name, ev) in enumerate(names):
+            d = 0.01 * (k + 1) * (1 if net == "mobile" else -1)
+            contrasts.append({"contrast": name, "net": net, "test_ev": ev, "mean": d, "n": seeds, "sd": 0.01,
+                              "t_low": d - 0.02, "t_high": d + 0.02, "boot_low": d - 0.03, "boot_high": d + 0.03})
+    return {"format": "camera-workbench-experiment", "schema_version": 2, "kind": kind, "project": "test",
+            "profile": "quick", "complete": True, "settings": {"seeds": seeds}, "runs": [], "summary": summary,
+            "contrasts": contrasts, "per_ev_is_upper_bound": False}
 
 
 def write(folder, doc):
@@ -46,15 +55,28 @@ def test_read_and_draw_isp_bars(tmp_path):
     assert heights == [0.5, 0.5, 0.55, 0.55, 0.6, 0.6]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["mobile", "resnet18"]
     assert len(ax.lines) > 0                               # error bars
+    diffs = fig.axes[1]
+    points = sorted(tuple(np.round(xy, 3)) for line in diffs.lines for xy in line.get_xydata()
+                    if line.get_marker() == "o")
+    # raw − srgb at x≈0 and linear − srgb at x≈1; mobile +0.01/+0.02, resnet18 −0.01/−0.02
+    assert points == [(-0.075, 0.01), (0.075, -0.01), (0.925, 0.02), (1.075, -0.02)]
 
 
 def test_read_and_draw_exposure_curves(tmp_path):
     doc = read_results(write(tmp_path / "exp", make_doc("exposure", nets=("mobile", "resnet18"))))
     fig = Figure()
     draw_results(fig, doc)
-    assert len(fig.axes) == 2
-    curves = [l for l in fig.axes[0].lines if len(l.get_xdata()) == 5]
+    assert len(fig.axes) == 4                              # a curve panel per net, two difference panels
+    curves = [line for line in fig.axes[0].lines if len(line.get_xdata()) == 5]
     assert len(curves) == 3 and list(curves[0].get_xdata()) == [-4, -2, 0, 2, 4]
+    ev0 = sorted((r["test_ev"], r["mean_map"]) for r in doc["summary"]
+                 if r["net"] == "mobile" and r["condition"] == "ev0_trained")
+    np.testing.assert_allclose(np.asarray(curves[0].get_ydata(), float), [m for _, m in ev0])
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["trained at EV 0", "trained on the EV mix", "trained at that EV"]   # not an upper bound
+    mix = [line for line in fig.axes[2].lines if line.get_marker() == "o"]
+    mobile = next(line for line in mix if line.get_color() == "tab:blue")
+    np.testing.assert_allclose(np.asarray(mobile.get_ydata(), float), [0.01, 0.02, 0.03, 0.04, 0.05])
 
 
 def test_result_folders_finds_nested(tmp_path):
@@ -68,6 +90,8 @@ def test_result_folders_finds_nested(tmp_path):
     ({"schema_version": 9}, "schema_version"),
     ({"kind": "speed"}, "kind"),
     ({"summary": [{"net": "x"}]}, "summary"),
+    ({"contrasts": "none"}, "contrasts"),
+    ({"runs": "notalist"}, "runs"),
 ])
 def test_bad_results_refused_with_the_file_named(tmp_path, change, fragment):
     folder = write(tmp_path / "bad", make_doc("isp") | change)

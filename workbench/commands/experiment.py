@@ -1,4 +1,6 @@
-"""`workbench experiment isp|exposure PROJECT --data DIR`: the paper's detection experiments."""
+"""`workbench experiment isp|exposure PROJECT --data DIR`: the paper's detection experiments;
+`workbench experiment claims --isp DIR --exposure DIR`: the paper's claims against their results;
+`workbench dataset-noise DIR`: the render noise of a data set against the sensor's shot noise."""
 from __future__ import annotations
 
 import json
@@ -9,69 +11,129 @@ from workbench.commands.compute_options import add_compute_options, compute_spec
 
 
 def register(sub) -> None:
-    p = sub.add_parser("experiment", help="train and test detectors: ISP stage or exposure bias (resumable)")
-    p.add_argument("kind", choices=("isp", "exposure"), help="isp: raw/linear/sRGB; exposure: EV bias sweep")
-    p.add_argument("project", help="project file (or sample name) whose sensor, ISP and EV list are used")
-    p.add_argument("--data", required=True, help="the project's rendered data set (`workbench dataset` folder)")
-    p.add_argument("--profile", choices=("quick", "paper"), default="quick",
-                   help="quick: 320x240, mobile net, 1 thread (CPU); paper: 640x480, both nets (GPU)")
-    p.add_argument("--seeds", type=int, default=None, help="seeds per configuration (default: the profile's, 3)")
-    p.add_argument("--out", default=None, help="output folder (default experiment-KIND-PROFILE); a rerun resumes")
+    from workbench.experiments.detection import PROFILES
+    p = sub.add_parser("experiment", help="train and test detectors: ISP stage or exposure bias (resumable); "
+                                          "or the paper's claims against two result folders")
+    p.add_argument("kind", choices=("isp", "exposure", "claims"),
+                   help="isp: raw/linear/sRGB; exposure: EV bias sweep; claims: read --isp and --exposure results")
+    p.add_argument("project", nargs="?", help="project file (or sample name) whose sensor, ISP and EV list are used")
+    p.add_argument("--data", help="the project's rendered data set (`workbench dataset` folder)")
+    p.add_argument("--profile", choices=tuple(PROFILES), default="standard",
+                   help="; ".join(prof.note for prof in PROFILES.values()))
+    p.add_argument("--seeds", type=int, default=None, help="seeds per configuration (default: the profile's)")
+    p.add_argument("--out", default=None, help="output folder (default experiment-KIND-PROFILE); a rerun resumes; "
+                                               "claims: the Markdown file to write (default: print)")
+    p.add_argument("--checkpoints", default=None,
+                   help="folder of training checkpoints (default OUT/checkpoints); give both experiments the "
+                        "same one and they share the EV-0 sRGB runs")
+    p.add_argument("--isp", help="claims: the isp experiment's result folder")
+    p.add_argument("--exposure", help="claims: the exposure experiment's result folder")
     p.add_argument("--workers", type=int, default=0,
                    help="runs in parallel local processes (0 = in this process); with --backend ray and "
                         "no --address, the CPUs of the local Ray cluster started for the run")
     add_compute_options(p)
     p.set_defaults(func=cmd_experiment)
 
+    q = sub.add_parser("dataset-noise", help="render noise of a data set's frames against the sensor's shot noise "
+                                             "at the lowest EV its experiments test (writes render-noise.json)")
+    q.add_argument("folder", help="a `workbench dataset` folder")
+    q.add_argument("--frames", type=int, default=3, help="frames to measure (the first ones; default 3)")
+    q.add_argument("--reference-spp", type=int, default=4096, help="samples per pixel of the reference renders")
+    q.set_defaults(func=cmd_dataset_noise)
 
-def cmd_experiment(args) -> int:
+
+def _drive(job, desc: str, unit: str):
+    """Run a long job with a progress bar; returns its result."""
     from tqdm import tqdm
-
-    from workbench.compute.local import JobFailed
-    from workbench.errors import WorkbenchError
-    from workbench.experiments.detection import run_experiment
-    from workbench.jobs import CancelToken, JobCancelled
-    from workbench.project import load_project
-
-    handler = logging.StreamHandler(sys.stderr)       # training epochs on the terminal
-    handler.setFormatter(logging.Formatter("  %(message)s"))
-    logging.getLogger("workbench.detect").addHandler(handler)
-    logging.getLogger("workbench.detect").setLevel(logging.INFO)
-    project = load_project(args.project)
-    out = args.out or f"experiment-{args.kind}-{args.profile}"
-    cancel = CancelToken()
-    compute = compute_spec(args, gpus_per_task=1.0 if args.profile == "paper" else 0.0)
-    job = run_experiment(args.kind, project, args.data, out, profile=args.profile, seeds=args.seeds,
-                         cancel=cancel, compute=compute)
     bar = None
     try:
         while True:
             try:
                 p = next(job)
             except StopIteration as stop:
-                result = stop.value
-                break
+                return stop.value
             if bar is None:
                 print(p.message, file=sys.stderr)
-                bar = tqdm(total=int(p.total), initial=int(p.done), desc=args.kind, unit="run")
+                bar = tqdm(total=float(p.total), initial=float(p.done), desc=desc, unit=unit)
             else:
-                bar.n = int(p.done)
-                bar.set_postfix_str(p.message[-60:], refresh=False)
+                bar.n = round(float(p.done), 2)
+                bar.set_postfix_str(p.message[-70:], refresh=False)
                 bar.refresh()
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def cmd_experiment(args) -> int:
+    from workbench.compute.local import JobFailed
+    from workbench.errors import WorkbenchError
+    from workbench.experiments.detection import run_experiment
+    from workbench.jobs import CancelToken, JobCancelled
+    from workbench.project import load_project
+
+    if args.kind == "claims":
+        return cmd_claims(args)
+    missing = [f for f, v in (("PROJECT", args.project), ("--data", args.data)) if not v]
+    if missing:
+        print(f"workbench experiment {args.kind}: error: give {' and '.join(missing)}", file=sys.stderr)
+        return 2
+    handler = logging.StreamHandler(sys.stderr)       # training epochs on the terminal
+    handler.setFormatter(logging.Formatter("  %(message)s"))
+    logging.getLogger("workbench.detect").addHandler(handler)
+    logging.getLogger("workbench.detect").setLevel(logging.INFO)
+    out = args.out or f"experiment-{args.kind}-{args.profile}"
+    cancel = CancelToken()
+    try:
+        project = load_project(args.project)
+        compute = compute_spec(args, gpus_per_task=1.0 if args.profile == "paper" else 0.0)
+        job = run_experiment(args.kind, project, args.data, out, profile=args.profile, seeds=args.seeds,
+                             cancel=cancel, compute=compute, checkpoints=args.checkpoints)
+        result = _drive(job, args.kind, "run")
     except (KeyboardInterrupt, JobCancelled):
         cancel.cancel()
         print(f"workbench experiment: stopped; finished runs are in {out} (rerun to resume)", file=sys.stderr)
         return 130
+    except JobFailed as exc:              # before WorkbenchError: a failed run is one of those
+        print(f"workbench experiment: error: {exc} (finished runs are kept; rerun to resume)", file=sys.stderr)
+        return 1
     except WorkbenchError as exc:
         print(f"workbench experiment: error: {exc}", file=sys.stderr)
         return 2
-    except JobFailed as exc:
-        print(f"workbench experiment: error: {exc} (finished runs are kept; rerun to resume)", file=sys.stderr)
-        return 1
-    finally:
-        if bar is not None:
-            bar.close()
     print(json.dumps({"out": str(result.out_dir), "results": str(result.results_path),
-                      "trained": len(result.trained), "reused": len(result.reused),
-                      "summary": result.summary}, indent=1, default=float))
+                      "trained": len(result.trained), "reused": len(result.reused)}, indent=1))
+    return 0
+
+
+def cmd_claims(args) -> int:
+    from workbench.errors import WorkbenchError
+    from workbench.experiments.claims_report import claims_markdown
+    if not (args.isp and args.exposure):
+        print("workbench experiment claims: error: give --isp DIR and --exposure DIR (two result folders)",
+              file=sys.stderr)
+        return 2
+    try:
+        text = claims_markdown(args.isp, args.exposure)
+        if args.out:
+            from workbench.files import atomic_write_text
+            atomic_write_text(args.out, text)
+    except WorkbenchError as exc:
+        print(f"workbench experiment claims: error: {exc}", file=sys.stderr)
+        return 2
+    print(text if not args.out else json.dumps({"claims": args.out}))
+    return 0
+
+
+def cmd_dataset_noise(args) -> int:
+    from workbench.errors import WorkbenchError
+    from workbench.experiments.render_noise import measure_render_noise
+    from workbench.jobs import JobCancelled
+    try:
+        report = _drive(measure_render_noise(args.folder, args.frames, args.reference_spp), "dataset-noise", "frame")
+    except (KeyboardInterrupt, JobCancelled):
+        print("workbench dataset-noise: stopped; nothing written", file=sys.stderr)
+        return 130
+    except WorkbenchError as exc:
+        print(f"workbench dataset-noise: error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(report, indent=1))
     return 0

@@ -1,41 +1,45 @@
-"""Result folders of the detection experiments: their JSON schema, a reader, and the paper's two
-charts drawn on any matplotlib Figure (the GUI's experiments panel and the command line).
+"""Result folders of the detection experiments: their JSON schema, readers, and the charts drawn
+on any matplotlib Figure (the GUI's experiments panel and the command line).
 
-A result folder holds `results.json` (this schema), `runs.csv`, `summary.csv` and a chart PNG.
+A result folder holds `results.json` (this schema), `runs.csv`, `summary.csv`, `contrasts.csv`,
+`bootstrap.npz` (each run's test-set bootstrap resamples of its mAPs) and a chart PNG.
 
-results.json (schema_version 1):
+results.json (schema_version 2):
 
     {
       "format": "camera-workbench-experiment",     # required, exactly this
-      "schema_version": 1,                          # required
+      "schema_version": 2,                          # required
       "kind": "isp" | "exposure",                   # required
-      "project": str, "profile": "quick" | "paper" | str,
+      "project": str, "profile": "quick" | "standard" | "paper" | str,
       "complete": bool,                             # false while runs are still to come
-      "classes": [str, ...],                        # detector classes, e.g. ["car", "person"]
-      "ev_biases": [float, ...],                    # the project's experiment.ev_biases
+      "classes": [str, ...], "ev_biases": [float, ...],
       "settings": {"seeds": int, ...},              # the profile used (epochs, image size, nets, …)
       "dataset": {"folder": str, "fingerprint": str, ...},
-      "runs": [                                     # one per trained network
-        {"key": str, "role": {"net": str, "representation": str, "condition": str, "seed": int},
-         "config": {...}, "train": {...}, "classes": [...],
-         "tests": [{"ev": float, "map": float, "ap": {class: float}, ...}, ...]}, ...],
-      "summary": [                                  # required; what the charts draw
-        {"net": str,                                # e.g. "mobile", "resnet18"
-         "representation": "raw" | "linear" | "srgb",
-         "condition": "ev0_trained" | "ev_mix" | "per_ev",
-         "test_ev": float,                          # exposure bias of the test captures
-         "n": int,                                  # seeds averaged
-         "mean_map": float,                         # mAP@0.5, 0–1
-         "sd": float | null, "ci95_low": float | null, "ci95_high": float | null}, ...]
+      "runs": [{"key": str, "role": {"net", "representation", "condition", "seed"[, "train_ev"]},
+                "config": {...}, "train": {... "train_map", "curve", "history", "converged" ...},
+                "tests": [{"ev": float, "map": float | null, "ap": {class: float}, ...}, ...]}, ...],
+      "summary": [                                  # required; what the main charts draw
+        {"net": str, "representation": "raw" | "linear" | "srgb",
+         "condition": "ev0_trained" | "ev_mix" | "per_ev", "test_ev": float, "n": int,
+         "mean_map": float, "sd": float | null,
+         "ci95_low", "ci95_high": float | null,     # seed (Student t) interval of the mean
+         "boot_low", "boot_high": float | null}, ...],  # test-set bootstrap interval of the mean
+      "contrasts": [                                # required; paired differences (analysis.py)
+        {"contrast": str, "net": str, "test_ev": float | "all", "mean": float, "n": int, "sd",
+         "t_low", "t_high", "boot_low", "boot_high": float | null}, ...],
+      "per_ev_is_upper_bound": bool | null
     }
 
-Charts: kind 'isp' → bars of mean mAP per representation (raw, linear, sRGB) per network with
-95 % interval error bars (the paper's Fig. 5); kind 'exposure' → mAP against test EV per network,
-one curve per training condition with 95 % bands (the paper's Fig. 7).
+Charts: 'isp' → bars of mean mAP per representation per network with both intervals, beside the
+paired differences raw − sRGB and linear − sRGB; 'exposure' → mAP against test EV per network
+(one curve per training condition, seed bands), over the paired differences EV mix − EV-0-trained,
+under − over exposure and (both nets) the relative drop of resnet18 − mobile. In the difference
+panels a thick bar is the seed interval and a thin one the test-set interval.
 """
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -43,14 +47,29 @@ import numpy as np
 from workbench.errors import InputFileError
 
 RESULTS_FORMAT = "camera-workbench-experiment"
-RESULTS_SCHEMA_VERSION = 1
+RESULTS_SCHEMA_VERSION = 2
 RESULTS_FILE = "results.json"
+BOOTSTRAP_FILE = "bootstrap.npz"
+MAX_RESULTS_BYTES = 64 * 2 ** 20
 KINDS = ("isp", "exposure")
 SUMMARY_KEYS = ("net", "representation", "condition", "test_ev", "mean_map", "ci95_low", "ci95_high")
+CONTRAST_KEYS = ("contrast", "net", "test_ev", "mean", "t_low", "t_high", "boot_low", "boot_high")
 REP_COLOURS = {"raw": "tab:gray", "linear": "tab:green", "srgb": "tab:purple"}
-CONDITION_STYLE = {"ev0_trained": ("trained at EV 0", "-", "tab:blue"),
-                   "ev_mix": ("trained on the EV mix", "--", "tab:orange"),
-                   "per_ev": ("trained at each EV (upper bound)", ":", "tab:gray")}
+NET_COLOURS = {"mobile": "tab:blue", "resnet18": "tab:red", "both": "k"}
+
+
+def condition_style(doc: dict) -> dict:
+    """Label, line style and colour of each exposure condition; the per-EV curve is called an
+    upper bound only where the document found it one for every seed."""
+    per_ev = ("trained at each EV (upper bound)" if doc.get("per_ev_is_upper_bound")
+              else "trained at that EV")
+    return {"ev0_trained": ("trained at EV 0", "-", "tab:blue"),
+            "ev_mix": ("trained on the EV mix", "--", "tab:orange"),
+            "per_ev": (per_ev, ":", "tab:gray")}
+
+
+def _rows_ok(rows, keys) -> bool:
+    return isinstance(rows, list) and all(isinstance(r, dict) and all(k in r for k in keys) for r in rows)
 
 
 def read_results(path: str | Path) -> dict:
@@ -60,23 +79,44 @@ def read_results(path: str | Path) -> dict:
     if p.is_dir():
         p = p / RESULTS_FILE
     try:
+        if p.stat().st_size > MAX_RESULTS_BYTES:
+            raise InputFileError(p, f"larger than {MAX_RESULTS_BYTES >> 20} MiB: not an experiment results file")
         doc = json.loads(p.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputFileError(p, "no such file: a result folder holds results.json") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise InputFileError(p, f"cannot be read as JSON ({exc.__class__.__name__})") from None
     if not isinstance(doc, dict) or doc.get("format") != RESULTS_FORMAT:
         raise InputFileError(p, f"not an experiment results file (format must be '{RESULTS_FORMAT}')")
     if doc.get("schema_version") != RESULTS_SCHEMA_VERSION:
         raise InputFileError(p, f"schema_version {doc.get('schema_version')!r}; this workbench reads "
-                                f"{RESULTS_SCHEMA_VERSION}")
+                                f"{RESULTS_SCHEMA_VERSION} (rerun the experiment into a new folder)")
     if doc.get("kind") not in KINDS:
         raise InputFileError(p, f"kind {doc.get('kind')!r}; allowed: {', '.join(KINDS)}")
-    summary = doc.get("summary")
-    if not isinstance(summary, list) or not all(isinstance(r, dict) and all(k in r for k in SUMMARY_KEYS)
-                                                for r in summary):
+    if not _rows_ok(doc.get("summary"), SUMMARY_KEYS):
         raise InputFileError(p, f"'summary' must be a list of rows with {', '.join(SUMMARY_KEYS)}")
+    if not _rows_ok(doc.get("contrasts"), CONTRAST_KEYS):
+        raise InputFileError(p, f"'contrasts' must be a list of rows with {', '.join(CONTRAST_KEYS)}")
+    if not isinstance(doc.get("runs"), list):
+        raise InputFileError(p, "'runs' must be a list")
     return doc
+
+
+def read_bootstraps(folder: str | Path) -> dict:
+    """{run key: {test EV: resampled mAPs}} from a result folder's bootstrap.npz ({} when absent)."""
+    path = Path(folder) / BOOTSTRAP_FILE
+    if not path.exists():
+        return {}
+    out: dict = {}
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            for name in data.files:
+                key, _, ev = name.rpartition("|")
+                out.setdefault(key, {})[float(ev)] = np.asarray(data[name], np.float64)
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputFileError(path, f"cannot be read ({exc.__class__.__name__}); delete it and the "
+                                   "results.json beside it to run the experiment again") from None
+    return out
 
 
 def result_folders(root: str | Path, depth: int = 2) -> list[Path]:
@@ -89,20 +129,20 @@ def result_folders(root: str | Path, depth: int = 2) -> list[Path]:
     return found
 
 
-def _error_bars(rows: list[dict]) -> np.ndarray:
-    lo = [r["mean_map"] - r["ci95_low"] if r["ci95_low"] is not None else 0.0 for r in rows]
-    hi = [r["ci95_high"] - r["mean_map"] if r["ci95_high"] is not None else 0.0 for r in rows]
+def _bars(rows: list[dict], low: str, high: str, mean: str = "mean_map") -> np.ndarray:
+    lo = [r[mean] - r[low] if r.get(low) is not None else 0.0 for r in rows]
+    hi = [r[high] - r[mean] if r.get(high) is not None else 0.0 for r in rows]
     return np.array([lo, hi])
 
 
 def _top(rows: list[dict]) -> float:
     """Upper y limit: 15 % above the highest mean or interval bound, at most 1 (mAP is a fraction)."""
-    values = [v for r in rows for v in (r["mean_map"], r["ci95_high"]) if v is not None]
+    values = [v for r in rows for v in (r["mean_map"], r["ci95_high"], r.get("boot_high")) if v is not None]
     return min(1.0, max(0.05, 1.15 * max(values, default=1.0)))
 
 
 def draw_isp(ax, summary: list[dict]) -> None:
-    """Grouped bars: networks along x, one bar per representation, 95 % error bars."""
+    """Grouped bars: networks along x, one bar per representation; seed (cap) intervals."""
     nets = sorted({r["net"] for r in summary})
     reps = [r for r in REP_COLOURS if any(s["representation"] == r for s in summary)]
     width = 0.8 / max(len(reps), 1)
@@ -110,17 +150,39 @@ def draw_isp(ax, summary: list[dict]) -> None:
         rows = [next((s for s in summary if s["net"] == n and s["representation"] == rep), None) for n in nets]
         xs = [i + (k - (len(reps) - 1) / 2) * width for i, r in enumerate(rows) if r]
         rows = [r for r in rows if r]
-        ax.bar(xs, [r["mean_map"] for r in rows], width, yerr=_error_bars(rows), capsize=4,
+        ax.bar(xs, [r["mean_map"] for r in rows], width, yerr=_bars(rows, "ci95_low", "ci95_high"), capsize=4,
                color=REP_COLOURS[rep], label=rep)
     ax.set_xticks(range(len(nets)), nets)
-    ax.set_ylabel("mAP@0.5 (mean over seeds, 95 % CI)")
+    ax.set_ylabel("mAP@0.5 (mean over seeds, 95 % seed CI)")
     ax.set_ylim(0, _top(summary))
-    ax.legend(title="trained and tested on")
+    ax.legend(title="trained and tested on", fontsize=7)
 
 
-def draw_exposure(ax, summary: list[dict], net: str) -> None:
-    """mAP against test EV for one network: one curve per training condition, 95 % bands."""
-    for cond, (label, ls, colour) in CONDITION_STYLE.items():
+def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None = None) -> None:
+    """Paired differences as points with a thick seed interval and a thin test-set interval,
+    coloured by net; x_of(row) places each row; a line at 0."""
+    ax.axhline(0.0, color="k", lw=0.8)
+    for net in sorted({r["net"] for r in rows}):
+        mine = [r for r in rows if r["net"] == net]
+        xs = np.array([x_of(r) for r in mine], dtype=float)
+        colour = NET_COLOURS.get(net, "tab:green")
+        ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "boot_low", "boot_high", "mean"), fmt="none",
+                    ecolor=colour, elinewidth=0.8, capsize=2, alpha=0.7)
+        ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "t_low", "t_high", "mean"), fmt="o", ms=4,
+                    color=colour, elinewidth=2.5, capsize=0, label=net)
+    ax.set_title(title, fontsize=9)
+    if xlabel:
+        ax.set_xlabel(xlabel)
+    ax.grid(alpha=0.3)
+    if rows:
+        ax.legend(fontsize=7)
+    else:
+        ax.text(0.5, 0.5, "no paired runs yet", ha="center", va="center", transform=ax.transAxes, color="0.5")
+
+
+def draw_exposure(ax, summary: list[dict], net: str, styles: dict) -> None:
+    """mAP against test EV for one network: one curve per training condition, seed bands."""
+    for cond, (label, ls, colour) in styles.items():
         rows = sorted((s for s in summary if s["net"] == net and s["condition"] == cond), key=lambda s: s["test_ev"])
         if not rows:
             continue
@@ -137,9 +199,17 @@ def draw_exposure(ax, summary: list[dict], net: str) -> None:
     ax.legend(fontsize=7)
 
 
+def chart_size_in(doc: dict) -> tuple[float, float]:
+    """Figure size (inches) that fits the document's chart."""
+    if doc["kind"] == "isp":
+        return 10.0, 4.0
+    nets = len({s["net"] for s in doc["summary"]}) or 1
+    return max(4.6 * nets, 12.0), 7.5
+
+
 def draw_results(fig, doc: dict) -> None:
-    """The chart of a results document on `fig`: ISP bars, or one mAP-vs-EV panel per network."""
-    summary = doc["summary"]
+    """The chart of a results document on `fig` (module docstring)."""
+    summary, diffs = doc["summary"], doc.get("contrasts", [])
     seeds = doc.get("settings", {}).get("seeds", "?")
     state = "" if doc.get("complete", True) else " (incomplete)"
     fig.suptitle(f"{doc.get('project', '?')} — {doc['kind']} experiment, profile {doc.get('profile', '?')}, "
@@ -148,8 +218,29 @@ def draw_results(fig, doc: dict) -> None:
         fig.add_subplot().text(0.5, 0.5, "no finished runs yet", ha="center", va="center")
         return
     if doc["kind"] == "isp":
-        draw_isp(fig.add_subplot(), summary)
+        left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})
+        draw_isp(left, summary)
+        rows = [r for r in diffs if r["contrast"] in ("raw − srgb", "linear − srgb")]
+        names = ["raw − srgb", "linear − srgb"]
+        nets = sorted({r["net"] for r in rows})
+        draw_differences(right, rows, lambda r: names.index(r["contrast"]) + 0.15 * (nets.index(r["net"]) - 0.5),
+                         "paired difference of mAP (same seed, same test captures)")
+        right.set_xticks(range(2), names)
         return
     nets = sorted({s["net"] for s in summary})
+    panels = [("ev_mix − ev0_trained", "EV mix − trained at EV 0", "test EV"),
+              ("under − over", "under − over exposure: mAP(−k) − mAP(+k)", "k (EV)")]
+    if any(r["contrast"] == "relative drop resnet18 − mobile" for r in diffs):
+        panels.append(("relative drop resnet18 − mobile", "relative drop 1 − mAP(EV)/mAP(0): resnet18 − mobile",
+                       "test EV"))
+    grid = fig.add_gridspec(2, max(len(nets), len(panels)) * 2)
+    styles = condition_style(doc)
+    span = grid.ncols // len(nets)
     for k, net in enumerate(nets):
-        draw_exposure(fig.add_subplot(1, len(nets), k + 1), summary, net)
+        draw_exposure(fig.add_subplot(grid[0, k * span:(k + 1) * span]), summary, net, styles)
+    span = grid.ncols // len(panels)
+    nets_all = sorted({r["net"] for r in diffs}) or ["mobile"]
+    for k, (name, title, xlabel) in enumerate(panels):
+        rows = [r for r in diffs if r["contrast"] == name and r["test_ev"] != "all"]
+        draw_differences(fig.add_subplot(grid[1, k * span:(k + 1) * span]), rows,
+                         lambda r: float(r["test_ev"]) + 0.12 * (nets_all.index(r["net"]) - 0.5), title, xlabel)
