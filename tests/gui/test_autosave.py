@@ -68,3 +68,38 @@ def test_unsaved_edits_come_back_after_the_process_is_killed(qapp, qtbot, tmp_pa
     win.document.undo_stack.undo()                  # the recovered edits are one undoable step
     assert win.document.project == original
     assert load_project(path) == original           # the file itself was never touched
+
+
+def test_an_autosave_this_version_cannot_open_is_set_aside_and_reported(qapp, qtbot, tmp_path):
+    """A newer version's (or a damaged) autosave used to raise out of the start-up and stay, so
+    every later start failed; now it is moved aside once, with a message, and the window opens."""
+    import json
+
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document, find_recoverable
+    from workbench.gui.main_window import MainWindow
+    from workbench.gui.paths import autosave_dir
+    from workbench.project import project_to_json
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    folder = autosave_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    doc = json.loads(project_to_json(load_project("paper_camera")))
+    bad = {"newer": {**doc, "schema_version": 999}, "invalid": {**doc, "sensor": {"rows": -4}}, "none": None}
+    for name, project in bad.items():
+        autosave = folder / f"session-{name}.json"
+        autosave.write_text(json.dumps({"pid": dead.pid, "path": None, "project": project}))
+        win = MainWindow(Document(load_project("paper_camera"), None), with_city_view=False)
+        win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+        win.ask_recover = lambda _f: True
+        reports = []
+        win.report_rejected_autosave = lambda moved, exc: reports.append((moved, str(exc)))
+        qtbot.addWidget(win)
+        before = win.document.project
+        win.offer_recovery()                                  # raised before: the window never started
+        assert len(reports) == 1 and reports[0][0] == folder / f"rejected-session-{name}.json"
+        assert str(autosave) in reports[0][1] and reports[0][0].exists() and not autosave.exists()
+        assert autosave not in find_recoverable() and win.document.project == before
+        win.offer_recovery()                                  # never offered again
+        assert len(reports) == 1

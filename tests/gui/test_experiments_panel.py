@@ -24,8 +24,13 @@ def results_doc(kind: str) -> dict:
                     "mean_map": 0.6 - 0.05 * abs(ev) + d, "sd": 0.02, "ci95_low": 0.55 - 0.05 * abs(ev) + d,
                     "ci95_high": 0.65 - 0.05 * abs(ev) + d}
                    for c, d in (("ev0_trained", 0.0), ("ev_mix", 0.02), ("per_ev", 0.05)) for ev in (-4, -2, 0, 2, 4)]
-    return {"format": "camera-workbench-experiment", "schema_version": 1, "kind": kind, "project": "city",
-            "profile": "quick", "complete": True, "settings": {"seeds": 3}, "runs": [], "summary": summary}
+    names = ["raw − srgb", "linear − srgb"] if kind == "isp" else ["ev_mix − ev0_trained"] * 5
+    evs = [0.0, 0.0] if kind == "isp" else [-4.0, -2.0, 0.0, 2.0, 4.0]
+    contrasts = [{"contrast": n, "net": "mobile", "test_ev": ev, "mean": 0.02, "n": 3, "sd": 0.01, "t_low": 0.0,
+                  "t_high": 0.04, "boot_low": -0.01, "boot_high": 0.05} for n, ev in zip(names, evs)]
+    return {"format": "camera-workbench-experiment", "schema_version": 2, "kind": kind, "project": "city",
+            "profile": "standard", "complete": True, "settings": {"seeds": 3}, "runs": [], "summary": summary,
+            "contrasts": contrasts, "per_ev_is_upper_bound": True}
 
 
 def make_panel(qtbot):
@@ -130,7 +135,7 @@ def test_experiment_argv(qtbot, tmp_path):
     panel.out_dir.setText(str(tmp_path / "out"))
     argv = panel.experiment_argv("p.json")
     assert argv[1:] == ["-m", "workbench.cli", "experiment", "exposure", "p.json", "--data", str(tmp_path / "data"),
-                        "--profile", "quick", "--out", str(tmp_path / "out")]
+                        "--profile", "standard", "--out", str(tmp_path / "out")]
 
 
 def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_path, monkeypatch):
@@ -143,4 +148,4 @@ def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_
     assert sig.args[0] != 0
     assert "no such data-set folder" in panel.log.toPlainText()
     assert "failed" in panel.status.text()
-    assert panel.out_dir.text() == str(tmp_path / "experiment-isp-quick")
+    assert panel.out_dir.text() == str(tmp_path / "experiment-isp-standard")

@@ -131,3 +131,18 @@ def test_insert_and_delete_surfaces(qtbot, user_lenses):
     editor.table.setCurrentCell(stop, 0)
     assert not editor.delete_surface() and "stop" in editor.table_status.text()
     assert emitted == []
+
+
+def test_a_lens_file_sets_the_focal_length_field_it_shows(qtbot, user_lenses):
+    """With a lens file the simulation uses the prescription's focal length, so the field shows
+    that one, read-only; scaling the lens (or no lens) hands the field back to the user."""
+    editor, _ = make_editor(qtbot, with_lens())
+    field = editor.form.fields["focal_length_mm"]
+    efl = paraxial(editor.used_lens()).efl_mm
+    assert float(field.edit.text()) == pytest.approx(efl, rel=1e-5) and not field.isEnabled()
+    assert "dgauss" in field.toolTip() and abs(efl - 2.3761) > 10
+    scaled = with_lens()
+    editor.set_project(scaled.updated(optics=scaled.optics.updated(scale_lens_to_focal_length=True)))
+    assert field.isEnabled() and float(field.edit.text()) == pytest.approx(2.3761)
+    editor.set_project(Project())
+    assert field.isEnabled() and float(field.edit.text()) == pytest.approx(2.3761)

@@ -67,7 +67,11 @@ def test_emva_runs_in_background_and_plots(qtbot, grab):
         assert not editor.emva_button.isEnabled()
     result = sig.args[0]
     assert abs(result["conversion_gain_uV_per_e"] - 100.0) < 5.0
-    assert "µV/e⁻" in editor.emva_status.text()
+    text = editor.emva_status.text()
+    assert "µV/e⁻" in text and f"(configured {Project().sensor.read_noise_e:.3g})" in text
+    assert result["notes"] and "read noise ≥ " in text and "lower bound" in text     # an 8-bit ADC hides it
+    snr_axes = editor.emva_chart.figure.axes[1]
+    assert min(min(line.get_xdata()) for line in snr_axes.lines) >= 1.0             # no point below 1 e⁻
     qtbot.waitUntil(lambda: editor.emva_button.isEnabled())
     qtbot.wait(50)
     assert len(np.unique(grab(editor.emva_chart).reshape(-1, 3), axis=0)) > 20

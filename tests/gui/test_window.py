@@ -99,6 +99,33 @@ def test_undo_returns_the_exact_previous_image(window, qtbot, grab):
     assert not window.document.dirty
 
 
+def test_ctrl_z_in_a_field_undoes_the_project_not_the_text_box(window, qtbot):
+    """Type a value, Enter: the project changes. Ctrl+Z in the same box: the project's edit is undone
+    and the box shows the project's value (the text box's own undo used to revert only the text)."""
+    from PySide6.QtCore import Qt
+    editor = window.editors["Sensor"]
+    window.docks["Sensor"].raise_()
+    editor.tabs.setCurrentIndex(0)
+    edit = editor.form.fields["analog_gain"].edit
+    window.activateWindow()
+    qtbot.waitUntil(window.isActiveWindow, timeout=5000)
+    edit.setFocus()
+    qtbot.waitUntil(edit.hasFocus, timeout=5000)
+    before = window.document.project
+    edit.selectAll()
+    qtbot.keyClicks(edit, "2.5")
+    qtbot.keyClick(edit, Qt.Key.Key_Return)
+    assert window.document.project.sensor.analog_gain == 2.5
+    qtbot.keyClick(edit, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    assert window.document.project == before
+    assert float(edit.text()) == before.sensor.analog_gain
+    qtbot.keyClick(edit, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier)
+    assert window.document.project.sensor.analog_gain == 2.5 and float(edit.text()) == 2.5
+    qtbot.keyClicks(edit, "9")                          # typed, not committed: Ctrl+Z takes the typing back
+    qtbot.keyClick(edit, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    assert edit.text() == "2.5" and window.document.project.sensor.analog_gain == 2.5
+
+
 def test_save_then_open_round_trips_exactly(window, qtbot, tmp_path):
     window.apply_edit("isp", {"illuminant_correction": "none"})
     target = tmp_path / "saved.json"
@@ -171,3 +198,16 @@ def test_app_opens_a_sample_as_a_new_unsaved_project(qtbot):
     assert win.document.path is None and win.document.project.name == "paper_camera"
     assert win.windowTitle().startswith("paper_camera")
     win.live.shutdown()
+
+
+def test_irradiance_inspector_integrates_over_wavelength(window):
+    """Summing E over bands gives photons/s/m² only once multiplied by the band width."""
+    from workbench.gui.previews import integrated_irradiance_text
+    f = window.previews.frame
+    text = window.previews.describe_pixel((3, 5))["irradiance"]
+    step = float(np.diff(f.wavelengths_nm)[0])
+    expected = float(np.asarray(f.irradiance_photons[3, 5], np.float64).sum() * step)
+    assert f"= {expected:.4g} photons/s/m² (" in text and "/nm" not in text
+    assert integrated_irradiance_text([1.0, 2.0, 3.0], [400.0, 410.0, 420.0]) == \
+        "∫E dλ (400–420 nm) = 60 photons/s/m² (3 bands × 10 nm)"
+    assert integrated_irradiance_text([1.0, 3.0], [455.2, 541.7], True).startswith("mean E over 2 channels = 2 ")

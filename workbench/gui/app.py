@@ -47,6 +47,8 @@ def _run_window(app, args) -> int:
     project = args.project
     if project is None and not args.no_welcome:
         project = choose_start_project()
+        if project is None:                 # the welcome page was cancelled: no window
+            return 0
     window = create_window(project)
     from workbench.gui.crash import install_crash_handler
     install_crash_handler(window)
@@ -56,8 +58,8 @@ def _run_window(app, args) -> int:
     return app.exec()
 
 
-def choose_start_project() -> str:
-    """The welcome page (samples, recent files); the paper's camera if it is closed."""
+def choose_start_project() -> str | None:
+    """The welcome page (samples, recent files): the chosen project, or None when it is cancelled."""
     from PySide6.QtCore import QSettings
 
     from workbench.gui.paths import settings_file
@@ -65,7 +67,7 @@ def choose_start_project() -> str:
     recent = QSettings(str(settings_file()), QSettings.Format.IniFormat).value("recent/files") or []
     dialog = WelcomeDialog([recent] if isinstance(recent, str) else list(recent))
     dialog.exec()
-    return dialog.choice or DEFAULT_PROJECT
+    return dialog.choice
 
 
 def report_missing_backends(window) -> None:

@@ -14,7 +14,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
-from workbench.errors import ParameterError, WorkbenchError
+from workbench.errors import InputFileError, ParameterError, WorkbenchError
 from workbench.files import atomic_write_text, pid_alive
 from workbench.gui.paths import autosave_dir
 from workbench.project import PROJECTS_DIR, Project, load_project, project_from_dict, save_project
@@ -171,6 +171,8 @@ class Document(QObject):
     def recover(self, autosave_file: Path) -> None:
         """Load an autosave as unsaved edits over its original file; the autosave file is removed."""
         record = json.loads(Path(autosave_file).read_text(encoding="utf-8"))
+        if not isinstance(record, dict) or "project" not in record:
+            raise InputFileError(autosave_file, "holds no project: not a workbench autosave")
         project = project_from_dict(record["project"], str(autosave_file))
         original = record.get("path")
         base = None
@@ -186,6 +188,15 @@ class Document(QObject):
             self.undo_stack.resetClean()
             self.dirtyChanged.emit(True)
         Path(autosave_file).unlink(missing_ok=True)
+
+
+def set_aside(autosave_file: Path) -> Path:
+    """Rename an autosave that cannot be recovered so it is never offered again; returns the new
+    path (beside it, named rejected-…)."""
+    autosave_file = Path(autosave_file)
+    target = autosave_file.with_name(f"rejected-{autosave_file.name}")
+    autosave_file.replace(target)
+    return target
 
 
 def find_recoverable() -> list[Path]:

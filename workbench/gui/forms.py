@@ -7,6 +7,11 @@ the unit read from the field-name suffix (`pixel_pitch_um` → "pixel pitch (µm
 holding the field's `description` and its allowed range (from ge/le/gt/lt). Every change is
 validated against the whole model at once; a refused value keeps the field highlighted with the
 ParameterError text and emits nothing. An accepted one emits `edited({field: value})`.
+
+Undo in a field: Ctrl+Z (and redo) belong to the project, not to the text box. A field whose
+text was edited but not yet committed gets its committed value back; otherwise the key goes on
+to the window's Edit ▸ Undo, which undoes the last edit of the project (and the form then shows
+that project's value).
 """
 from __future__ import annotations
 
@@ -16,7 +21,8 @@ import typing
 from typing import Any, Literal
 
 from pydantic import BaseModel, ValidationError
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QEvent, Qt, Signal
+from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QHBoxLayout, QLabel, QLineEdit,
                                QVBoxLayout, QWidget)
 from superqt import QCollapsible, QDoubleSlider
@@ -319,6 +325,7 @@ class ParamsForm(QWidget):
         self.labels: dict[str, QLabel] = {}
         self.errors: dict[str, str] = {}
         self._base_tips: dict[str, str] = {}
+        self._overrides: dict[str, tuple[str, str]] = {}
         layout = QFormLayout(self)
         layout.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.ExpandingFieldsGrow)
         for name, info in model_cls.model_fields.items():
@@ -337,7 +344,60 @@ class ParamsForm(QWidget):
             self.fields[name] = widget
             self.labels[name] = label
             layout.addRow(label, widget)
+            for edit in widget.findChildren(QLineEdit):
+                if self._owner(edit) is self:               # a sub-form's text boxes are its own
+                    edit.installEventFilter(self)
+                    edit.setProperty("field", name)
         self.set_params(self._params)
+
+    @staticmethod
+    def _owner(widget):
+        """The nearest ParamsForm holding `widget`."""
+        parent = widget.parent()
+        while parent is not None and not isinstance(parent, ParamsForm):
+            parent = parent.parent()
+        return parent
+
+    def eventFilter(self, obj, event) -> bool:
+        """Undo/redo keys in a field's text box: revert uncommitted text, else leave the key to the
+        window's project undo (module docstring)."""
+        if event.type() == QEvent.Type.ShortcutOverride and (
+                event.matches(QKeySequence.StandardKey.Undo) or event.matches(QKeySequence.StandardKey.Redo)):
+            name = obj.property("field")
+            if obj.isModified() and name in self.fields:
+                self._show(name)
+                event.accept()
+            else:
+                event.ignore()               # not taken by the text box: the window's shortcut fires
+            return True
+        return super().eventFilter(obj, event)
+
+    def _show(self, name: str) -> None:
+        """Show the committed value of one field again (its text no longer counts as modified), or
+        its override (set_override)."""
+        widget = self.fields[name]
+        value = getattr(self._params, name)
+        widget.blockSignals(True)
+        widget.set_value(value.model_dump() if isinstance(widget, NestedField) else value)
+        widget.blockSignals(False)
+        for edit in widget.findChildren(QLineEdit):
+            edit.setModified(False)
+        self._mark(name, None)
+        if name in self._overrides:
+            text, why = self._overrides[name]
+            widget.edit.setText(text)
+            widget.setToolTip(f"{why}\n\n{self._base_tips[name]}")
+        widget.setEnabled(name not in self._overrides)
+
+    def set_override(self, name: str, text: str | None, why: str = "") -> None:
+        """Show `text` in a field instead of its value, read-only, with `why` as its tooltip (the
+        value in force comes from elsewhere, e.g. a lens file's focal length); None gives the
+        field back its value and editing."""
+        if text is None:
+            self._overrides.pop(name, None)
+        else:
+            self._overrides[name] = (text, why)
+        self._show(name)
 
     def params(self) -> BaseModel:
         """The model the form currently shows (the last accepted values)."""
@@ -348,12 +408,8 @@ class ParamsForm(QWidget):
         if isinstance(params, dict):
             params = self.model_cls.model_validate(params)
         self._params = params
-        for name, widget in self.fields.items():
-            widget.blockSignals(True)
-            widget.set_value(getattr(params, name) if not isinstance(widget, NestedField)
-                             else getattr(params, name).model_dump())
-            widget.blockSignals(False)
-            self._mark(name, None)
+        for name in self.fields:
+            self._show(name)
 
     def _mark(self, name: str, message: str | None) -> None:
         widget = self.fields[name]
@@ -382,6 +438,8 @@ class ParamsForm(QWidget):
             self._mark(name, str(refusal(exc, name, value)))
             return
         self._mark(name, None)
+        for edit in widget.findChildren(QLineEdit):
+            edit.setModified(False)
         new = getattr(new_params, name)
         new = new.model_dump() if isinstance(new, BaseModel) else new
         self._params = new_params

@@ -154,6 +154,8 @@ class LiveRunner(QObject):
                 self._token.cancel()
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
+        """Stop the worker: cancel the run and wait (at most timeout_s) for it to stop at its next
+        chunk boundary; exiting with Mitsuba still rendering in this process aborts it."""
         with self._cond:
             self._stop = True
             self._pending = None

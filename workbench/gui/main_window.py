@@ -12,7 +12,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
                                QProgressBar, QPushButton, QTabBar)
 
-from workbench.gui.document import LOAD_ERRORS, Document, find_recoverable, sample_projects
+from workbench.gui.document import LOAD_ERRORS, Document, find_recoverable, sample_projects, set_aside
 from workbench.gui.live import LiveRunner
 from workbench.gui.paths import settings_file
 from workbench.gui.previews import PreviewPanes
@@ -20,14 +20,18 @@ from workbench.project import Project
 
 MAX_RECENT = 8
 # (dock title, module, class) of the editors and panels; each is a QWidget(parent=None) with
-# set_project(project) and a signal edited(section, {field: value}).
+# set_project(project) and a signal edited(section, {field: value}); one that runs long jobs also
+# has shutdown(), which the window calls when it closes (a docked widget gets no closeEvent).
 EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
            ("Sensor", "workbench.gui.editors.sensor", "SensorEditor"),
            ("ISP", "workbench.gui.editors.isp", "ISPEditor"),
            ("Exposure sweep", "workbench.gui.panels.sweep", "SweepPanel"),
            ("Experiments", "workbench.gui.panels.experiments", "ExperimentsPanel"))
-# Docks that share one place as tabs.
-DOCK_TABS = (("Lens", "Sensor", "ISP"), ("Exposure sweep", "Experiments"))
+# Docks that share one place as tabs: every panel in one column beside the previews, so the four
+# panes keep most of the window (1280×800 included) and each panel has the column's full height.
+DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Exposure sweep", "Experiments"),)
+DOCK_FRACTION = 0.36          # of the window's width, on first run
+LAYOUT_KEY = "window/state-v2"     # v1 was the older two-group layout; it is not restored
 
 
 def _load_editor(module: str, cls: str):
@@ -64,7 +68,7 @@ class MainWindow(QMainWindow):
         if with_city_view:
             from workbench.gui.city_view import CityView
             self.city_view = CityView(self.document)
-            self._add_dock("3-D city", self.city_view, Qt.DockWidgetArea.LeftDockWidgetArea)
+            self._add_dock("3-D city", self.city_view, Qt.DockWidgetArea.RightDockWidgetArea)
         for title, module, cls in EDITORS:
             editor_cls = _load_editor(module, cls)
             if editor_cls is None:
@@ -72,9 +76,7 @@ class MainWindow(QMainWindow):
             editor = editor_cls(parent=None)
             editor.edited.connect(self.apply_edit)
             self.editors[title] = editor
-            area = Qt.DockWidgetArea.BottomDockWidgetArea if title in ("Exposure sweep", "Experiments") \
-                else Qt.DockWidgetArea.RightDockWidgetArea
-            self._add_dock(title, editor, area)
+            self._add_dock(title, editor, Qt.DockWidgetArea.RightDockWidgetArea)
         for group in DOCK_TABS:
             present = [self.docks[t] for t in group if t in self.docks]
             if present:
@@ -117,7 +119,7 @@ class MainWindow(QMainWindow):
 
     def _restore_layout(self) -> None:
         geometry = self.settings.value("window/geometry")
-        state = self.settings.value("window/state")
+        state = self.settings.value(LAYOUT_KEY)
         if geometry is not None:
             self.restoreGeometry(geometry)
         if state is not None:
@@ -141,16 +143,19 @@ class MainWindow(QMainWindow):
         QTimer.singleShot(0, self.hide_stale_tab_bars)
 
     def _default_layout(self) -> None:
-        """First run: the previews get most of the room; docks start at useful sizes."""
-        side = [self.docks[t] for t in ("3-D city", "Lens") if t in self.docks]
-        self.resizeDocks(side, [470, 430][:len(side)], Qt.Orientation.Horizontal)
-        bottom = [self.docks[t] for t in ("Exposure sweep",) if t in self.docks]
-        self.resizeDocks(bottom, [300] * len(bottom), Qt.Orientation.Vertical)
+        """First run: the previews get most of the room, the panels one column beside them, with
+        the 3-D city in front for a city project and the sensor editor otherwise."""
+        docks = list(self.docks.values())
+        if docks:
+            self.resizeDocks(docks[:1], [int(DOCK_FRACTION * self.width())], Qt.Orientation.Horizontal)
+        front = "3-D city" if self.document.project.scene.kind == "city" else "Sensor"
+        if front in self.docks:
+            self.docks[front].raise_()
         QTimer.singleShot(0, self.hide_stale_tab_bars)
 
     def save_layout(self) -> None:
         self.settings.setValue("window/geometry", self.saveGeometry())
-        self.settings.setValue("window/state", self.saveState())
+        self.settings.setValue(LAYOUT_KEY, self.saveState())
         self.settings.sync()
 
     def _build_status_bar(self) -> None:
@@ -163,7 +168,7 @@ class MainWindow(QMainWindow):
         self.progress_bar.setVisible(False)
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.setToolTip("stop the running simulation")
-        self.cancel_button.clicked.connect(self.live.cancel)
+        self.cancel_button.clicked.connect(self.cancel_run)
         self.cancel_button.setVisible(False)
         bar.addPermanentWidget(self.times_label)
         bar.addPermanentWidget(self.optics_label)
@@ -190,6 +195,11 @@ class MainWindow(QMainWindow):
         e.addAction(undo)
         e.addAction(redo)
         v = self.menuBar().addMenu("&View")
+        self._action(v, "&Fit images", QKeySequence("Ctrl+0"), self.previews.fit)
+        self._action(v, "&Actual pixels (1:1)", QKeySequence("Ctrl+1"), self.previews.actual_size)
+        self._action(v, "Zoom &in", QKeySequence.StandardKey.ZoomIn, lambda: self.previews.zoom(2 ** 0.5))
+        self._action(v, "Zoom &out", QKeySequence.StandardKey.ZoomOut, lambda: self.previews.zoom(2 ** -0.5))
+        v.addSeparator()
         for dock in self.docks.values():
             v.addAction(dock.toggleViewAction())
         clip = QAction("Highlight &clipped pixels", self, checkable=True)
@@ -198,7 +208,7 @@ class MainWindow(QMainWindow):
         v.addAction(clip)
         r = self.menuBar().addMenu("&Run")
         self._action(r, "&Re-run", QKeySequence("F5"), lambda: self.live.submit(self.document.project))
-        self._action(r, "&Cancel", QKeySequence("Esc"), self.live.cancel)
+        self._action(r, "&Cancel", QKeySequence("Esc"), self.cancel_run)
 
     def _action(self, menu, text, shortcut, slot) -> QAction:
         act = QAction(text, self)
@@ -249,6 +259,13 @@ class MainWindow(QMainWindow):
     def _progress(self, stage: str, fraction: float) -> None:
         self.progress_bar.setValue(round(100 * fraction))
         self.progress_bar.setFormat(f"{stage} %p%")
+
+    def cancel_run(self) -> None:
+        """Run ▸ Cancel: stop the running simulation and say so (the panes keep the last frame)."""
+        was_busy = self.live.busy
+        self.live.cancel()
+        self.statusBar().showMessage("simulation cancelled: the panes show the last finished frame"
+                                     if was_busy else "nothing to cancel: no simulation is running", 8000)
 
     def _busy_changed(self, busy: bool) -> None:
         self.progress_bar.setVisible(busy)
@@ -354,10 +371,20 @@ class MainWindow(QMainWindow):
         found = find_recoverable()
         if not found:
             return
-        if self.ask_recover(found[0]):
-            self.document.recover(found[0])
-        else:
+        if not self.ask_recover(found[0]):
             found[0].unlink(missing_ok=True)
+            return
+        try:
+            self.document.recover(found[0])
+        except LOAD_ERRORS as exc:         # a damaged autosave, or one a later version wrote
+            moved = set_aside(found[0])
+            self.report_rejected_autosave(moved, exc)
+
+    def report_rejected_autosave(self, moved: Path, error: Exception) -> None:
+        """Say that an autosave could not be recovered, why, and where it now lies (tests replace this)."""
+        QMessageBox.warning(self, "Unsaved edits could not be recovered",
+                            f"The autosave of an earlier session cannot be opened by this version:\n{error}\n\n"
+                            f"It was moved to {moved} and will not be offered again.")
 
     # -- closing ---------------------------------------------------------------------------
     def closeEvent(self, event) -> None:
@@ -365,6 +392,9 @@ class MainWindow(QMainWindow):
             event.ignore()
             return
         self.save_layout()
+        for editor in self.editors.values():
+            if hasattr(editor, "shutdown"):
+                editor.shutdown()
         self.live.shutdown()
         if self.city_view is not None:
             self.city_view.close_view()

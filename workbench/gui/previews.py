@@ -1,7 +1,11 @@
 """The four live preview panes: irradiance, raw, linear, sRGB (pyqtgraph ImageItem + histogram).
 
-The panes share one zoom/pan (linked view boxes); a pixel inspector under each pane shows the value
-and unit under the cursor (photons/s/m²/nm summed over bands or at one band for irradiance, DN and
+The panes share one zoom/pan (linked view boxes) and fit their image (on the first frame, on every
+resize, and on View ▸ Fit) until the user zooms or pans; View ▸ 1:1 shows one image pixel per
+screen pixel, zoom in / out step by √2; each pane's right-click menu has these and "Save image…"
+(the pane's array as a PNG at full resolution). A pixel inspector under each pane shows the value
+and unit under the cursor (irradiance integrated over wavelength in photons/s/m², or at one band in
+photons/s/m²/nm; DN and
 the pixel's CFA colour for raw, channel values for linear and sRGB); clipped pixels (raw at the
 largest code) can be highlighted in red on the raw, linear and sRGB panes. The images are painted
 as soon as a frame arrives; the histograms follow HISTOGRAM_DELAY_MS after the last frame.
@@ -17,6 +21,19 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, Q
 pg.setConfigOptions(imageAxisOrder="row-major", antialias=False)
 
 PANES = ("irradiance", "raw", "linear", "srgb")
+
+
+def integrated_irradiance_text(spectrum, wavelengths_nm, sensor_channels: bool = False) -> str:
+    """'∫E dλ (400–700 nm) = … photons/s/m²' on a regular wavelength grid (Σ E·Δλ); on the
+    channels of a sensor film (sensor_channels), which are no grid, the mean per channel in
+    photons/s/m²/nm."""
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    spectrum = np.asarray(spectrum, dtype=np.float64)
+    steps = np.diff(wl)
+    if not sensor_channels and wl.size >= 2 and np.allclose(steps, steps[0], rtol=1e-6) and steps[0] > 0:
+        return (f"∫E dλ ({wl[0]:g}–{wl[-1]:g} nm) = {float(spectrum.sum() * steps[0]):.4g} photons/s/m² "
+                f"({wl.size} bands × {steps[0]:g} nm)")
+    return f"mean E over {wl.size} channels = {float(spectrum.mean()):.4g} photons/s/m²/nm"
 TITLES = {"irradiance": "Irradiance (sensor plane)", "raw": "Raw (mosaic, DN)",
           "linear": "Linear (demosaiced)", "srgb": "sRGB (full ISP)"}
 CLIP_RGBA = (255, 0, 0, 200)
@@ -35,7 +52,8 @@ class PreviewPane(QWidget):
         self.view_widget.setBackground("k")
         self.view_widget.ci.setContentsMargins(2, 2, 2, 2)
         self.viewbox = self.view_widget.addViewBox(row=0, col=0, lockAspect=True, invertY=True)
-        self.viewbox.setMenuEnabled(False)
+        self.viewbox.setMenuEnabled(False)        # our own menu (PreviewPanes.context_menu)
+        self.view_widget.sceneObj.contextMenu = []   # no pyqtgraph scene menu either
         self.image = pg.ImageItem()
         self.clip_overlay = pg.ImageItem()
         self.clip_overlay.setZValue(10)
@@ -55,7 +73,7 @@ class PreviewPane(QWidget):
         self.band = None
         if name == "irradiance":
             self.band = QComboBox()
-            self.band.setToolTip("inspect the irradiance summed over all bands or at one band")
+            self.band.setToolTip("inspect the irradiance integrated over wavelength, or at one band")
             self.band.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToContents)
             top.addWidget(self.band)
         lay = QVBoxLayout(self)
@@ -67,18 +85,45 @@ class PreviewPane(QWidget):
         self._shape: tuple[int, int] | None = None
         self._shown: np.ndarray | None = None
 
-    def set_image(self, array: np.ndarray, levels: tuple[float, float]) -> None:
-        """Show array; the very array already shown (a stage that came from the cache) is skipped."""
+    def set_image(self, array: np.ndarray, levels: tuple[float, float]) -> bool:
+        """Show array (the very array already shown, a stage that came from the cache, is
+        skipped); True when its size differs from the image shown before (or none was)."""
         if array is self._shown:
-            return
+            return False
         self._shown = array
-        first = self._shape is None or self._shape != array.shape[:2]
+        new_shape = self._shape != array.shape[:2]
+        self._shape = array.shape[:2]
         self.image.setImage(array, autoLevels=False, levels=levels)
         self.histogram.setLevels(*levels)
         self._histogram_stale = True
-        if first:
-            self._shape = array.shape[:2]
-            self.viewbox.autoRange(padding=0)
+        return new_shape
+
+    def fit(self) -> None:
+        """Show the whole image, as large as the pane allows."""
+        if self._shape is not None:
+            h, w = self._shape
+            self.viewbox.setRange(xRange=(0, w), yRange=(0, h), padding=0)
+
+    def pixels_per_image_pixel(self) -> float:
+        """Screen pixels per image pixel at the current zoom (1.0 at 1:1)."""
+        (x0, x1), _ = self.viewbox.viewRange()
+        return self.viewbox.width() / max(x1 - x0, 1e-9)
+
+    def zoom(self, factor: float) -> None:
+        """Zoom about the view's centre by `factor` (> 1: in)."""
+        self.viewbox.scaleBy((1.0 / factor, 1.0 / factor))
+
+    def actual_size(self) -> None:
+        """One image pixel per screen pixel, about the view's centre."""
+        self.zoom(1.0 / self.pixels_per_image_pixel())
+
+    def save_png(self, path: str) -> None:
+        """The pane's image array (not a screenshot) as a PNG: 8-bit, levels as shown."""
+        from PIL import Image
+        data = np.asarray(self._shown)
+        lo, hi = self.image.levels if self.image.levels is not None else (0.0, 1.0)
+        scaled = np.clip((data.astype(np.float64) - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+        Image.fromarray(np.round(255 * scaled).astype(np.uint8)).save(path)
 
     def refresh_histogram(self) -> None:
         """Recompute the histogram of the image shown, if it changed since the last refresh."""
@@ -112,6 +157,13 @@ class PreviewPanes(QWidget):
         for name in PANES[1:]:
             self.panes[name].viewbox.setXLink(first)
             self.panes[name].viewbox.setYLink(first)
+        self.fitting = True                       # fit on resize until the user zooms or pans
+        for name, pane in self.panes.items():
+            pane.viewbox.sigRangeChangedManually.connect(self._user_moved_view)
+            pane.viewbox.sigResized.connect(self._pane_resized)
+            pane.view_widget.setContextMenuPolicy(Qt.ContextMenuPolicy.CustomContextMenu)
+            pane.view_widget.customContextMenuRequested.connect(
+                lambda pos, n=name: self.context_menu(n).exec(self.panes[n].view_widget.mapToGlobal(pos)))
         self.highlight_clipped = QCheckBox("Highlight clipped pixels")
         self.highlight_clipped.setToolTip("raw pixels at the largest code, in red")
         self.highlight_clipped.toggled.connect(self._update_clip)
@@ -133,16 +185,67 @@ class PreviewPanes(QWidget):
         self._histogram_timer.setInterval(HISTOGRAM_DELAY_MS)
         self._histogram_timer.timeout.connect(self.refresh_histograms)
 
+    # -- zoom ------------------------------------------------------------------------------
+    def _user_moved_view(self, *_args) -> None:
+        self.fitting = False
+
+    def _pane_resized(self, *_args) -> None:
+        if self.fitting:
+            self._fit_linked()
+
+    def _fit_linked(self) -> None:
+        """Fit the image in every pane: the linked views follow the pane that needs the widest
+        range, so no pane crops its image."""
+        panes = [p for p in self.panes.values() if p._shape is not None and p.viewbox.width() > 0]
+        if panes:
+            min(panes, key=lambda p: p.viewbox.width() / max(p.viewbox.height(), 1)).fit()
+
+    def fit(self) -> None:
+        """View ▸ Fit: the whole image in every pane, and again after every resize."""
+        self.fitting = True
+        self._fit_linked()
+
+    def actual_size(self) -> None:
+        """View ▸ 1:1: one image pixel per screen pixel (the view stops following resizes)."""
+        self.fitting = False
+        self.panes[PANES[0]].actual_size()
+
+    def zoom(self, factor: float) -> None:
+        """View ▸ Zoom in / out by `factor` about the centre (the view stops following resizes)."""
+        self.fitting = False
+        self.panes[PANES[0]].zoom(factor)
+
+    def context_menu(self, name: str):
+        """A pane's right-click menu: fit, 1:1, zoom, and saving its image."""
+        from PySide6.QtWidgets import QMenu
+        menu = QMenu(self)
+        menu.addAction("Fit", self.fit)
+        menu.addAction("1:1 (actual pixels)", self.actual_size)
+        menu.addAction("Zoom in", lambda: self.zoom(2 ** 0.5))
+        menu.addAction("Zoom out", lambda: self.zoom(2 ** -0.5))
+        menu.addSeparator()
+        save = menu.addAction(f"Save {TITLES[name].split(' (')[0].lower()} image…", lambda: self.save_dialog(name))
+        save.setEnabled(self.panes[name]._shown is not None)
+        return menu
+
+    def save_dialog(self, name: str) -> None:
+        from PySide6.QtWidgets import QFileDialog
+        path, _ = QFileDialog.getSaveFileName(self, "Save image", f"{name}.png", "PNG image (*.png)")
+        if path:
+            self.panes[name].save_png(path)
+
     # -- images ----------------------------------------------------------------------------
     def show_frame(self, frame) -> None:
         """Show a live.Frame (numpy arrays) in the four panes."""
         new_bands = self.frame is None or not np.array_equal(self.frame.wavelengths_nm, frame.wavelengths_nm)
         self.frame = frame
         p = self.panes
-        p["irradiance"].set_image(frame.irradiance_rgb, (0.0, 1.0))
-        p["raw"].set_image(frame.raw_dn, (0.0, frame.max_dn))
-        p["linear"].set_image(frame.linear_rgb, (0.0, 1.0))
-        p["srgb"].set_image(frame.srgb, (0.0, 1.0))
+        resized = [p["irradiance"].set_image(frame.irradiance_rgb, (0.0, 1.0)),
+                   p["raw"].set_image(frame.raw_dn, (0.0, frame.max_dn)),
+                   p["linear"].set_image(frame.linear_rgb, (0.0, 1.0)),
+                   p["srgb"].set_image(frame.srgb, (0.0, 1.0))]
+        if any(resized):                        # a new image size: show it whole
+            self.fit()
         if new_bands:
             combo = p["irradiance"].band
             combo.blockSignals(True)
@@ -201,7 +304,8 @@ class PreviewPanes(QWidget):
         spectrum = f.irradiance_photons[ir, ic]
         band = self.panes["irradiance"].band.currentIndex()
         if band <= 0:
-            irr = f"{where} E summed over {len(spectrum)} bands = {float(spectrum.sum()):.4g} photons/s/m²/nm"
+            film = f.project.scene.kind == "city" and f.project.render.representation == "sensor"
+            irr = f"{where} {integrated_irradiance_text(spectrum, f.wavelengths_nm, film)}"
         else:
             irr = f"{where} E({f.wavelengths_nm[band - 1]:g} nm) = {float(spectrum[band - 1]):.4g} photons/s/m²/nm"
         th, tw = f.cfa_tile.shape

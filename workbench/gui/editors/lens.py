@@ -166,7 +166,7 @@ class LensEditor(QWidget):
             self.canvases[name] = canvas
             self.charts.addTab(canvas, name.replace("_", " "))
         self.charts.currentChanged.connect(lambda _i: self._request_charts())
-        split = QSplitter(Qt.Orientation.Horizontal, self)
+        split = QSplitter(Qt.Orientation.Vertical, self)      # the charts under the table: one column
         split.addWidget(left)
         split.addWidget(self.charts)
         split.setStretchFactor(1, 1)
@@ -370,6 +370,7 @@ class LensEditor(QWidget):
             return
         w, h, d = self._sensor_mm()
         lens = self.used_lens()
+        self._show_focal_length_in_force(lens)
         if lens is None:
             f = self._project.optics.focal_length_mm
             self.readouts.setText(
@@ -390,6 +391,20 @@ class LensEditor(QWidget):
             f"exit pupil Ø {p.exit_pupil_diameter_mm:.4g} mm at {p.exit_pupil_mm:.4g} mm from the last vertex<br>"
             f"FOV (paraxial) {p.fov_deg(w):.2f}° × {p.fov_deg(h):.2f}° (diagonal {p.fov_deg(d):.2f}°) "
             f"on the {w:.3g} × {h:.3g} mm sensor")
+
+    def _show_focal_length_in_force(self, lens: Lens | None) -> None:
+        """With a lens file that is not scaled, the prescription sets the focal length: the field
+        shows its EFL, read-only, instead of the project's unused first-order value."""
+        o = self._project.optics
+        efl = None
+        if lens is not None and not o.scale_lens_to_focal_length:
+            try:
+                efl = paraxial(lens).efl_mm
+            except LENS_ERRORS:
+                efl = None
+        self.form.set_override("focal_length_mm", None if efl is None else f"{efl:.6g}",
+                               f"set by the lens {lens.name if lens else ''} (its effective focal length); "
+                               "tick 'scale lens to focal length' to choose the focal length here")
 
     # ------------------------------------------------------------------------------ background
     def _lens_changed(self) -> None:

@@ -54,6 +54,20 @@ def draw_qe(fig, params: SensorParams, wavelengths_nm: np.ndarray = QE_WAVELENGT
     ax.legend(fontsize=6, loc="upper right", ncol=2)
 
 
+def emva_summary(result: dict) -> str:
+    """The measured figures, each beside the configured one, and the measurement's notes (a read
+    noise hidden by the ADC's quantisation is a lower bound, marked ≥)."""
+    conf = result["configured"]
+    bound = "≥ " if result["notes"] else ""
+    lines = [f"K {result['conversion_gain_uV_per_e']:.3g} µV/e⁻ (configured {conf['conversion_gain_uV_per_e']:.3g}), "
+             f"read noise {bound}{result['read_noise_e']:.3g} e⁻ (configured {conf['read_noise_e']:.3g}), "
+             f"dark current {result['dark_current_e_per_s']:.3g} e⁻/s (configured "
+             f"{conf['dark_current_e_per_s']:.3g}), saturation {result['saturation_capacity_e']:,.0f} e⁻, "
+             f"DR {result['dynamic_range_dB']:.1f} dB"]
+    lines += [f"Note: {note}" for note in result["notes"]]
+    return "\n".join(lines)
+
+
 class CfaTile(QWidget):
     """Two periods of the CFA tile drawn as coloured pixels with their channel letters."""
 
@@ -203,10 +217,7 @@ class SensorEditor(QWidget):
 
     def _emva_returned(self, result: dict) -> None:
         self.emva_result = result
-        self.emva_status.setText(
-            f"K {result['conversion_gain_uV_per_e']:.3g} µV/e⁻, read noise {result['read_noise_e']:.3g} e⁻, "
-            f"dark current {result['dark_current_e_per_s']:.3g} e⁻/s, saturation "
-            f"{result['saturation_capacity_e']:,.0f} e⁻, DR {result['dynamic_range_dB']:.1f} dB")
+        self.emva_status.setText(emva_summary(result))
         self.emva_chart.redraw(lambda fig: draw_photon_transfer(result, fig))
         self.emva_finished.emit(result)
 

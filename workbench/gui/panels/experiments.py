@@ -1,7 +1,7 @@
 """Experiments panel: runs `workbench experiment isp|exposure PROJECT --data DIR --profile P --out DIR`
 as a background process (progress parsed from its output, Cancel kills the process tree) and shows
-result folders — its own or ones produced headless elsewhere — as the paper's charts
-(workbench.experiments.results)."""
+result folders — its own or ones produced headless elsewhere — as the paper's charts beside the
+paired differences that decide them (workbench.experiments.results)."""
 from __future__ import annotations
 
 import os
@@ -11,17 +11,17 @@ import tempfile
 from pathlib import Path
 
 import psutil
-from PySide6.QtCore import QProcess, QProcessEnvironment, Qt, Signal
+from PySide6.QtCore import QProcess, QProcessEnvironment, Qt, QTimer, Signal
 from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QHBoxLayout, QLabel, QLineEdit,
                                QPlainTextEdit, QProgressBar, QPushButton, QSplitter, QVBoxLayout, QWidget)
 
 from workbench.errors import WorkbenchError
+from workbench.experiments.detection import PROFILES
 from workbench.experiments.results import KINDS, draw_results, read_results, result_folders
 from workbench.gui.mplcanvas import ChartCanvas
 from workbench.project import save_project
-
-PROFILES = ("quick", "paper")
 _COUNT = re.compile(r"(\d+)\s*/\s*(\d+)")
+KILL_GRACE_MS = 3000
 LOG_LINES = 500
 
 
@@ -36,22 +36,27 @@ def parse_progress(text: str) -> tuple[int, int] | None:
     return last
 
 
-def kill_tree(pid: int, grace_s: float = 3.0) -> None:
-    """Terminate a process and all its descendants; kill what is left after grace_s."""
+def terminate_tree(pid: int) -> list:
+    """Send SIGTERM to a process and all its descendants; returns them (for kill_survivors)."""
     try:
         root = psutil.Process(pid)
         procs = root.children(recursive=True) + [root]
     except psutil.NoSuchProcess:
-        return
+        return []
     for p in procs:
         try:
             p.terminate()
         except psutil.NoSuchProcess:
             pass
-    _, alive = psutil.wait_procs(procs, timeout=grace_s)
-    for p in alive:
+    return procs
+
+
+def kill_survivors(procs: list) -> None:
+    """SIGKILL whatever of `procs` is still running (after terminate_tree's grace time)."""
+    for p in procs:
         try:
-            p.kill()
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                p.kill()
         except psutil.NoSuchProcess:
             pass
 
@@ -80,8 +85,9 @@ class ExperimentsPanel(QWidget):
         self.kind.addItems(KINDS)
         self.kind.setToolTip("isp: raw / linear / sRGB (the paper's Fig. 5); exposure: mAP against EV (Fig. 7)")
         self.profile = QComboBox(self)
-        self.profile.addItems(PROFILES)
-        self.profile.setToolTip("quick: 320×240, one small net, CPU; paper: 640×480, both nets (GPU)")
+        self.profile.addItems(list(PROFILES))
+        self.profile.setCurrentText("standard")
+        self.profile.setToolTip("\n".join(p.note for p in PROFILES.values()))
         self.data_dir = QLineEdit(self)
         self.data_dir.setPlaceholderText("rendered data set folder (`workbench dataset`)")
         self.out_dir = QLineEdit(self)
@@ -221,13 +227,19 @@ class ExperimentsPanel(QWidget):
         self._update_buttons()
 
     def cancel(self) -> None:
-        """Kill the experiment process and everything it started (finished runs stay on disk)."""
+        """Stop the experiment process and everything it started (finished runs stay on disk):
+        SIGTERM now, SIGKILL to what is left after KILL_GRACE_MS, without blocking the GUI."""
         if self._process is None:
             return
         self._cancelled = True
         pid = self._process.processId()
         if pid:
-            kill_tree(pid)
+            procs = terminate_tree(pid)
+            QTimer.singleShot(KILL_GRACE_MS, lambda: kill_survivors(procs))
+
+    def shutdown(self) -> None:
+        """The window is closing: stop a running experiment (its finished runs are kept)."""
+        self.cancel()
 
     def _read_output(self) -> None:
         self._take_output(bytes(self._process.readAllStandardOutput()).decode("utf-8", errors="replace"))
@@ -293,5 +305,5 @@ class ExperimentsPanel(QWidget):
         self.cancel_button.setEnabled(running)
 
     def closeEvent(self, event) -> None:
-        self.cancel()
+        self.shutdown()
         super().closeEvent(event)

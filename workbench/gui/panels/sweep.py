@@ -78,7 +78,7 @@ class SweepPanel(QWidget):
         self.thumbnails.setFlow(QListView.Flow.LeftToRight)
         self.thumbnails.setWrapping(False)                  # one row, scrolled sideways
         self.thumbnails.setMovement(QListView.Movement.Static)
-        self.thumbnails.setMinimumHeight(150)
+        self.thumbnails.setMinimumHeight(120)
         self.chart = ChartImage("Run the sweep: mean level, clipped fraction and SNR against EV appear here",
                                 self)
 
@@ -86,14 +86,17 @@ class SweepPanel(QWidget):
         for text, spin in (("EV from", self.start), ("to", self.stop), ("step", self.step)):
             controls.addWidget(QLabel(text, self))
             controls.addWidget(spin)
-        controls.addWidget(self.run_button)
-        controls.addWidget(self.cancel_button)
-        controls.addWidget(self.progress, 1)
+        controls.addStretch(1)
+        run_row = QHBoxLayout()
+        run_row.addWidget(self.run_button)
+        run_row.addWidget(self.cancel_button)
+        run_row.addWidget(self.progress, 1)
         split = QSplitter(Qt.Orientation.Vertical, self)
         split.addWidget(self.thumbnails)
         split.addWidget(self.chart)
         lay = QVBoxLayout(self)
         lay.addLayout(controls)
+        lay.addLayout(run_row)
         lay.addWidget(self.status)
         lay.addWidget(split, 1)
         self._update_buttons()
@@ -205,6 +208,10 @@ class SweepPanel(QWidget):
         self._token = None
         self._update_buttons()
 
-    def closeEvent(self, event) -> None:
+    def shutdown(self) -> None:
+        """The window is closing: stop a running sweep."""
         self.cancel()
+
+    def closeEvent(self, event) -> None:
+        self.shutdown()
         super().closeEvent(event)
