@@ -185,7 +185,7 @@ def draw_photon_transfer(result: dict, fig) -> None:
     ax1.set(xlabel=f"μ_y − μ_dark ({unit})", ylabel=f"σ²_y − σ²_dark ({unit}²)", title="Photon transfer")
     ax1.legend()
     mu_e = np.asarray(s["mean_e"])
-    ok = (mu_e > 0) & (np.arange(mu_e.size) <= s["saturation_index"])
+    ok = (mu_e >= 1.0) & (np.arange(mu_e.size) <= s["saturation_index"])     # below 1 e⁻ is quantisation
     ax2.loglog(mu_e[ok], np.asarray(s["snr"])[ok], "o", ms=3, label="measured")
     model = mu_e[ok] / np.sqrt(result["read_noise_e"] ** 2 + mu_e[ok])
     ax2.loglog(mu_e[ok], model, "-", label="shot + read noise")
