@@ -46,6 +46,7 @@ def _gray_world(flat, to_ics, white, white_world_fraction, manual_gains):
 
 GREY_PIXEL_TOLERANCES = (0.12, 0.06, 0.03, 0.03)   # chromatic distance from white, per round
 GREY_PIXEL_MIN_SHARE = 0.005    # fewer grey pixels than this share of the image: gray world
+GREY_PIXEL_SAMPLES = 8192       # the statistic looks at about this many pixels, evenly spread
 
 
 @ILLUMINANT_CORRECTIONS.register("gray_pixels")
@@ -53,15 +54,22 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains):
     """Gray world over the pixels that are nearly grey once corrected (r, g, b chromaticity within
     a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
-    ics = pixels_matmul(flat, to_ics)
+    step = max(1, len(flat) // GREY_PIXEL_SAMPLES)          # an even subsample is statistic enough
+    ics = pixels_matmul(np.ascontiguousarray(flat[::step]), to_ics)
     gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
     target = white / white.sum()
+    columns = [np.ascontiguousarray(ics[:, c]) for c in range(3)]      # column-wise: numpy's small-axis
+    lit = None                                                         # reductions are slow
     for tolerance in GREY_PIXEL_TOLERANCES:
-        corrected = ics * gains
-        total = corrected.sum(axis=1, keepdims=True)
-        lit = total[:, 0] > 0.02 * np.percentile(total, 99)
-        chroma = corrected / np.where(total > 0, total, 1.0)
-        grey = lit & (np.abs(chroma - target).max(axis=1) < tolerance)
+        corrected = [col * g for col, g in zip(columns, gains)]
+        total = corrected[0] + corrected[1] + corrected[2]
+        if lit is None:                                                # not the darkest (noise) pixels
+            lit = total > 0.02 * np.percentile(total, 99)
+        safe = np.where(total > 0, total, 1.0)
+        distance = np.abs(corrected[0] / safe - target[0])
+        for c in (1, 2):
+            np.maximum(distance, np.abs(corrected[c] / safe - target[c]), out=distance)
+        grey = lit & (distance < tolerance)
         if grey.sum() < GREY_PIXEL_MIN_SHARE * len(ics):
             notes.append(f"gray_pixels: fewer than {100 * GREY_PIXEL_MIN_SHARE:g} % of the pixels are near grey; "
                          "gray world over all of them")
@@ -89,7 +97,7 @@ def _manual(flat, to_ics, white, white_world_fraction, manual_gains):
 
 def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white: np.ndarray, *,
                      white_world_fraction: float = 0.7, manual_gains: tuple[float, ...] = (1.0, 1.0, 1.0),
-                     saturated: float | None = None) -> tuple[np.ndarray, list[str]]:
+                     valid: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """Gains (3,) for the internal colour space ics = linear @ to_ics that correct the illuminant.
 
     linear: H×W×K sensor channels; to_ics: K×3 matrix into the internal colour space (XYZ, or
@@ -97,8 +105,8 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
     (the image mean gets the chromaticity of `white`), 'white_world' (the mean of the pixels ≥
     white_world_fraction × max of the brightest ics channel gets it), 'manual' (manual_gains).
     white: the output white in the internal space (3,), e.g. the XYZ of sRGB's D65 white.
-    saturated: pixels with a sensor channel ≥ this (full scale 1) are left out of the statistics
-    (their colour is the clipping's, not the scene's); when every pixel is, all are used, with a note.
+    valid: H×W bool, the pixels the statistics may use (e.g. not saturated: their colour is the
+    clipping's, not the scene's); when none is, all are used, with a note.
     Returns (gains, notes); a zero statistic leaves the image unchanged, with a note."""
     correct = ILLUMINANT_CORRECTIONS[method]
     k = linear.shape[-1]
@@ -107,10 +115,10 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
                          f"shapes {linear.shape} and {to_ics.shape}")
     flat = linear.reshape(-1, k)
     notes: list[str] = []
-    if saturated is not None and method in ("gray_world", "white_world"):
-        unsaturated = flat.max(axis=1) < saturated
-        if unsaturated.any():
-            flat = flat[unsaturated]
+    if valid is not None and method in ("gray_world", "gray_pixels", "white_world"):
+        valid = np.asarray(valid, dtype=bool).reshape(-1)
+        if valid.any():
+            flat = flat[valid]
         else:
             notes.append(f"{method}: every pixel is saturated; the statistic uses them all")
     gains, more = correct(flat, to_ics, np.asarray(white, dtype=np.float64), white_world_fraction, manual_gains)

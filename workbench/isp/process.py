@@ -100,18 +100,19 @@ def linear_to_xyz(linear: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return pixels_matmul(linear.reshape(-1, k), matrix).reshape(h, w, 3)
 
 
-def neutral_highlights(rgb_linear: np.ndarray, linear: np.ndarray) -> np.ndarray:
-    """Pixels whose brightest sensor channel nears saturation blend towards a neutral of their
-    brightest output channel: weight 0 below HIGHLIGHT_START of full scale, 1 from
-    SATURATED_FRACTION on (smoothstep between), so a clipped white renders white, not pink, and
-    unsaturated colours are untouched."""
-    peak = linear.max(axis=2, keepdims=True)
-    t = np.clip((peak - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0.0, 1.0)
-    if not np.any(t):
-        return rgb_linear
-    w = (t * t * (3.0 - 2.0 * t)).astype(np.float32)
-    grey = rgb_linear.max(axis=2, keepdims=True)
-    return rgb_linear + w * (grey - rgb_linear)
+def neutral_highlights(rgb_linear: np.ndarray, peak: np.ndarray) -> None:
+    """In place: pixels whose brightest sensor channel (peak, H×W, full scale 1) nears saturation
+    blend towards a neutral of their brightest output channel: weight 0 below HIGHLIGHT_START, 1
+    from SATURATED_FRACTION on (smoothstep between), so a clipped white renders white, not pink,
+    and unsaturated colours are untouched."""
+    idx = np.flatnonzero(peak > HIGHLIGHT_START)
+    if idx.size == 0:
+        return
+    flat = rgb_linear.reshape(-1, rgb_linear.shape[-1])
+    t = np.clip((peak.reshape(-1)[idx] - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0.0, 1.0)
+    w = (t * t * (3.0 - 2.0 * t)).astype(np.float32)[:, None]
+    sel = flat[idx]
+    flat[idx] = sel + w * (sel.max(axis=1, keepdims=True) - sel)
 
 
 def _normalise(rgb_linear: np.ndarray, normalize: str, notes: list[str]) -> np.ndarray:
@@ -204,6 +205,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     linear, notes = _tiny_safe_raw_to_linear(raw, image.cfa_tile, names, params.demosaic,
                                              black_dn / image.max_dn)
     to_ics, white, fit, grey_reason = _colour_path(image, params, notes)
+    peak = np.maximum.reduce([linear[..., k] for k in range(linear.shape[-1])])   # brightest channel per pixel
 
     gains = None
     xyz = None
@@ -215,7 +217,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         gains, gain_notes = illuminant_gains(linear, to_ics, params.illuminant_correction, white,
                                              white_world_fraction=params.white_world_fraction,
                                              manual_gains=params.manual_gains,
-                                             saturated=SATURATED_FRACTION)
+                                             valid=peak < SATURATED_FRACTION)
         notes.extend(gain_notes)
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
         if fit is not None:
@@ -224,7 +226,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         else:
             rgb_linear = linear_to_xyz(linear, to_ics)
         if params.highlights == "neutral":
-            rgb_linear = neutral_highlights(rgb_linear, linear)
+            neutral_highlights(rgb_linear, peak)
     srgb = srgb_encode(_normalise(rgb_linear, params.normalize, notes))
     for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
         if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum
