@@ -63,3 +63,32 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     assert frames[0].preview and frames[-1].recomputed[0] == "scene"
     win.document.undo_stack.undo()
     assert win.document.project == small_city_project()
+
+
+@pytest.mark.parametrize("representation", ["bands", "sensor"])
+def test_sensor_edits_on_a_city_run_only_the_sensor_stages(qtbot, representation):
+    """A CFA, fill-factor or ISP edit reuses the city render: the window renders spectrally (a
+    sensor-channel film is rendered as bands there) and the sensor stage integrates the spectrum."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    project = small_city_project()
+    project = project.updated(render=project.render.updated(representation=representation))
+    win = MainWindow(Document(project), with_city_view=False)
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    first = win.previews.frame
+    for section, change, recomputed in (("sensor", {"cfa_pattern": "RGGB"}, ["signal", "sensor", "isp"]),
+                                        ("sensor", {"fill_factor": 0.5}, ["signal", "sensor", "isp"]),
+                                        ("isp", {"demosaic": "malvar2004"}, ["isp"])):
+        frames = []
+        win.live.frameReady.connect(frames.append)
+        assert win.apply_edit(section, change)
+        qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+        win.live.frameReady.disconnect(frames.append)
+        assert [f.preview for f in frames] == [False], "no preview render: the scene is not rendered again"
+        assert frames[-1].recomputed == recomputed
+    assert win.previews.frame.irradiance_photons is first.irradiance_photons        # the same render, reused

@@ -102,13 +102,26 @@ class FrameBuilder:
                      isp_notes=list(getattr(isp, "notes", []) or []))
 
 
+WINDOW_BANDS = 16        # a city rendered in the sensor's channels is shown from this many bands
+
+
+def window_project(project: Project) -> Project:
+    """The project the window simulates: a city rendered in the sensor's own channels (the data
+    sets' cheap film, which a sensor edit invalidates) is rendered spectrally instead, so every
+    sensor, CFA and ISP edit reuses the render (render.city_frame.city_scene_inputs)."""
+    if project.scene.kind == "city" and project.render.representation == "sensor":
+        return project.updated(render=project.render.updated(representation="bands", band_count=WINDOW_BANDS))
+    return project
+
+
 def _render_inputs_changed(old: Project | None, new: Project) -> bool:
+    """Whether the city render of `new` differs from that of `old` (the scene stage's inputs)."""
     if new.scene.kind != "city":
         return False
     if old is None:
         return True
-    return (old.city, old.pose, old.render, old.seed, old.scene, old.sensor.rows, old.sensor.cols) != \
-           (new.city, new.pose, new.render, new.seed, new.scene, new.sensor.rows, new.sensor.cols)
+    from workbench.render.city_frame import city_scene_inputs
+    return city_scene_inputs(old) != city_scene_inputs(new)
 
 
 class LiveRunner(QObject):
@@ -206,21 +219,24 @@ class LiveRunner(QObject):
             token.check()
             self.progress.emit(p.message, p.fraction)
 
-    def _run(self, project: Project, submitted_at: float, token: CancelToken) -> None:
+    def _run(self, document_project: Project, submitted_at: float, token: CancelToken) -> None:
+        project = window_project(document_project)
         if self.pipeline is None:
             self.pipeline = Pipeline(project)
         if (_render_inputs_changed(self._last_full, project) and project.render.spp is not None
                 and project.render.spp > self.preview_spp):
-            quick = project.updated(render=project.render.updated(spp=self.preview_spp))
+            quick = project.updated(render=project.render.updated(spp=self.preview_spp, chunk_spp=self.preview_spp,
+                                                                  preview_spp=self.preview_spp))
             if self._preview_pipeline is None:
                 self._preview_pipeline = Pipeline(quick)
             self._preview_pipeline.set_project(quick)
             self._drive(self._preview_pipeline, token)
             token.check()
-            self.frameReady.emit(self._preview_builder.build(self._preview_pipeline, project, True, submitted_at))
+            self.frameReady.emit(self._preview_builder.build(self._preview_pipeline, document_project, True,
+                                                             submitted_at))
         self.pipeline.set_project(project)
         self._drive(self.pipeline, token)
         token.check()
-        frame = self._builder.build(self.pipeline, project, False, submitted_at)
+        frame = self._builder.build(self.pipeline, document_project, False, submitted_at)
         self._last_full = project
         self.frameReady.emit(frame)

@@ -70,8 +70,9 @@ def uses_full_lens_model(optics) -> bool:
 @dataclass(frozen=True)
 class CitySceneInputs:
     """All a city frame's render reads (so it is the scene stage's cache key): the project seed,
-    scene, city, pose and render sections, the pixel response (resolution and the QE that sets
-    the film's range), the camera geometry; the optics only when the lens is traced inside
+    scene, city, pose and render sections (a spectral film's wavelength range resolved), the pixel
+    response (all of it for a film in the sensor's channels, only the pixel grid for a spectral
+    film), the camera geometry; the optics only when the lens is traced inside
     Mitsuba (full model) or render.shot_noise_ratio needs a pilot through the optics, and the
     sensor only for shot_noise_ratio (its exposure)."""
 
@@ -97,14 +98,32 @@ class CityFrameInputs:
 
 
 def city_scene_inputs(project) -> CitySceneInputs:
-    """What rendering a city frame of `project` reads (CitySceneInputs)."""
+    """What rendering a city frame of `project` reads (CitySceneInputs). A film in the sensor's
+    own channels reads the whole pixel response; a spectral film ('bands', 'basis') only the
+    wavelength range, written into the render section here when it follows the sensor's QE, so a
+    CFA, filter or fill-factor edit that keeps that range keeps the render (the sensor stage
+    integrates the spectrum)."""
     from workbench.scene.city.recipe import CityRecipe, PoseParams
     from workbench.stages.geometry import project_geometry
     pilot = project.render.shot_noise_ratio is not None
+    render, pixels = project.render, project.sensor.pixel_response
+    if render.representation != "sensor" and not pilot:
+        if render.wavelength_min_nm is None:
+            lo, hi = sensor_film_range_nm(pixels)
+            render = render.updated(wavelength_min_nm=lo, wavelength_max_nm=hi)
+        pixels = type(pixels)(rows=pixels.rows, cols=pixels.cols, pixel_pitch_um=pixels.pixel_pitch_um)
     return CitySceneInputs(project.seed, project.scene, project.city or CityRecipe(), project.pose or PoseParams(),
-                           project.render, project.sensor.pixel_response, project_geometry(project),
+                           render, pixels, project_geometry(project),
                            project.optics if pilot or uses_full_lens_model(project.optics) else None,
                            project.sensor if pilot else None)
+
+
+def sensor_film_range_nm(pixels) -> tuple[float, float]:
+    """The wavelength range (nm) a spectral film covers when the render does not set one: where
+    any channel of the sensor responds (film.sensor_wavelength_range of its QE)."""
+    from workbench.render.film import sensor_wavelength_range
+    from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, channel_qe
+    return sensor_wavelength_range(SENSOR_SPECTRAL_GRID_NM, np.asarray(channel_qe(pixels, SENSOR_SPECTRAL_GRID_NM)).T)
 
 
 def city_frame_inputs(project) -> CityFrameInputs:
