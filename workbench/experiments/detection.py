@@ -31,7 +31,7 @@ import csv
 import hashlib
 import io
 import json
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime, timezone
 from functools import partial
 from pathlib import Path
@@ -52,8 +52,9 @@ EXPERIMENTS = ("isp", "exposure")
 @dataclass(frozen=True)
 class Profile:
     """How big an experiment is. epochs: the training budget per net (every condition of a net
-    gets the same); per_ev_biases: the EVs at which the exposure experiment trains per-EV nets;
-    crop_hw: training windows; curve_points: train-mAP measurements per run."""
+    gets the same); precision: per net, 'auto' | 'fp32' | 'bf16' (detect.devices); per_ev_biases:
+    the EVs at which the exposure experiment trains per-EV nets; crop_hw: training windows;
+    curve_points: train-mAP measurements per run."""
 
     name: str
     image_hw: tuple[int, int]
@@ -70,6 +71,7 @@ class Profile:
     cache_mb: float
     curve_points: int
     note: str
+    precision: dict = field(default_factory=dict)
 
 
 PROFILES = {
@@ -83,9 +85,10 @@ PROFILES = {
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 40}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
         per_ev_biases=(-4.0, -2.0, 2.0, 4.0), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
-        curve_points=6,
+        curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16"},
         note="standard profile: trained to convergence on a CPU: 320×240 frames (≥ 400 train, ≥ 200 test), "
-             "both nets on 160×128 windows, 5 seeds, one thread per run"),
+             "both nets on 160×128 windows, 5 seeds, one thread per run; resnet18 under bf16 autocast (half "
+             "the time of float32 on a CPU with AVX-512 BF16; slower on one without)"),
     "paper": Profile(
         name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 60}, batch_size=32, crop_hw=None, lr=2e-3,
@@ -130,7 +133,7 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
         base = TrainConfig(net=net, epochs=profile.epochs[net], batch_size=profile.batch_size, lr=profile.lr,
                            crop_hw=profile.crop_hw, threads=profile.threads, device=profile.device,
                            loader_workers=profile.loader_workers, cache_mb=profile.cache_mb,
-                           curve_points=profile.curve_points)
+                           curve_points=profile.curve_points, precision=profile.precision.get(net, "auto"))
         for seed in range(seeds):
             role = {"net": net, "seed": seed}
             if kind == "isp":
