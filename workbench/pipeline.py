@@ -8,6 +8,9 @@ recomputed only when something it reads changed: moving an ISP parameter re-runs
 an exposure or noise parameter re-runs the sensor from the cached pixel signal, and the scene
 is re-sampled whenever the camera geometry (focus, lens, sensor size, pixel pitch) changes.
 
+The cache keeps several results per stage, least recently used first out, within a memory budget
+(cache_mb), so going back to an earlier camera pose or sensor (Undo) finds its stages cached.
+
 Thread safety (the window drives it from a worker thread): every run works on one Snapshot of
 the project, its camera geometry and its keys, taken when the run starts; set_project may be
 called from another thread at any time and affects the next run only; the cache is locked, and
@@ -15,9 +18,11 @@ a result is stored under the key of the snapshot it was computed from.
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -34,6 +39,28 @@ from workbench.stages.geometry import project_geometry
 from workbench.stages.keys import digest
 
 STAGES = ("scene", "optics", "signal", "sensor", "isp")
+CACHE_MB = 1024.0            # default memory budget of a pipeline's stage cache
+CACHE_ENTRIES_PER_STAGE = 8
+
+
+def result_nbytes(value, depth: int = 3) -> int:
+    """Bytes of the numpy arrays a stage result holds (arrays, dataclasses, objects, dicts, lists,
+    followed `depth` levels down): what keeping it in the cache costs."""
+    if isinstance(value, np.ndarray):
+        return int(value.nbytes)
+    if depth == 0 or value is None or isinstance(value, (str, bytes, int, float, bool)):
+        return 0
+    if isinstance(value, dict):
+        items = value.values()
+    elif isinstance(value, (list, tuple)):
+        items = value
+    elif dataclasses.is_dataclass(value):
+        items = (getattr(value, f.name) for f in dataclasses.fields(value))
+    elif hasattr(value, "__dict__"):
+        items = vars(value).values()
+    else:
+        return 0
+    return sum(result_nbytes(v, depth - 1) for v in items)
 
 
 @dataclass(frozen=True)
@@ -146,12 +173,14 @@ class Pipeline:
     recomputed lists the stages the latest run computed so far (a stage getter adds the stages it
     computes); stage_times_s holds each stage's latest compute time (s)."""
 
-    def __init__(self, project: Project, scene: Scene | None = None):
+    def __init__(self, project: Project, scene: Scene | None = None, cache_mb: float = CACHE_MB):
         self._lock = threading.RLock()
         self._tokens = itertools.count(1)
         self._project = project
         self._fixed = FixedScene(scene, next(self._tokens)) if scene is not None else None
-        self._cache: dict[str, tuple[str, object]] = {}
+        self._cache: dict[str, OrderedDict] = {stage: OrderedDict() for stage in STAGES}  # key → (value, bytes, use)
+        self._uses = itertools.count()
+        self.cache_limit_bytes = int(cache_mb * 2 ** 20)
         self.stage_times_s: dict[str, float] = {}
         self.recomputed: list[str] = []
 
@@ -179,10 +208,35 @@ class Pipeline:
         return Snapshot(project, fixed, camera, inputs, stage_keys(inputs))
 
     def cached(self, stage: str, key: str):
-        """The cached result of `stage` if it was computed for `key`, else None."""
+        """The cached result of `stage` if it was computed for `key`, else None (a hit becomes the
+        most recently used)."""
         with self._lock:
-            hit = self._cache.get(stage)
-        return hit[1] if hit is not None and hit[0] == key else None
+            entries = self._cache[stage]
+            if key not in entries:
+                return None
+            value, size, _ = entries.pop(key)
+            entries[key] = (value, size, next(self._uses))
+            return value
+
+    def cache_bytes(self) -> int:
+        """Bytes of arrays the cache holds now."""
+        with self._lock:
+            return sum(size for entries in self._cache.values() for _, size, _ in entries.values())
+
+    def _store(self, stage: str, key: str, value) -> None:
+        """Cache a result; drop the least recently used results (never a stage's newest) until each
+        stage keeps at most CACHE_ENTRIES_PER_STAGE and all of them fit the memory budget."""
+        with self._lock:
+            entries = self._cache[stage]
+            entries[key] = (value, result_nbytes(value), next(self._uses))
+            while len(entries) > CACHE_ENTRIES_PER_STAGE:
+                entries.popitem(last=False)
+            while self.cache_bytes() > self.cache_limit_bytes:
+                older = [(e[k][2], st, k) for st, e in self._cache.items() for k in list(e)[:-1]]
+                if not older:
+                    break
+                _, st, k = min(older)
+                del self._cache[st][k]
 
     # -- running ------------------------------------------------------------------------------
     def _stage_job(self, snap: Snapshot, stage: str, upstream, cancel, record: list[str]) -> Job:
@@ -198,8 +252,8 @@ class Pipeline:
             value = yield from _scene_job(inputs, cancel)
         else:
             value = {"optics": _optics, "signal": _signal, "sensor": _sensor, "isp": _isp}[stage](inputs, upstream)
+        self._store(stage, key, value)
         with self._lock:
-            self._cache[stage] = (key, value)
             self.stage_times_s = {**self.stage_times_s, stage: time.perf_counter() - t0}
             record.append(stage)
         return value

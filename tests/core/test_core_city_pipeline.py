@@ -94,6 +94,6 @@ def test_sensor_channel_render_gets_the_sensors_colour_matrix():
     isp = Pipeline(project).run().isp
     assert isp.colour_fit is not None and not any("grey" in n for n in isp.notes), isp.notes
     direct = fit_sensor_to_xyz(channel_qe(project.sensor, SENSOR_SPECTRAL_GRID_NM), SENSOR_SPECTRAL_GRID_NM,
-                               project.isp.max_condition)
+                               project.isp.max_condition, preserve_white=project.isp.colour_transform == "macbeth_d65_wp")
     np.testing.assert_allclose(isp.colour_fit.matrix, direct.matrix, rtol=1e-9)
     assert np.abs(isp.srgb[..., 0] - isp.srgb[..., 2]).max() > 0.05          # not grey

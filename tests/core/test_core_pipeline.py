@@ -122,3 +122,35 @@ def test_pipeline_job_cancels_between_stages():
     assert pipe.recomputed == ["scene", "optics"]    # the announced stage ran; none after the cancel
     pipe.run()                                         # a new run goes on from the cached stages
     assert pipe.recomputed == ["signal", "sensor", "isp"]
+
+
+def test_going_back_to_an_earlier_project_finds_every_stage_cached():
+    """Undo after edits: the earlier results are still in the cache (several per stage, least
+    recently used out first), so nothing recomputes and the very same arrays come back."""
+    project = small(load_project("paper_camera"))
+    pipe = Pipeline(project)
+    first = pipe.run()
+    for changed in (edit(project, "sensor", analog_gain=2.0), edit(project, "scene", distance_m=5.0),
+                    edit(project, "isp", demosaic="malvar2004")):
+        pipe.set_project(changed)
+        pipe.run()
+    pipe.set_project(project)
+    again = pipe.run()
+    assert pipe.recomputed == [] and again.isp is first.isp and again.optical_image is first.optical_image
+
+
+def test_the_stage_cache_keeps_to_its_memory_budget():
+    from workbench.pipeline import result_nbytes
+    project = small(load_project("paper_camera"))
+    one = Pipeline(project)
+    one.run()
+    per_run = one.cache_bytes()
+    assert per_run == sum(result_nbytes(v) for e in one._cache.values() for v, _, _ in e.values()) > 0
+    pipe = Pipeline(project, cache_mb=2.5 * per_run / 2 ** 20)
+    for gain in (1.5, 2.0, 2.5, 3.0):
+        pipe.set_project(edit(project, "scene", distance_m=gain * 4))     # every stage new each time
+        pipe.run()
+        assert pipe.cache_bytes() <= 2.5 * per_run
+    pipe.set_project(edit(project, "scene", distance_m=3.0 * 4))          # the newest is kept
+    pipe.run()
+    assert pipe.recomputed == []
