@@ -53,6 +53,10 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     win.city_view.look_through.setChecked(True)
     through = grab(win.city_view.plotter.interactor)
     assert through.astype(float).std() > 10.0 and not np.array_equal(through, view.astype(np.uint8))
+    # "Set pose" with nothing typed changes nothing (the boxes show the pose rounded).
+    steps = win.document.undo_stack.count()
+    win.city_view.apply_typed_pose()
+    assert win.document.undo_stack.count() == steps and "unchanged" in win.city_view.status.text()
     # Move the camera by typing a pose: one undoable edit, a new preview and a new full render.
     box = win.city_view.pose_boxes
     box["pan"].setValue(box["pan"].value() + 30.0)
@@ -61,8 +65,11 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     assert win.document.project.pose.mode == "manual"
     qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
     assert frames[0].preview and frames[-1].recomputed[0] == "scene"
+    frames.clear()
     win.document.undo_stack.undo()
     assert win.document.project == small_city_project()
+    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    assert [f.recomputed for f in frames] == [[]]          # Undo of the move: every stage from the cache
 
 
 @pytest.mark.parametrize("representation", ["bands", "sensor"])

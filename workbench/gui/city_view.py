@@ -217,12 +217,33 @@ class CityView(QWidget):
         self.pose_boxes["y"].setValue(y)
         self.apply_typed_pose()
 
+    def _exact_pose(self) -> dict[str, float]:
+        p = self.pose.position_m
+        return dict(zip(("x", "y", "height", "pan", "tilt", "roll"),
+                        (p[0], p[1], p[2], self.pose.pan_deg, self.pose.tilt_deg, self.pose.roll_deg)))
+
+    def _untouched(self) -> set[str]:
+        """The pose boxes still showing the camera's value (to their displayed precision)."""
+        if self.pose is None:
+            return set()
+        exact = self._exact_pose()
+        return {k for k, box in self.pose_boxes.items()
+                if abs(box.value() - exact[k]) <= 0.5 * 10.0 ** -box.decimals() + 1e-9}
+
     def typed_pose(self) -> dict:
-        b = {k: box.value() for k, box in self.pose_boxes.items()}
+        """The pose the boxes describe: a box not edited keeps the camera's exact value (the boxes
+        show it rounded to 0.01 m / 0.1°)."""
+        untouched = self._untouched()
+        exact = self._exact_pose() if self.pose is not None else {}
+        b = {k: (exact[k] if k in untouched else box.value()) for k, box in self.pose_boxes.items()}
         return {"mode": "manual", "manual_position_xy_m": (b["x"], b["y"]), "height_m": b["height"],
                 "manual_pan_deg": b["pan"], "manual_tilt_deg": b["tilt"], "manual_roll_deg": b["roll"]}
 
     def apply_typed_pose(self) -> None:
+        """Set pose: the typed values become a manual pose; with nothing changed, nothing happens."""
+        if self.pose is not None and len(self._untouched()) == len(self.pose_boxes):
+            self.status.setText("pose unchanged: type a new value first")
+            return
         try:
             self.document.edit("pose", self.typed_pose())
         except ValueError as exc:

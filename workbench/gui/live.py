@@ -2,8 +2,9 @@
 
 "Latest edit wins": submit() during a run cancels it through its CancelToken and the thread starts
 again on the newest project; only the stages downstream of the edit recompute (the pipeline's
-cache). A city whose render inputs changed is drawn progressively: first a low-sample preview,
-then the project's own sampling, each cancelled by the next edit. Results reach the GUI thread as
+cache). A city whose render inputs changed, and whose render is not cached (Undo finds it), is
+drawn progressively: first a low-sample preview, then the project's own sampling, each cancelled
+by the next edit. Results reach the GUI thread as
 numpy arrays (Frame) through a queued signal; the GUI thread never waits on the worker.
 """
 from __future__ import annotations
@@ -223,8 +224,10 @@ class LiveRunner(QObject):
         project = window_project(document_project)
         if self.pipeline is None:
             self.pipeline = Pipeline(project)
+        self.pipeline.set_project(project)
         if (_render_inputs_changed(self._last_full, project) and project.render.spp is not None
-                and project.render.spp > self.preview_spp):
+                and project.render.spp > self.preview_spp
+                and self.pipeline.cached("scene", self.pipeline.snapshot().keys["scene"]) is None):
             quick = project.updated(render=project.render.updated(spp=self.preview_spp, chunk_spp=self.preview_spp,
                                                                   preview_spp=self.preview_spp))
             if self._preview_pipeline is None:
@@ -234,7 +237,6 @@ class LiveRunner(QObject):
             token.check()
             self.frameReady.emit(self._preview_builder.build(self._preview_pipeline, document_project, True,
                                                              submitted_at))
-        self.pipeline.set_project(project)
         self._drive(self.pipeline, token)
         token.check()
         frame = self._builder.build(self.pipeline, document_project, False, submitted_at)
