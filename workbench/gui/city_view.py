@@ -1,9 +1,11 @@
 """The 3-D city view (pyvistaqt): the project's city, the camera with its view frustum, a gizmo
 to drag the camera, typed pose values, colour by class, and "look through camera".
 
-Generating the city (seed, arrangement) runs on a superqt worker thread; the meshes come back to
-the GUI thread, which alone touches VTK (and alone drops the last reference to this widget). Pose
-edits go through the document (one undoable edit)."""
+Generating the city (seed, arrangement) and merging it into one mesh run on a superqt worker
+thread; the mesh comes back to the GUI thread, which alone adds it to VTK (and alone drops the
+last reference to this widget). A camera move only moves the frustum's points and the gizmo, and
+"Colour by class" switches the mesh's colour array, so neither rebuilds the city on the GUI
+thread. Pose edits go through the document (one undoable edit)."""
 from __future__ import annotations
 
 import numpy as np
@@ -25,9 +27,12 @@ def city_and_pose(project: Project):
     return city, pose
 
 
-def _city_job(project: Project, job: int, key):
-    """The worker's result: the request it answers, then the city and pose."""
-    return (job, key, *city_and_pose(project))
+def _city_job(project: Project, job: int, key, same_city):
+    """The worker's result: the request it answers, the city, its pose and its merged mesh
+    (None when the city is the one already shown: only the pose changed)."""
+    from workbench.scene.city.view import city_polydata
+    city, pose = city_and_pose(project)
+    return job, key, city, pose, (None if same_city else city_polydata(city))
 
 
 def _city_key(project: Project):
@@ -56,11 +61,13 @@ class CityView(QWidget):
         self.city = None
         self.pose = None
         self._city_key = None
+        self._city_actor = None
+        self._frustum = None
         self._job_id = 0
         self._gizmo = None
 
         self.by_class = QCheckBox("Colour by class")
-        self.by_class.toggled.connect(lambda _v: self._redraw_city())
+        self.by_class.toggled.connect(lambda _v: self._recolour())
         self.look_through = QCheckBox("Look through camera")
         self.look_through.toggled.connect(lambda _v: self._redraw_camera(reset_view=True))
         self.status = QLabel("")
@@ -108,7 +115,7 @@ class CityView(QWidget):
             self.status.setText("This project's scene is a test chart; pick a city sample to see a city.")
             if self.city is not None:
                 self.plotter.clear()
-                self.city, self._city_key = None, None
+                self.city, self._city_key, self._city_actor, self._frustum = None, None, None, None
                 self.plotter.render()
             return
         self.seed_box.setValue(min((project.city.seed if project.city else 0), 2**31 - 1))
@@ -124,7 +131,9 @@ class CityView(QWidget):
         from superqt.utils import create_worker
         self._job_id += 1
         self.status.setText("generating the city…")
-        worker = create_worker(_city_job, project, self._job_id, key, _start_thread=False, _ignore_errors=True)
+        same_city = self._city_key is not None and self._city_key[0] == key[0]
+        worker = create_worker(_city_job, project, self._job_id, key, same_city, _start_thread=False,
+                               _ignore_errors=True)
         worker.returned.connect(self._city_ready)
         worker.errored.connect(self._city_failed)
         worker.start()
@@ -133,10 +142,10 @@ class CityView(QWidget):
         self.status.setText(f"city: {type(exc).__name__}: {exc}")
 
     def _city_ready(self, payload) -> None:
-        job, key, city, pose = payload
+        job, key, city, pose, mesh = payload
         if job != self._job_id:
             return
-        same_city = self._city_key is not None and self._city_key[0] == key[0]
+        same_city = mesh is None and self.city is not None
         self._city_key = key
         self.pose = pose
         p = pose.position_m
@@ -146,9 +155,9 @@ class CityView(QWidget):
             box.blockSignals(True)
             box.setValue(float(value))
             box.blockSignals(False)
-        if not same_city or self.city is None:
+        if not same_city:
             self.city = city
-            self._redraw_city(reset_view=True)
+            self._show_city(mesh)
         else:
             self._redraw_camera()
         self.status.setText(f"{len(city.objects)} objects; camera at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.2f}) m, "
@@ -158,25 +167,41 @@ class CityView(QWidget):
         from workbench.stages.geometry import project_geometry
         return project_geometry(self.project).hfov_deg
 
-    def _redraw_city(self, reset_view: bool = False) -> None:
-        if self.city is None:
-            return
+    def _colouring(self) -> str:
+        return "class" if self.by_class.isChecked() else "material"
+
+    def _show_city(self, mesh) -> None:
+        """Replace the shown city by a prebuilt mesh (city_polydata) and frame the camera."""
         from workbench.scene.city.view import add_city_to_plotter
+        self._remove_gizmo()
         self.plotter.clear()
-        add_city_to_plotter(self.plotter, self.city, color_by="class" if self.by_class.isChecked() else "material")
-        self._redraw_camera(reset_view=reset_view)
+        self._frustum = None
+        self._city_actor = add_city_to_plotter(self.plotter, mesh=mesh, color_by=self._colouring())["city"]
+        self._redraw_camera(reset_view=True)
+
+    def _recolour(self) -> None:
+        from workbench.scene.city.view import set_city_colouring
+        if self._city_actor is not None:
+            set_city_colouring(self._city_actor, self._colouring())
+            self.render()
 
     def _redraw_camera(self, reset_view: bool = False) -> None:
+        """Show the camera: its frustum and gizmo moved to the pose (created once), or the view
+        through it."""
         if self.city is None or self.pose is None:
             return
-        from workbench.scene.city.view import add_camera_frustum, look_through
+        from workbench.scene.city.view import add_camera_frustum, look_through, move_camera_frustum
         hfov = self._hfov_deg()
         if self.look_through.isChecked():
             self.plotter.remove_actor("city_camera")
+            self._frustum = None
             self._remove_gizmo()
             look_through(self.plotter, self.pose, hfov)
         else:
-            add_camera_frustum(self.plotter, self.pose, hfov, frustum_length_m=12.0)
+            if self._frustum is None:
+                self._frustum = add_camera_frustum(self.plotter, self.pose, hfov, frustum_length_m=12.0)
+            else:
+                move_camera_frustum(self._frustum, self.pose, hfov, frustum_length_m=12.0)
             self._place_gizmo()
             if reset_view:
                 self._overview()
@@ -194,7 +219,9 @@ class CityView(QWidget):
         self.plotter.reset_camera_clipping_range()
 
     def _place_gizmo(self) -> None:
-        self._remove_gizmo()
+        if self._gizmo is not None:                # move the one there is
+            self._gizmo.SetCenter(*(float(v) for v in self.pose.position_m))
+            return
         self._gizmo = self.plotter.add_sphere_widget(
             self._gizmo_moved, center=tuple(self.pose.position_m), radius=1.2, color="magenta",
             style="surface", interaction_event="end")

@@ -1,7 +1,10 @@
 """Draw a city on any pyvista plotter (the GUI's QtInteractor or an off-screen Plotter).
 
-Meshes are merged per material (one actor each, so hundreds of objects draw fast) and coloured by
-the sRGB of the material's reflectance under D65.
+All meshes are merged into one PolyData (city_polydata, which needs no plotter, so it can be
+built on a worker thread) carrying two per-cell colourings: 'material_rgb' (the sRGB of each
+material's reflectance under D65) and 'class_rgb' (CLASS_COLOURS). One actor draws the city, and
+switching the colouring is a change of its active scalars, not a rebuild; the camera frustum is
+one actor whose points move with the camera (move_camera_frustum).
 """
 from __future__ import annotations
 
@@ -39,34 +42,45 @@ CLASS_COLOURS: dict[str, tuple[float, float, float]] = {
 }
 
 
-def add_city_to_plotter(plotter, city: City, pose: CameraPose | None = None,
-                        set_view: bool = False, hfov_deg: float = 44.0,
-                        frustum_length_m: float = 6.0, color_by: str = "material") -> dict:
-    """Add the city's meshes to `plotter`; with a pose, also a wireframe view frustum (hfov_deg,
-    4:3) at the camera, or, with set_view=True, look through that pose instead.
+COLOURINGS = {"material": "material_rgb", "class": "class_rgb"}
 
-    color_by 'material' merges meshes per material coloured by its sRGB under D65; 'class' merges
-    them per label class coloured by CLASS_COLOURS. Returns the actors by material (or class)
-    name (plus 'camera' for the frustum)."""
-    if color_by not in ("material", "class"):
-        raise ValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
-    groups: dict[str, tuple[list, list]] = {}
+
+def city_polydata(city: City):
+    """The whole city as one triangle PolyData with uint8 cell colours 'material_rgb' and
+    'class_rgb' and the cell's material name index 'material_id' (into sorted(city.materials))."""
+    vertices, faces, material_rgb, class_rgb = [], [], [], []
+    srgb = {}
     for obj in city.objects:
+        cls = np.round(255 * np.asarray(CLASS_COLOURS.get(obj.class_name, (0.8, 0.8, 0.8)))).astype(np.uint8)
         for m in obj.meshes:
-            if len(m.faces):
-                vs, fs = groups.setdefault(m.material if color_by == "material" else obj.class_name, ([], []))
-                vs.append(m.vertices)
-                fs.append(m.faces)
-    actors = {}
-    for name in sorted(groups):
-        if color_by == "class":
-            colour_rgb = CLASS_COLOURS.get(name, (0.8, 0.8, 0.8))
-        elif name not in city.materials:
-            raise ValueError(f"mesh material '{name}' is not in city.materials")
-        else:
-            colour_rgb = material_srgb(city.materials[name])
-        actors[name] = plotter.add_mesh(_polydata(*groups[name]), color=colour_rgb,
-                                        name=f"city_{name}", smooth_shading=False)
+            if not len(m.faces):
+                continue
+            if m.material not in city.materials:
+                raise ValueError(f"mesh material '{m.material}' is not in city.materials")
+            if m.material not in srgb:
+                srgb[m.material] = np.round(255 * material_srgb(city.materials[m.material])).astype(np.uint8)
+            vertices.append(m.vertices)
+            faces.append(m.faces)
+            material_rgb.append(np.broadcast_to(srgb[m.material], (len(m.faces), 3)))
+            class_rgb.append(np.broadcast_to(cls, (len(m.faces), 3)))
+    mesh = _polydata(vertices, faces)
+    mesh.cell_data["material_rgb"] = np.concatenate(material_rgb)
+    mesh.cell_data["class_rgb"] = np.concatenate(class_rgb)
+    return mesh
+
+
+def add_city_to_plotter(plotter, city: City | None = None, pose: CameraPose | None = None,
+                        set_view: bool = False, hfov_deg: float = 44.0,
+                        frustum_length_m: float = 6.0, color_by: str = "material", mesh=None) -> dict:
+    """Add the city (or its prebuilt city_polydata `mesh`) to `plotter` as one actor 'city'
+    coloured by `color_by` ('material' | 'class'); with a pose, also a wireframe view frustum
+    ('camera': hfov_deg, 4:3) at the camera, or, with set_view=True, look through that pose
+    instead. Returns the actors by name."""
+    if color_by not in COLOURINGS:
+        raise ValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
+    mesh = city_polydata(city) if mesh is None else mesh
+    actors = {"city": plotter.add_mesh(mesh, scalars=COLOURINGS[color_by], rgb=True, name="city_mesh",
+                                       smooth_shading=False, show_scalar_bar=False)}
     if pose is None:
         return actors
     if set_view:
@@ -74,6 +88,17 @@ def add_city_to_plotter(plotter, city: City, pose: CameraPose | None = None,
         return actors
     actors["camera"] = add_camera_frustum(plotter, pose, hfov_deg, frustum_length_m)
     return actors
+
+
+def set_city_colouring(actor, color_by: str) -> None:
+    """Switch a city actor between the colourings of city_polydata (no rebuild)."""
+    if color_by not in COLOURINGS:
+        raise ValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
+    mapper = actor.mapper
+    mapper.dataset.cell_data.active_scalars_name = COLOURINGS[color_by]
+    mapper.SetScalarModeToUseCellFieldData()
+    mapper.SelectColorArray(COLOURINGS[color_by])
+    mapper.SetColorModeToDirectScalars()
 
 
 def look_through(plotter, pose: CameraPose, hfov_deg: float = 44.0) -> None:
@@ -85,15 +110,26 @@ def look_through(plotter, pose: CameraPose, hfov_deg: float = 44.0) -> None:
     plotter.camera.view_angle = float(np.degrees(2 * np.arctan(0.75 * np.tan(np.radians(hfov_deg) / 2))))
 
 
-def add_camera_frustum(plotter, pose: CameraPose, hfov_deg: float = 44.0, frustum_length_m: float = 6.0):
-    """A wireframe view frustum (hfov_deg, 4:3) at the camera; returns its actor ('city_camera')."""
-    import pyvista as pv
+def frustum_points(pose: CameraPose, hfov_deg: float = 44.0, frustum_length_m: float = 6.0) -> np.ndarray:
+    """The 5 corners (apex, then the far rectangle) of the camera's 4:3 view frustum."""
     f, right, up = pose_basis(pose)
     half_w = frustum_length_m * np.tan(np.radians(hfov_deg) / 2)
     apex = np.asarray(pose.position_m, dtype=np.float64)
     base = [apex + frustum_length_m * f + sx * half_w * right + sy * 0.75 * half_w * up
             for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-    pts = np.vstack([apex] + base)
+    return np.vstack([apex] + base)
+
+
+def add_camera_frustum(plotter, pose: CameraPose, hfov_deg: float = 44.0, frustum_length_m: float = 6.0):
+    """A wireframe view frustum (hfov_deg, 4:3) at the camera; returns its actor ('city_camera')."""
+    import pyvista as pv
     lines = np.array([2, 0, 1, 2, 0, 2, 2, 0, 3, 2, 0, 4, 5, 1, 2, 3, 4, 1])
-    return plotter.add_mesh(pv.PolyData(pts, lines=lines), color=(1.0, 0.1, 0.6),
-                            name="city_camera", line_width=3)
+    return plotter.add_mesh(pv.PolyData(frustum_points(pose, hfov_deg, frustum_length_m), lines=lines),
+                            color=(1.0, 0.1, 0.6), name="city_camera", line_width=3)
+
+
+def move_camera_frustum(actor, pose: CameraPose, hfov_deg: float = 44.0, frustum_length_m: float = 6.0) -> None:
+    """Move an add_camera_frustum actor to a new pose by changing its points only."""
+    mesh = actor.mapper.dataset
+    mesh.points = frustum_points(pose, hfov_deg, frustum_length_m)
+    mesh.Modified()
