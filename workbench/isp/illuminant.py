@@ -55,7 +55,7 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains):
     a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
     step = max(1, len(flat) // GREY_PIXEL_SAMPLES)          # an even subsample is statistic enough
-    ics = pixels_matmul(np.ascontiguousarray(flat[::step]), to_ics)
+    ics = pixels_matmul(np.ascontiguousarray(flat[::step]), to_ics)      # (illuminant_gains subsamples first)
     gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
     target = white / white.sum()
     columns = [np.ascontiguousarray(ics[:, c]) for c in range(3)]      # column-wise: numpy's small-axis
@@ -115,11 +115,19 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
                          f"shapes {linear.shape} and {to_ics.shape}")
     flat = linear.reshape(-1, k)
     notes: list[str] = []
+    if method == "gray_pixels":                    # its statistic reads an even subsample anyway
+        step = max(1, len(flat) // GREY_PIXEL_SAMPLES)
+        flat = flat[::step]
+        valid = None if valid is None else np.asarray(valid).reshape(-1)[::step]
     if valid is not None and method in ("gray_world", "gray_pixels", "white_world"):
         valid = np.asarray(valid, dtype=bool).reshape(-1)
-        if valid.any():
-            flat = flat[valid]
-        else:
+        if not valid.any():
             notes.append(f"{method}: every pixel is saturated; the statistic uses them all")
+        elif method == "gray_world":              # a masked mean needs no copy of the pixels
+            count = int(np.count_nonzero(valid))
+            means = (valid.astype(np.float32) @ flat).astype(np.float64) / count
+            return _gains_to_white("gray_world", means @ to_ics, np.asarray(white, dtype=np.float64))
+        elif not valid.all():
+            flat = flat[valid]
     gains, more = correct(flat, to_ics, np.asarray(white, dtype=np.float64), white_world_fraction, manual_gains)
     return gains, notes + more

@@ -104,15 +104,16 @@ def neutral_highlights(rgb_linear: np.ndarray, peak: np.ndarray) -> None:
     """In place: pixels whose brightest sensor channel (peak, H×W, full scale 1) nears saturation
     blend towards a neutral of their brightest output channel: weight 0 below HIGHLIGHT_START, 1
     from SATURATED_FRACTION on (smoothstep between), so a clipped white renders white, not pink,
-    and unsaturated colours are untouched."""
-    idx = np.flatnonzero(peak > HIGHLIGHT_START)
-    if idx.size == 0:
+    and unsaturated colours are untouched. Whole-plane float32 arithmetic (no gather/scatter)."""
+    if not peak.size or float(peak.max()) <= HIGHLIGHT_START:
         return
-    flat = rgb_linear.reshape(-1, rgb_linear.shape[-1])
-    t = np.clip((peak.reshape(-1)[idx] - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0.0, 1.0)
-    w = (t * t * (3.0 - 2.0 * t)).astype(np.float32)[:, None]
-    sel = flat[idx]
-    flat[idx] = sel + w * (sel.max(axis=1, keepdims=True) - sel)
+    t = (peak - np.float32(HIGHLIGHT_START)) * np.float32(1.0 / (SATURATED_FRACTION - HIGHLIGHT_START))
+    np.clip(t, 0.0, 1.0, out=t)
+    w = t * t * (np.float32(3.0) - np.float32(2.0) * t)
+    planes = [rgb_linear[..., c] for c in range(rgb_linear.shape[-1])]
+    grey = np.maximum.reduce(planes)
+    for c, plane in enumerate(planes):
+        rgb_linear[..., c] = plane + w * (grey - plane)
 
 
 def _normalise(rgb_linear: np.ndarray, normalize: str, notes: list[str]) -> np.ndarray:
