@@ -113,12 +113,12 @@ class Snapshot:
 
 
 # -- the stage computations: each sees its own inputs and the upstream result only ----------------
-def _scene_job(inputs, cancel) -> Job:
+def _scene_job(inputs, cancel, city_renderer=None) -> Job:
     if isinstance(inputs, tuple):              # ("chart", scene section, camera geometry)
         from workbench.stages.scene import chart_scene
         return chart_scene(inputs[1], inputs[2])
     from workbench.render.city_frame import city_scene_job, frame_seeds
-    return (yield from city_scene_job(inputs, frame_seeds(inputs.seed, 0), cancel))
+    return (yield from (city_renderer or city_scene_job)(inputs, frame_seeds(inputs.seed, 0), cancel))
 
 
 def _optics(inputs, source):
@@ -169,11 +169,14 @@ class PipelineResult:
 class Pipeline:
     """Cached stages over a project. Call set_project() after edits (from any thread); run() or
     run_job() recomputes what changed, on a snapshot of the project taken when it starts.
+    city_renderer(inputs, seeds, cancel) → Job[CityRender] renders city scenes (default
+    city_frame.city_scene_job in this process; the window passes a render_worker.RenderWorker's job).
 
     recomputed lists the stages the latest run computed so far (a stage getter adds the stages it
     computes); stage_times_s holds each stage's latest compute time (s)."""
 
-    def __init__(self, project: Project, scene: Scene | None = None, cache_mb: float = CACHE_MB):
+    def __init__(self, project: Project, scene: Scene | None = None, cache_mb: float = CACHE_MB,
+                 city_renderer: Callable | None = None):
         self._lock = threading.RLock()
         self._tokens = itertools.count(1)
         self._project = project
@@ -181,6 +184,7 @@ class Pipeline:
         self._cache: dict[str, OrderedDict] = {stage: OrderedDict() for stage in STAGES}  # key → (value, bytes, use)
         self._uses = itertools.count()
         self.cache_limit_bytes = int(cache_mb * 2 ** 20)
+        self.city_renderer = city_renderer
         self.stage_times_s: dict[str, float] = {}
         self.recomputed: list[str] = []
 
@@ -249,7 +253,7 @@ class Pipeline:
         t0 = time.perf_counter()
         inputs = snap.inputs[stage]
         if stage == "scene":
-            value = yield from _scene_job(inputs, cancel)
+            value = yield from _scene_job(inputs, cancel, self.city_renderer)
         else:
             value = {"optics": _optics, "signal": _signal, "sensor": _sensor, "isp": _isp}[stage](inputs, upstream)
         self._store(stage, key, value)

@@ -4,7 +4,8 @@
 again on the newest project; only the stages downstream of the edit recompute (the pipeline's
 cache). A city whose render inputs changed, and whose render is not cached (Undo finds it), is
 drawn progressively: first a low-sample preview, then the project's own sampling, each cancelled
-by the next edit. Results reach the GUI thread as
+by the next edit. City renders run in a render worker process (render.render_worker), which keeps
+the scene loaded between camera moves; nothing Mitsuba does holds this process's GIL. Results reach the GUI thread as
 numpy arrays (Frame) through a queued signal; the GUI thread never waits on the worker.
 """
 from __future__ import annotations
@@ -148,6 +149,7 @@ class LiveRunner(QObject):
         self._builder = FrameBuilder()
         self._preview_builder = FrameBuilder()
         self._last_full: Project | None = None
+        self.render_worker = None                  # started with the first city project
         self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
         self._thread.start()
 
@@ -167,15 +169,17 @@ class LiveRunner(QObject):
             if self._token is not None:
                 self._token.cancel()
 
-    def shutdown(self, timeout_s: float = 10.0) -> None:
-        """Stop the worker: cancel the run and wait (at most timeout_s) for it to stop at its next
-        chunk boundary; exiting with Mitsuba still rendering in this process aborts it."""
+    def shutdown(self, timeout_s: float = 2.0) -> None:
+        """Stop: cancel the run, end the render worker process (a render in flight is abandoned)
+        and wait at most timeout_s for the thread, which then has no render to wait for."""
         with self._cond:
             self._stop = True
             self._pending = None
             if self._token is not None:
                 self._token.cancel()
             self._cond.notify()
+        if self.render_worker is not None:
+            self.render_worker.close()
         self._thread.join(timeout_s)
 
     @property
@@ -222,8 +226,13 @@ class LiveRunner(QObject):
 
     def _run(self, document_project: Project, submitted_at: float, token: CancelToken) -> None:
         project = window_project(document_project)
+        if project.scene.kind == "city" and self.render_worker is None:
+            from workbench.render.render_worker import RenderWorker
+            self.render_worker = RenderWorker(threads=WORKER_THREADS)
+        renderer = self.render_worker.job if self.render_worker is not None else None
         if self.pipeline is None:
             self.pipeline = Pipeline(project)
+        self.pipeline.city_renderer = renderer
         self.pipeline.set_project(project)
         if (_render_inputs_changed(self._last_full, project) and project.render.spp is not None
                 and project.render.spp > self.preview_spp
@@ -232,6 +241,7 @@ class LiveRunner(QObject):
                                                                   preview_spp=self.preview_spp))
             if self._preview_pipeline is None:
                 self._preview_pipeline = Pipeline(quick)
+            self._preview_pipeline.city_renderer = renderer
             self._preview_pipeline.set_project(quick)
             self._drive(self._preview_pipeline, token)
             token.check()

@@ -7,7 +7,7 @@ frame 0 as its scene stage; data sets (dataset.py) render many.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Callable
 
 import numpy as np
@@ -180,111 +180,138 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     the geometry's. Labels are cast through the lens camera (each pixel's ray through the centre
     of its exit-pupil box), so boxes follow the lens's distortion.
     render.shot_noise_ratio is resolved here: a pilot render through the optics and sensor gives
-    the mean electrons N_e of the exposure, and the target error is ratio/√N_e."""
-    from workbench.jobs import JobCancelled, Progress
-    from workbench.render.labels import render_labels
-    from workbench.render.scene_builder import build_scene, pinhole_sensor
-    from workbench.render.spectral import film_for, render_loaded
-    from workbench.render.variants import select_variant
-    from workbench.scene.city import generate_city, sample_camera_poses
-    from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, channel_qe
+    the mean electrons N_e of the exposure, and the target error is ratio/√N_e.
+    A CitySceneSession does the same and keeps the loaded scene for the next frame."""
+    return (yield from CitySceneSession().job(inputs, seeds, cancel))
 
-    def check():
-        if cancel is not None and cancel.is_set():
-            raise JobCancelled(f"frame {seeds.index}: cancelled")
 
-    if inputs.scene.kind != "city":
-        raise ValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
-    yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
-    recipe = inputs.city.updated(arrangement=seeds.arrangement)
-    try:                  # counts that do not fit the streets, poses with nothing to aim at: say which
-        city = generate_city(recipe)
-        pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
-    except ValueError as exc:
-        raise StageError("city", f"frame {seeds.index}: {exc}") from None
-    camera = inputs.camera
-    height, width = camera.shape
-    variant = select_variant(inputs.render.variant)
-    qe_wl = SENSOR_SPECTRAL_GRID_NM
-    film = film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
-    fov = camera.hfov_deg
-    lens_camera, lens_sensor = None, None
-    if inputs.optics is not None and uses_full_lens_model(inputs.optics):
-        from workbench.optics.formation.full_model import full_model_camera
-        from workbench.render.lens_camera import lens_sensor_dict
-        lens_camera = full_model_camera(inputs.optics, camera)
-        lens_sensor = lens_sensor_dict(lens_camera.lens, {"width": width, "height": height},
-                                       pinhole_sensor(pose, fov)["to_world"], lens_camera.sensor_width_mm,
-                                       weight="irradiance")
-    check()
-    mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
-                                     lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world,
-                                     sampler=inputs.render.sampler)
-    yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
-    labels = render_labels(mi_scene, id_table, width, height)
-    params = inputs.render.updated(seed=seeds.render)
-    meta = {"variant": variant, "fov_deg": fov, "city_seed": recipe.seed, "arrangement": recipe.arrangement,
-            "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
-                     "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
-                     "meta": getattr(pose, "meta", {})}}
-    night = inputs.render.world.lighting == "night"
-    if lens_camera is None and not night:   # the disc the directional sun cannot show
-        from workbench.render.sun_disc import sun_disc
-        disc = sun_disc(film, pose, fov, width, height, inputs.render.daylight, mi_scene=mi_scene)
-        meta["sun_disc"] = disc.meta
-    else:
-        disc = None
-        meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
-                                                             "the full lens model bends the camera rays")}
+class CitySceneSession:
+    """Renders city frames (city_scene_job) keeping the last loaded Mitsuba scene: a frame that
+    differs from the previous one only in its camera pose moves the scene's sensor instead of
+    loading the city again (pinhole camera, daylight: a lens camera's rays and the night lights'
+    sampling weights depend on the pose). The same inputs and seeds give the same image either way."""
 
-    fog = inputs.render.world.fog
-    if fog is not None and fog.model == "koschmieder":
-        from workbench.render.koschmieder import koschmieder_fog
-        yield Progress(0.07, 1.0, f"frame {seeds.index}: fog airlight")
-        fogged = koschmieder_fog(mi_scene, labels.depth_m, city, pose.pan_deg, film, inputs.render.daylight,
-                                 inputs.render.world, max_depth=inputs.render.max_depth)
-        meta["fog"] = {"model": "koschmieder", "source_heights_m": fogged.profile_z_m.tolist(),
-                       "source_function": fogged.profile.tolist(),
-                       "upward_elevations_deg": fogged.upward_elevation_deg.tolist(),
-                       "upward_source_function": fogged.upward.tolist()}
-    else:
-        fogged = None
+    def __init__(self):
+        self._loaded = None          # (reuse key, city, mi_scene, id_table, film)
+        self.loads = 0               # Mitsuba scenes loaded so far
 
-    def with_sun(scene):
-        if disc is not None:
-            scene.radiance_photons = disc.add_to(scene.radiance_photons)
-        if fogged is not None:
-            scene.radiance_photons = fogged.apply(scene.radiance_photons)
-        return scene
+    def job(self, inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> Job[CityRender]:
+        """city_scene_job, reusing the loaded scene where only the pose changed."""
+        from workbench.jobs import JobCancelled, Progress
+        from workbench.render.labels import render_labels
+        from workbench.render.scene_builder import build_scene, move_pinhole, pinhole_sensor
+        from workbench.render.spectral import film_for, render_loaded
+        from workbench.render.variants import select_variant
+        from workbench.scene.city import generate_city, sample_camera_poses
+        from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, channel_qe
 
-    def rendered(job, start: float, span: float):
-        """Drive a render job, yielding its progress as [start, start + span] of this frame."""
-        while True:
-            try:
-                step = next(job)
-            except StopIteration as stop:
-                check()                         # a cancelled render returns its partial image
-                return stop.value
-            yield Progress(start + span * step.fraction, 1.0, f"frame {seeds.index}: {step.message}",
-                           preview=step.preview)
+        def check():
+            if cancel is not None and cancel.is_set():
+                raise JobCancelled(f"frame {seeds.index}: cancelled")
 
-    if params.shot_noise_ratio is not None:
-        pilot = with_sun((yield from rendered(
-            render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
-                          fov_deg=fov, cancel=cancel, name=f"frame {seeds.index} pilot"), 0.1, 0.1)))
-        pilot.depth_m = labels.depth_m
-        target = sensor_matched_error(inputs, CityRender(pilot, labels, lens_camera, meta, camera),
-                                      params.shot_noise_ratio)
-        meta["shot_noise_target_rel_error"] = target
-        params = params.updated(shot_noise_ratio=None, target_rel_error=target)
-    start = 0.2 if inputs.render.shot_noise_ratio is not None else 0.1
-    scene = with_sun((yield from rendered(
-        render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}"),
-        start, 1.0 - start)))
-    scene.depth_m = labels.depth_m
-    meta["spp"] = scene.meta.get("spp")
-    meta["render"] = scene.meta
-    return CityRender(scene, labels, lens_camera, meta, camera)
+        if inputs.scene.kind != "city":
+            raise ValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
+        yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
+        recipe = inputs.city.updated(arrangement=seeds.arrangement)
+        night = inputs.render.world.lighting == "night"
+        full_model = inputs.optics is not None and uses_full_lens_model(inputs.optics)
+        reuse_key = None if night or full_model else (replace(inputs, pose=None), seeds.arrangement)
+        loaded = self._loaded if reuse_key is not None and self._loaded is not None \
+            and self._loaded[0] == reuse_key else None
+        try:                  # counts that do not fit the streets, poses with nothing to aim at: say which
+            city = loaded[1] if loaded is not None else generate_city(recipe)
+            pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
+        except ValueError as exc:
+            raise StageError("city", f"frame {seeds.index}: {exc}") from None
+        camera = inputs.camera
+        height, width = camera.shape
+        variant = select_variant(inputs.render.variant)
+        qe_wl = SENSOR_SPECTRAL_GRID_NM
+        fov = camera.hfov_deg
+        lens_camera, lens_sensor = None, None
+        if full_model:
+            from workbench.optics.formation.full_model import full_model_camera
+            from workbench.render.lens_camera import lens_sensor_dict
+            lens_camera = full_model_camera(inputs.optics, camera)
+            lens_sensor = lens_sensor_dict(lens_camera.lens, {"width": width, "height": height},
+                                           pinhole_sensor(pose, fov)["to_world"], lens_camera.sensor_width_mm,
+                                           weight="irradiance")
+        check()
+        if loaded is not None:
+            _, city, mi_scene, id_table, film = loaded
+            move_pinhole(mi_scene, pose, fov)
+        else:
+            self._loaded = None             # free the old scene before loading the next
+            film = film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
+            mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
+                                             lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world,
+                                             sampler=inputs.render.sampler)
+            self.loads += 1
+        self._loaded = (reuse_key, city, mi_scene, id_table, film) if reuse_key is not None else None
+        yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
+        labels = render_labels(mi_scene, id_table, width, height)
+        params = inputs.render.updated(seed=seeds.render)
+        meta = {"variant": variant, "fov_deg": fov, "city_seed": recipe.seed, "arrangement": recipe.arrangement,
+                "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
+                         "tilt_deg": pose.tilt_deg, "roll_deg": pose.roll_deg,
+                         "meta": getattr(pose, "meta", {})}}
+        if lens_camera is None and not night:   # the disc the directional sun cannot show
+            from workbench.render.sun_disc import sun_disc
+            disc = sun_disc(film, pose, fov, width, height, inputs.render.daylight, mi_scene=mi_scene)
+            meta["sun_disc"] = disc.meta
+        else:
+            disc = None
+            meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
+                                                                 "the full lens model bends the camera rays")}
+
+        fog = inputs.render.world.fog
+        if fog is not None and fog.model == "koschmieder":
+            from workbench.render.koschmieder import koschmieder_fog
+            yield Progress(0.07, 1.0, f"frame {seeds.index}: fog airlight")
+            fogged = koschmieder_fog(mi_scene, labels.depth_m, city, pose.pan_deg, film, inputs.render.daylight,
+                                     inputs.render.world, max_depth=inputs.render.max_depth)
+            meta["fog"] = {"model": "koschmieder", "source_heights_m": fogged.profile_z_m.tolist(),
+                           "source_function": fogged.profile.tolist(),
+                           "upward_elevations_deg": fogged.upward_elevation_deg.tolist(),
+                           "upward_source_function": fogged.upward.tolist()}
+        else:
+            fogged = None
+
+        def with_sun(scene):
+            if disc is not None:
+                scene.radiance_photons = disc.add_to(scene.radiance_photons)
+            if fogged is not None:
+                scene.radiance_photons = fogged.apply(scene.radiance_photons)
+            return scene
+
+        def rendered(job, start: float, span: float):
+            """Drive a render job, yielding its progress as [start, start + span] of this frame."""
+            while True:
+                try:
+                    step = next(job)
+                except StopIteration as stop:
+                    check()                         # a cancelled render returns its partial image
+                    return stop.value
+                yield Progress(start + span * step.fraction, 1.0, f"frame {seeds.index}: {step.message}",
+                               preview=step.preview)
+
+        if params.shot_noise_ratio is not None:
+            pilot = with_sun((yield from rendered(
+                render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
+                              fov_deg=fov, cancel=cancel, name=f"frame {seeds.index} pilot"), 0.1, 0.1)))
+            pilot.depth_m = labels.depth_m
+            target = sensor_matched_error(inputs, CityRender(pilot, labels, lens_camera, meta, camera),
+                                          params.shot_noise_ratio)
+            meta["shot_noise_target_rel_error"] = target
+            params = params.updated(shot_noise_ratio=None, target_rel_error=target)
+        start = 0.2 if inputs.render.shot_noise_ratio is not None else 0.1
+        scene = with_sun((yield from rendered(
+            render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}"),
+            start, 1.0 - start)))
+        scene.depth_m = labels.depth_m
+        meta["spp"] = scene.meta.get("spp")
+        meta["render"] = scene.meta
+        return CityRender(scene, labels, lens_camera, meta, camera)
 
 
 def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> CityRender:

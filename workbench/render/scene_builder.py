@@ -57,6 +57,14 @@ def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
                                                         up=up.tolist())}
 
 
+def move_pinhole(mi_scene, pose: CameraPose, fov_deg: float) -> None:
+    """Point a loaded scene's pinhole sensor (pinhole_sensor) along another pose, in place."""
+    import mitsuba as mi
+    params = mi.traverse(mi_scene.sensors()[0])
+    params["to_world"] = mi.Transform4f(pinhole_sensor(pose, fov_deg)["to_world"].matrix)
+    params.update()
+
+
 def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior=None,
           texcoords: np.ndarray | None = None):
     """A Mitsuba mesh (flat-shaded); `texcoords` (V×2) are per-vertex texture coordinates."""

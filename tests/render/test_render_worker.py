@@ -1,0 +1,89 @@
+"""City renders in a worker process equal the ones made here; a camera move reuses the loaded
+scene (and still equals a fresh render); cancelling stops the worker's render; a worker that dies
+fails its job by name and the next job starts a new one."""
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+
+from workbench.errors import StageError
+from workbench.jobs import CancelToken, JobCancelled, run_job
+from workbench.project import load_project
+from workbench.render.city_frame import CitySceneSession, city_scene_inputs, city_scene_job, frame_seeds
+from workbench.render.render_worker import RenderWorker
+
+
+def tiny_city(spp=4, **pose):
+    p = load_project("city_paper_camera")
+    p = p.updated(sensor=p.sensor.updated(rows=36, cols=48), render=p.render.updated(spp=spp),
+                  city=p.city.updated(blocks_x=1, blocks_y=1, n_pedestrians=4, n_trees=4, n_lamps=4,
+                                      n_benches=2, n_mailboxes=1))
+    if pose:
+        p = p.updated(pose=p.pose.updated(mode="manual", **pose))
+    return p
+
+
+def _same(a, b):
+    assert np.array_equal(a.scene.radiance_photons, b.scene.radiance_photons)
+    for key, value in a.labels.to_arrays().items():
+        assert np.array_equal(value, b.labels.to_arrays()[key]), key
+
+
+def test_a_camera_move_reuses_the_loaded_scene_and_renders_what_a_fresh_load_does():
+    session = CitySceneSession()
+    seeds = frame_seeds(0, 0)
+    first = run_job(session.job(city_scene_inputs(tiny_city()), seeds))
+    moved = tiny_city(manual_position_xy_m=(10.0, 2.0), manual_pan_deg=30.0)
+    again = run_job(session.job(city_scene_inputs(moved), seeds))
+    assert session.loads == 1                                    # the pose moved, the scene stayed
+    _same(again, run_job(city_scene_job(city_scene_inputs(moved), seeds)))
+    assert not np.array_equal(first.scene.radiance_photons, again.scene.radiance_photons)
+    run_job(session.job(city_scene_inputs(moved.updated(render=moved.render.updated(max_depth=3))), seeds))
+    assert session.loads == 2                                    # anything else loads anew
+
+
+def test_the_worker_renders_what_this_process_renders_and_cancels_and_recovers():
+    worker = RenderWorker(threads=1)
+    try:
+        inputs, seeds = city_scene_inputs(tiny_city()), frame_seeds(0, 0)
+        steps = []
+        there = run_job(worker.job(inputs, seeds), steps.append)
+        _same(there, run_job(city_scene_job(inputs, seeds)))
+        assert steps and worker.pid != os.getpid()
+        long = city_scene_inputs(tiny_city(spp=1 << 14).updated(
+            render=tiny_city().render.updated(spp=1 << 14, chunk_spp=4)))
+        cancel = CancelToken()
+        job = worker.job(long, seeds, cancel)
+        next(job)
+        cancel.cancel()
+        with pytest.raises(JobCancelled):
+            for _ in job:
+                pass
+        pid = worker.pid
+        os.kill(pid, signal.SIGKILL)
+        with pytest.raises(StageError, match="render worker process ended"):
+            run_job(worker.job(inputs, seeds))
+        _same(run_job(worker.job(inputs, seeds)), there)          # a new worker, the same image
+        assert worker.pid != pid
+    finally:
+        worker.close()
+    assert worker.pid is None
+
+
+def test_a_job_left_half_way_frees_the_worker_for_the_next():
+    """The window stops reading a render when a newer edit comes: the worker must drop that render
+    and serve the next request, not read it as a cancel."""
+    worker = RenderWorker(threads=1)
+    try:
+        seeds = frame_seeds(0, 0)
+        slow = tiny_city().updated(render=tiny_city().render.updated(spp=1 << 14, chunk_spp=4))
+        job = worker.job(city_scene_inputs(slow), seeds)
+        next(job), next(job)
+        job.close()                                  # the caller moved on
+        quick = city_scene_inputs(tiny_city())
+        _same(run_job(worker.job(quick, seeds)), run_job(city_scene_job(quick, seeds)))
+    finally:
+        worker.close()

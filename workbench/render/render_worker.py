@@ -1,0 +1,199 @@
+"""City renders in a separate, long-lived process, so nothing Mitsuba does (loading a scene, the
+label kernel, a render; several of them hold the GIL) can stall the process that asks for them.
+
+    worker = RenderWorker(threads=1)
+    render = run_job(worker.job(inputs, seeds))      # a long job, like city_scene_job
+    worker.close()
+
+The worker process keeps one render.city_frame.CitySceneSession, so a frame that only moves the
+camera reuses the loaded scene. Requests are served one at a time; `job` yields the worker's
+progress (without preview images: they would cost a copy each) and returns its CityRender.
+Cancelling (the job's cancel token) asks the worker to stop at its next chunk; if it does not
+answer within CANCEL_TIMEOUT_S the process is ended and the next job starts a new one. A worker
+that dies (a crash, a kill) fails its job with a StageError naming the exit code.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import threading
+import time
+
+from workbench.errors import StageError
+from workbench.jobs import JobCancelled, Progress
+
+CANCEL_TIMEOUT_S = 10.0
+POLL_S = 0.05
+
+
+class _PipeCancel:
+    """The worker side of cancelling: is_set() looks for a message without waiting. A cancel or
+    stop cancels; a new request also cancels the one in progress and is kept (`pending`)."""
+
+    def __init__(self, conn):
+        self.conn = conn
+        self.cancelled = False
+        self.pending = None
+
+    def is_set(self) -> bool:
+        while not self.cancelled and self.conn.poll():
+            msg = self.conn.recv()
+            if msg[0] == "render":
+                self.pending = msg
+            self.cancelled = True
+        return self.cancelled
+
+
+def serve(conn, threads: int | None) -> None:
+    """The worker process: answer ('render', inputs, seeds) requests until ('stop',) or EOF."""
+    from workbench.render.city_frame import CitySceneSession
+    from workbench.render.variants import import_mitsuba
+    import_mitsuba()                     # load Mitsuba (and its LLVM) before the first request
+    if threads:
+        import drjit
+        drjit.set_thread_count(int(threads))
+    session = CitySceneSession()
+    pending = None
+    while True:
+        try:
+            msg, pending = (pending, None) if pending is not None else (conn.recv(), None)
+        except EOFError:
+            return
+        if msg[0] == "stop":
+            return
+        if msg[0] != "render":
+            continue                     # a late cancel of a finished request
+        _, inputs, seeds = msg
+        cancel = _PipeCancel(conn)
+        try:
+            job = session.job(inputs, seeds, cancel)
+            while True:
+                try:
+                    step = next(job)
+                except StopIteration as stop:
+                    result = stop.value
+                    break
+                conn.send(("progress", step.done, step.total, step.message))
+            conn.send(("result", result))
+        except JobCancelled:
+            conn.send(("cancelled",))
+        except Exception as exc:  # noqa: BLE001 — sent back to the asking process, which raises it
+            conn.send(("error", exc))
+        pending = cancel.pending
+
+
+class RenderWorker:
+    """The asking side: one worker process (started on first use), one request at a time."""
+
+    def __init__(self, threads: int | None = 1):
+        self.threads = threads
+        self._proc = None
+        self._conn = None
+        self._lock = threading.Lock()
+        self._in_flight = False
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None and self._proc.is_alive() else None
+
+    def _ensure(self) -> None:
+        if self._proc is not None and self._proc.is_alive():
+            return
+        ctx = multiprocessing.get_context("spawn")      # never fork a process that runs Qt or threads
+        here, there = ctx.Pipe()
+        self._proc = ctx.Process(target=serve, args=(there, self.threads), name="workbench-render", daemon=True)
+        self._proc.start()
+        there.close()
+        self._conn = here
+
+    def start(self) -> None:
+        """Start the process now (its imports take a second or two) instead of at the first job."""
+        with self._lock:
+            self._ensure()
+
+    def job(self, inputs, seeds, cancel=None):
+        """Render one city frame in the worker (a long job: yields Progress, returns CityRender).
+        Closing the job before its end (the caller stopped iterating) cancels the worker's render
+        and waits for it to stop, so the worker is free for the next job."""
+        with self._lock:
+            self._ensure()
+            conn, proc = self._conn, self._proc
+            conn.send(("render", inputs, seeds))
+            self._in_flight = True
+            try:
+                return (yield from self._answers(conn, proc, seeds, cancel))
+            finally:
+                if self._in_flight:          # left before the worker answered
+                    self._abandon(conn)
+
+    def _abandon(self, conn) -> None:
+        """The request in flight is no longer wanted: cancel it and read until the worker has
+        answered it (or end the process if it does not within CANCEL_TIMEOUT_S)."""
+        self._in_flight = False
+        if self._conn is not conn:
+            return                                   # the process is gone already
+        try:
+            conn.send(("cancel",))
+            deadline = time.monotonic() + CANCEL_TIMEOUT_S
+            while time.monotonic() < deadline:
+                if conn.poll(POLL_S) and conn.recv()[0] in ("result", "cancelled", "error"):
+                    return
+        except (EOFError, OSError):
+            pass
+        self._end()
+
+    def _answers(self, conn, proc, seeds, cancel):
+        """Read the worker's answers to the request in flight: yields Progress, returns the render."""
+        asked_at = None
+        while True:
+            if cancel is not None and cancel.is_set() and asked_at is None:
+                conn.send(("cancel",))
+                asked_at = time.monotonic()
+            if asked_at is not None and time.monotonic() - asked_at > CANCEL_TIMEOUT_S:
+                self._in_flight = False
+                self._end()
+                raise JobCancelled(f"frame {seeds.index}: cancelled (the render worker was ended)")
+            try:
+                ready = conn.poll(POLL_S)
+            except (EOFError, OSError):
+                ready = True
+            if not ready:
+                if not proc.is_alive():
+                    self._died(proc)
+                continue
+            try:
+                msg = conn.recv()
+            except (EOFError, OSError):
+                self._died(proc)
+            self._in_flight = msg[0] == "progress"
+            if msg[0] == "progress":
+                if asked_at is None:
+                    yield Progress(msg[1], msg[2], msg[3])
+            elif msg[0] == "result":
+                if asked_at is not None:
+                    raise JobCancelled(f"frame {seeds.index}: cancelled")
+                return msg[1]
+            elif msg[0] == "cancelled":
+                raise JobCancelled(f"frame {seeds.index}: cancelled")
+            elif msg[0] == "error":
+                raise msg[1]
+
+    def _died(self, proc) -> None:
+        self._in_flight = False
+        proc.join(1.0)
+        code = proc.exitcode
+        self._proc, self._conn = None, None
+        raise StageError("scene", f"the render worker process ended (exit code {code}); the next render "
+                                  "starts a new one")
+
+    def _end(self) -> None:
+        if self._proc is not None:
+            self._proc.terminate()
+            self._proc.join(2.0)
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join(2.0)
+        self._proc, self._conn = None, None
+
+    def close(self) -> None:
+        """Stop the worker process at once (a render in flight is abandoned; its job fails)."""
+        self._end()
