@@ -71,6 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--json", action="store_true", help="print the figures as JSON")
     bench.add_argument("--quick", action="store_true", help="small sizes and few repeats (CI)")
     bench.add_argument("--out", default=None, help="folder for plots the benchmark writes")
+    bench.add_argument("--load", type=int, default=0,
+                       help="busy processes (one core each) running during the measurement (gui: the CPU-hog case)")
     bench.set_defaults(func=_bench)
     return parser
 

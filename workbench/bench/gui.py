@@ -16,6 +16,7 @@ from workbench.errors import StageError
 @register_bench("gui", help="window responsiveness: GUI stalls, edit-to-pane latency, 3-D fps")
 def bench_gui(args) -> BenchResult:
     cmd = [sys.executable, "-m", "workbench.gui.bench"] + (["--quick"] if getattr(args, "quick", False) else [])
+    cmd += ["--load", str(int(getattr(args, "load", 0) or 0))]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
         raise StageError("bench gui", f"the window benchmark failed (exit {done.returncode}): "

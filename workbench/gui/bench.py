@@ -4,8 +4,13 @@
   background work runs — a city render in the live worker, an exposure sweep in the sweep panel,
   an experiment-like process started by the experiments panel, and all three at once.
 * Edit-to-pane latency at 640×480 (paper camera): from the edit to the four panes having painted
-  the new frame, for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run).
+  the new frame, for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with
+  the longest GUI-thread tick gap during it; on the city: a CFA edit (a sensor-stage run on the
+  cached render) and Undo of a camera move (from the stage cache).
+* A camera move on the city: the 2-spp preview on screen, the refined frame, and the longest GUI
+  stall while both render (in the render worker process); "Colour by class" switched on and off.
 * 3-D view frames per second with the full city of the city sample while orbiting the view.
+With --load N, N busy processes (one core each) run during every measurement.
 """
 from __future__ import annotations
 
@@ -84,11 +89,15 @@ def _full_frame(win):
     return f is not None and not f.preview and f.project == win.document.project and not win.live.busy
 
 
-def edit_latency_ms(app, win, section: str, values: list[dict], timeout_s: float = 60) -> list[float]:
-    """Edit → the panes have shown the resulting frame (ms), once per value."""
+def edit_latency_ms(app, win, section: str, values: list[dict], timeout_s: float = 60,
+                    stalls: list | None = None) -> list[float]:
+    """Edit → the panes have shown the resulting frame (ms), once per value; with `stalls`, the
+    longest GUI tick gap of each edit is appended to it."""
     out = []
+    ticks = TickRecorder()
     for changes in values:
         shown = win.previews.frames_shown
+        ticks.start()
         t0 = time.perf_counter()
         win.apply_edit(section, changes)
         if not _wait(app, lambda: win.previews.frames_shown > shown and _full_frame(win), timeout_s):
@@ -96,7 +105,21 @@ def edit_latency_ms(app, win, section: str, values: list[dict], timeout_s: float
         for pane in win.previews.panes.values():      # until the new pixels are painted
             pane.view_widget.viewport().repaint()
         out.append(1e3 * (time.perf_counter() - t0))
+        gap = ticks.stop()["max_gap_ms"]
+        if stalls is not None:
+            stalls.append(gap)
     return out
+
+
+def _latency_row(name: str, values: list[float], stalls: list[float], goal_ms: float) -> dict:
+    return {"measure": name, "median_ms": round(statistics.median(values), 1), "max_ms": round(max(values), 1),
+            "goal_ms": goal_ms, "max_stall_ms": round(max(stalls), 1), "goal_stall_ms": 100, "runs": len(values)}
+
+
+def cpu_hogs(n: int) -> list:
+    """n busy processes (one core each): the load the window must stay responsive under."""
+    import subprocess
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def orbit_fps(app, city_view, frames: int) -> float:
@@ -110,14 +133,23 @@ def orbit_fps(app, city_view, frames: int) -> float:
     return frames / (time.perf_counter() - t0)
 
 
-def run(quick: bool = False) -> dict:
+def run(quick: bool = False, load: int = 0) -> dict:
     from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401  (PySide6 refcount guard)
     from workbench.gui.gc_thread import GuiThreadGarbageCollection
     app = QApplication.instance() or QApplication(["workbench-bench"])
-    with GuiThreadGarbageCollection():
-        return _measure(app, quick)
+    hogs = cpu_hogs(load)
+    try:
+        with GuiThreadGarbageCollection():
+            out = _measure(app, quick)
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    out["notes"].append(f"load: {load} busy process(es) during every measurement; "
+                        f"{len(__import__('os').sched_getaffinity(0))} cores")
+    return out
 
 
 def _measure(app, quick: bool) -> dict:
@@ -131,12 +163,13 @@ def _measure(app, quick: bool) -> dict:
     if not _wait(app, lambda: _full_frame(win), 120):
         raise TimeoutError("the paper camera's first frame did not arrive")
     n = 3 if quick else 7
+    isp_stalls, sensor_stalls = [], []
     isp = edit_latency_ms(app, win, "isp", [{"illuminant_correction": v} for v in
-                                            (["white_world", "gray_world"] * n)[:n]])
-    sensor = edit_latency_ms(app, win, "sensor", [{"analog_gain": 1.0 + 0.1 * (i + 1)} for i in range(n)])
-    for name, values, goal in (("edit→pane, ISP edit, 640×480", isp, 50), ("edit→pane, sensor edit, 640×480", sensor, 80)):
-        rows.append({"measure": name, "median_ms": round(statistics.median(values), 1),
-                     "max_ms": round(max(values), 1), "goal_ms": goal, "runs": len(values)})
+                                            (["white_world", "gray_world"] * n)[:n]], stalls=isp_stalls)
+    sensor = edit_latency_ms(app, win, "sensor", [{"analog_gain": 1.0 + 0.1 * (i + 1)} for i in range(n)],
+                             stalls=sensor_stalls)
+    rows.append(_latency_row("edit→pane, ISP edit, 640×480", isp, isp_stalls, 50))
+    rows.append(_latency_row("edit→pane, sensor edit, 640×480", sensor, sensor_stalls, 80))
     sweep = win.editors.get("Exposure sweep")
     experiments = win.editors.get("Experiments")
     win.document.undo_stack.setClean()
@@ -195,17 +228,48 @@ def _measure(app, quick: bool) -> dict:
         win.live.frameReady.connect(frames.append)
         box = win.city_view.pose_boxes["pan"]
         box.setValue(box.value() + 15.0)
+        ticks.start()
         t0 = time.perf_counter()
         win.city_view.apply_typed_pose()
         _wait(app, lambda: any(f.preview for f in frames) and win.previews.frame is not None
               and win.previews.frame.preview, 120)
         t_preview = time.perf_counter() - t0
         _wait(app, lambda: _full_frame(win), 600)
+        stall = ticks.stop()["max_gap_ms"]
         win.live.frameReady.disconnect(frames.append)
         rows.append({"measure": f"camera move {i + 1}: preview on screen, then refined",
                      "preview_s": round(t_preview, 2), "refined_s": round(time.perf_counter() - t0, 2),
+                     "max_stall_ms": stall, "goal_preview_s": 1.0, "goal_stall_ms": 100,
                      "size": f"{size[1]}×{size[0]}", "preview_spp": win.live.preview_spp,
                      "refined_spp": win.document.project.render.spp})
+
+    # -- Undo of the last move: every stage from the cache --------------------------------------
+    undo_stalls = []
+    ticks.start()
+    shown = win.previews.frames_shown
+    t0 = time.perf_counter()
+    win.document.undo_stack.undo()
+    _wait(app, lambda: win.previews.frames_shown > shown and _full_frame(win), 600)
+    undo_stalls.append(ticks.stop()["max_gap_ms"])
+    rows.append(_latency_row("edit→pane, Undo of a camera move (city)", [1e3 * (time.perf_counter() - t0)],
+                             undo_stalls, 100))
+
+    # -- a CFA edit on the city: a sensor-stage run on the cached render ----------------------
+    cfa_stalls = []
+    cfa = edit_latency_ms(app, win, "sensor", [{"cfa_pattern": p} for p in (["RGGB", "GRBG"] * n)[:n]],
+                          stalls=cfa_stalls)
+    rows.append(_latency_row(f"edit→pane, CFA edit on the city, {size[1]}×{size[0]}", cfa, cfa_stalls, 80))
+
+    # -- colour by class on and off ------------------------------------------------------------
+    toggles = []
+    for on in (True, False, True, False):
+        ticks.start()
+        t0 = time.perf_counter()
+        win.city_view.by_class.setChecked(on)
+        _wait(app, lambda: False, 0.3)
+        toggles.append((1e3 * (time.perf_counter() - t0), ticks.stop()["max_gap_ms"]))
+    rows.append({"measure": "3-D view: Colour by class switched", "max_stall_ms": max(g for _, g in toggles),
+                 "goal_stall_ms": 100, "runs": len(toggles)})
 
     full = load_project("city_paper_camera")
     win.apply_edit("city", full.city.model_dump())
@@ -230,11 +294,12 @@ def main(argv: list[str] | None = None) -> int:
     import os
     parser = argparse.ArgumentParser(description="window responsiveness (used by `workbench bench gui`)")
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--load", type=int, default=0, help="busy processes during the measurement")
     args = parser.parse_args(argv)
     os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
     from workbench.gui.display import virtual_display
     with virtual_display():
-        out = run(quick=args.quick)
+        out = run(quick=args.quick, load=args.load)
         import shiboken6
         from PySide6.QtWidgets import QApplication
         shiboken6.delete(QApplication.instance())       # leave the X server before it stops
