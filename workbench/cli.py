@@ -87,24 +87,33 @@ def _one_line(exc: BaseException) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command. Errors a user can act on (WorkbenchError, a path the system refuses, a
-    value refused by the core) print one line `workbench CMD: error: …` and return 2."""
+    """Run one command. Errors a user can act on (WorkbenchError, a path the system refuses)
+    print one line `workbench CMD: error: …` and return 2; any other exception is a bug: its
+    traceback goes to the log, one line says so and names the log, and the exit code is 3."""
     from workbench.logs import setup_logging
     if not (sys.argv[1:] if argv is None else argv):    # bare `workbench`: the window, given a display
         if _can_open_window():
             argv = ["gui"]
     args = build_parser().parse_args(argv)
-    setup_logging()
-    logging.getLogger("workbench.cli").info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))
+    log = setup_logging()
+    logger = logging.getLogger("workbench.cli")
+    logger.info("workbench %s", " ".join(sys.argv[1:] if argv is None else argv))
     command = " ".join(filter(None, (args.command, getattr(args, "lens_command", None))))
     try:
         return int(args.func(args) or 0)
-    except (WorkbenchError, OSError, ValueError) as exc:
+    except (WorkbenchError, OSError) as exc:
+        logger.info("user error", exc_info=True)
         print(f"workbench {command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"workbench {command}: cancelled", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 — not bad input: a bug, reported as one
+        logger.exception("internal error")
+        where = f"; the traceback is in {log}" if log is not None else ""
+        print(f"workbench {command}: internal error (a bug, not your input): {type(exc).__name__}: "
+              f"{_one_line(exc)[:200]}{where}", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

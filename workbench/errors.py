@@ -5,6 +5,8 @@ exits non-zero, and the window can highlight the field a ParameterError names.
 
     WorkbenchError
     ├── ParameterError(field, given, allowed)   a value refused; names the field and what is allowed
+    ├── InvalidValueError(message)              a value refused where there is no single field to name
+    │                                           (an argument of a library function, an array shape)
     ├── InputFileError(path, problem)           a file that cannot be read or used (project, lens, CSV)
     ├── OutputPathError(path, problem)          a place results cannot be written
     └── StageError(stage, problem)              a simulation stage that cannot run on its input
@@ -33,6 +35,12 @@ class ParameterError(WorkbenchError, ValueError):
 
     def __reduce__(self):              # picklable, so an error raised in a worker process reaches the caller
         return type(self), (self.field, self.given, self.allowed, self.source)
+
+
+class InvalidValueError(WorkbenchError, ValueError):
+    """A value (an argument, an array's shape or range) the workbench refuses; the message says
+    what was given and what is allowed. A ValueError too, so pydantic validators and callers that
+    catch ValueError treat it as before; anything else raising ValueError is a bug, not bad input."""
 
 
 class InputFileError(WorkbenchError, ValueError):

@@ -28,7 +28,7 @@ from typing import Callable
 
 import numpy as np
 
-from workbench.errors import check_finite
+from workbench.errors import InvalidValueError, check_finite
 from workbench.jobs import CancelToken, Job, Progress, run_job
 from workbench.optics.formation.geometry import CameraGeometry
 from workbench.optics.types import OpticalImage
@@ -266,7 +266,7 @@ class Pipeline:
         """Run the stages up to `upto` on one snapshot; yields Progress (done/total in stages,
         a render's own progress and preview inside the scene stage); returns {stage: result}."""
         if upto not in STAGES:
-            raise ValueError(f"upto must be one of {STAGES}, got {upto!r}")
+            raise InvalidValueError(f"upto must be one of {STAGES}, got {upto!r}")
         snap = self.snapshot()
         stages = STAGES[:STAGES.index(upto) + 1]
         with self._lock:                       # recomputed stages, as they finish

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping
 from typing import Generic, TypeVar
 
-from workbench.errors import ParameterError
+from workbench.errors import InvalidValueError, ParameterError
 
 F = TypeVar("F", bound=Callable)
 
@@ -31,7 +31,7 @@ class Registry(Mapping[str, F], Generic[F]):
         def deco(fn: F) -> F:
             old = self._methods.get(name)
             if old is not None and (old.__module__, old.__qualname__) != (fn.__module__, fn.__qualname__):
-                raise ValueError(f"{self.what} '{name}' is already registered ({old.__module__}.{old.__qualname__})")
+                raise InvalidValueError(f"{self.what} '{name}' is already registered ({old.__module__}.{old.__qualname__})")
             self._methods[name] = fn
             return fn
         return deco

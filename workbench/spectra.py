@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.resource_dir import RESOURCES
 from workbench.units import (
     MAX_LUMINOUS_EFFICACY_LM_W,
@@ -25,10 +26,10 @@ DEFAULT_WAVELENGTHS_NM = np.arange(400.0, 701.0, 10.0)
 def wavelength_grid(start_nm: float = 400.0, stop_nm: float = 700.0, step_nm: float = 10.0) -> np.ndarray:
     """Evenly spaced wavelengths (nm), both ends included."""
     if step_nm <= 0 or stop_nm < start_nm:
-        raise ValueError(f"wavelength grid needs step_nm > 0 and stop_nm >= start_nm, got "
+        raise InvalidValueError(f"wavelength grid needs step_nm > 0 and stop_nm >= start_nm, got "
                          f"start={start_nm}, stop={stop_nm}, step={step_nm}")
     if not (200 <= start_nm and stop_nm <= 2500):
-        raise ValueError(f"wavelengths must lie in 200–2500 nm, got {start_nm}–{stop_nm}")
+        raise InvalidValueError(f"wavelengths must lie in 200–2500 nm, got {start_nm}–{stop_nm}")
     n = int(round((stop_nm - start_nm) / step_nm)) + 1
     return start_nm + step_nm * np.arange(n, dtype=np.float64)
 
@@ -66,7 +67,7 @@ def luminous_efficiency(wavelengths_nm: np.ndarray) -> np.ndarray:
 def blackbody_spd(temperature_K: float, wavelengths_nm: np.ndarray) -> np.ndarray:
     """Planck spectral radiance (W/sr/m²/nm) of a blackbody."""
     if temperature_K <= 0:
-        raise ValueError(f"blackbody temperature must be > 0 K, got {temperature_K}")
+        raise InvalidValueError(f"blackbody temperature must be > 0 K, got {temperature_K}")
     import colour
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     values = colour.colorimetry.planck_law(np.atleast_1d(wl) * 1e-9, temperature_K) * 1e-9
@@ -76,7 +77,7 @@ def blackbody_spd(temperature_K: float, wavelengths_nm: np.ndarray) -> np.ndarra
 def daylight_spd(cct_K: float, wavelengths_nm: np.ndarray) -> np.ndarray:
     """CIE daylight series SPD (relative, 100 at 560 nm) for a CCT in 4000–25000 K."""
     if not 4000 <= cct_K <= 25000:
-        raise ValueError(f"CIE daylight is defined for 4000–25000 K, got {cct_K} K")
+        raise InvalidValueError(f"CIE daylight is defined for 4000–25000 K, got {cct_K} K")
     import colour
     xy = colour.temperature.CCT_to_xy_CIE_D(cct_K * 1.4388 / 1.4380)
     sd = colour.sd_CIE_illuminant_D_series(xy)
@@ -101,19 +102,19 @@ def illuminant_spd(name: str, wavelengths_nm: np.ndarray) -> np.ndarray:
         try:
             temp = float(value)
         except ValueError as exc:
-            raise ValueError(f"illuminant '{name}': '{value}' is not a temperature in K") from exc
+            raise InvalidValueError(f"illuminant '{name}': '{value}' is not a temperature in K") from exc
         if kind.lower() == "daylight":
             return daylight_spd(temp, wavelengths_nm)
         if kind.lower() == "blackbody":
             if not BLACKBODY_RANGE_K[0] <= temp <= BLACKBODY_RANGE_K[1]:
-                raise ValueError(f"illuminant '{name}': blackbody temperature must be a number in "
+                raise InvalidValueError(f"illuminant '{name}': blackbody temperature must be a number in "
                                  f"{BLACKBODY_RANGE_K[0]:g}–{BLACKBODY_RANGE_K[1]:g} K")
             spd = blackbody_spd(temp, wavelengths_nm)
             return spd / spd.max()
     if key in colour.SDS_ILLUMINANTS and key in ILLUMINANTS:
         sd = colour.SDS_ILLUMINANTS[key]
         return _interp(sd.wavelengths, sd.values, wavelengths_nm)
-    raise ValueError(f"unknown illuminant '{name}'; allowed: {', '.join(ILLUMINANTS)}, "
+    raise InvalidValueError(f"unknown illuminant '{name}'; allowed: {', '.join(ILLUMINANTS)}, "
                      "'daylight:<CCT K>' (4000–25000) or 'blackbody:<T K>' (1000–100000)")
 
 
@@ -160,7 +161,7 @@ def spd_photons_for_luminance(spd_energy: np.ndarray, wavelengths_nm: np.ndarray
     photons = energy_to_photons(spd_energy, wavelengths_nm)
     lum = float(luminance_from_photons(photons, wavelengths_nm))
     if lum <= 0:
-        raise ValueError("the spectrum has no power where the eye is sensitive (luminance 0); "
+        raise InvalidValueError("the spectrum has no power where the eye is sensitive (luminance 0); "
                          "cannot scale it to a luminance")
     return photons * (luminance_cd_m2 / lum)
 

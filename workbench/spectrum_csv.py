@@ -14,7 +14,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from workbench.errors import InputFileError
+from workbench.errors import InputFileError, InvalidValueError
 from workbench.files import read_text
 from workbench.resource_dir import RESOURCES
 
@@ -37,7 +37,7 @@ def spectrum_path(name: str) -> Path:
     for an absolute name or one with '..' (spectral data is confined to resources/ like lenses)."""
     rel = PurePosixPath(str(name).replace("\\", "/"))
     if not str(name) or rel.is_absolute() or ".." in rel.parts:
-        raise ValueError(f"spectral data file {name!r}: give a path relative to {RESOURCES} "
+        raise InvalidValueError(f"spectral data file {name!r}: give a path relative to {RESOURCES} "
                          "(no '..', not absolute)")
     return RESOURCES / rel
 

@@ -73,3 +73,29 @@ def test_bench_city_json(capsys):
     rows = json.loads(capsys.readouterr().out)["rows"]
     assert [r["blocks"] for r in rows] == ["1x1", "2x2"]
     assert rows[1]["objects"] > rows[0]["objects"] and all(r["generate_ms"] > 0 for r in rows)
+
+
+@pytest.mark.parametrize("bug", [TypeError("unsupported operand"), ValueError("operands could not be broadcast"),
+                                 KeyError("x")])
+def test_an_exception_that_is_not_bad_input_is_reported_as_a_bug(monkeypatch, tmp_path, capsys, bug):
+    """Only WorkbenchError and OSError are the user's: a numpy ValueError (or any other exception)
+    is a bug, said so in one line naming the log, with its traceback in the log, exit code 3."""
+    monkeypatch.setenv("WORKBENCH_LOG_DIR", str(tmp_path / "logs"))
+    import logging
+    for handler in list(logging.getLogger("workbench").handlers):    # a fresh log in tmp_path
+        logging.getLogger("workbench").removeHandler(handler)
+
+    def broken(_args):
+        raise bug
+    import workbench.cli as cli
+    parser = cli.build_parser()
+    monkeypatch.setattr(cli, "build_parser", lambda: parser)
+    for action in parser._subparsers._group_actions[0].choices.values():
+        if action.get_default("func") is not None and action.prog.endswith("simulate"):
+            action.set_defaults(func=broken)
+    assert main(["simulate", "paper_camera", "--out", str(tmp_path / "o")]) == 3
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("workbench simulate: internal error (a bug, not your input):")
+    assert type(bug).__name__ in err and str(tmp_path / "logs") in err and "\n" not in err
+    log = (tmp_path / "logs" / "workbench.log").read_text()
+    assert "Traceback" in log and "broken" in log

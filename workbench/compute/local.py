@@ -19,7 +19,7 @@ from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
 from workbench.compute.progress import TaskProgress, reporting_to
-from workbench.errors import WorkbenchError
+from workbench.errors import InvalidValueError, WorkbenchError
 from workbench.jobs import CancelToken, JobCancelled
 
 J = TypeVar("J")
@@ -94,9 +94,9 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
     compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
-        raise ValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
+        raise InvalidValueError(f"workers must be an integer ≥ 0 (0 = in this process), got {workers!r}")
     if max_tasks_per_child is not None and max_tasks_per_child < 1:
-        raise ValueError(f"max_tasks_per_child must be ≥ 1 or None, got {max_tasks_per_child}")
+        raise InvalidValueError(f"max_tasks_per_child must be ≥ 1 or None, got {max_tasks_per_child}")
     if workers == 0:
         for job in jobs:
             if cancel is not None:

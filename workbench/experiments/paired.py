@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 
 @dataclass(frozen=True)
 class Interval:
@@ -78,13 +80,13 @@ def paired_difference(a, b, a_boot=None, b_boot=None) -> Interval:
     per-seed bootstrap values (seeds × resamples, the same resamples in both), or None."""
     d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
     if d.ndim != 1 or d.size == 0:
-        raise ValueError(f"paired_difference needs one value per seed, got shape {d.shape}")
+        raise InvalidValueError(f"paired_difference needs one value per seed, got shape {d.shape}")
     mean, sd, lo, hi = t_interval(d)
     boot_lo = boot_hi = None
     if a_boot is not None and b_boot is not None:
         diff = np.asarray(a_boot, dtype=np.float64) - np.asarray(b_boot, dtype=np.float64)
         if diff.shape[0] != d.size:
-            raise ValueError(f"bootstrap values for {diff.shape[0]} seeds, point values for {d.size}")
+            raise InvalidValueError(f"bootstrap values for {diff.shape[0]} seeds, point values for {d.size}")
         boot_lo, boot_hi = percentile_interval(diff.mean(axis=0))
     return Interval(mean, int(d.size), sd, lo, hi, boot_lo, boot_hi)
 

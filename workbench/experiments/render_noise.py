@@ -26,6 +26,7 @@ from typing import Generator
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.jobs import Progress
 
 TARGET_RATIO = 1.0 / 3.0
@@ -39,7 +40,7 @@ def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float
     e = (np.asarray(rate, np.float64) - np.asarray(reference_rate, np.float64)) * exposure_s
     lit = n > 0
     if not lit.any():
-        raise ValueError("render noise: the reference collects no electrons at this exposure")
+        raise InvalidValueError("render noise: the reference collects no electrons at this exposure")
     n, e = n[lit], e[lit]
     r = np.abs(e) / np.sqrt(n)
     return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645),

@@ -14,7 +14,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
-from workbench.errors import InputFileError, ParameterError, WorkbenchError
+from workbench.errors import InputFileError, InvalidValueError, ParameterError, WorkbenchError
 from workbench.files import atomic_write_text, pid_alive
 from workbench.gui.paths import autosave_dir
 from workbench.project import PROJECTS_DIR, Project, load_project, project_from_dict, save_project
@@ -139,7 +139,7 @@ class Document(QObject):
     def save(self, path: str | Path | None = None) -> Path:
         target = Path(path) if path else self._path
         if target is None:
-            raise ValueError("the project has no file yet: use Save As")
+            raise InvalidValueError("the project has no file yet: use Save As")
         save_project(self._project, target)
         self._path = target
         self.undo_stack.setClean()

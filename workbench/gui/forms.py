@@ -27,7 +27,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFormLayout, QHBoxLayout, Q
                                QVBoxLayout, QWidget)
 from superqt import QCollapsible, QDoubleSlider
 
-from workbench.errors import ParameterError, WorkbenchError
+from workbench.errors import InvalidValueError, ParameterError, WorkbenchError
 from workbench.params import Params
 
 # Unit suffixes of field names (longest first) → the unit shown in the label.
@@ -129,7 +129,7 @@ class NumberField(_FieldWidget):
         if self.kind is int:
             number = float(text)
             if number != int(number):
-                raise ValueError(f"'{text}' is not a whole number")
+                raise InvalidValueError(f"'{text}' is not a whole number")
             return int(number)
         return float(text)
 
@@ -188,7 +188,7 @@ class JsonField(_FieldWidget):
             try:
                 return json.loads(f"[{text}]")
             except json.JSONDecodeError:
-                raise ValueError(f"'{text}' is not a number, a list like 1, 2, 3 or JSON") from None
+                raise InvalidValueError(f"'{text}' is not a number, a list like 1, 2, 3 or JSON") from None
 
     def set_value(self, value) -> None:
         self.edit.setText(json.dumps(value))

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 BLOCK_PIXELS = 16384
 
 
@@ -15,7 +17,7 @@ def pixels_matmul(pixels: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     flat = np.ascontiguousarray(pixels, dtype=np.float32)
     m = np.ascontiguousarray(matrix, dtype=np.float32)
     if flat.ndim != 2 or m.ndim != 2 or flat.shape[1] != m.shape[0]:
-        raise ValueError(f"pixels_matmul: shapes {flat.shape} and {m.shape} do not chain")
+        raise InvalidValueError(f"pixels_matmul: shapes {flat.shape} and {m.shape} do not chain")
     out = np.empty((flat.shape[0], m.shape[1]), dtype=np.float32)
     for start in range(0, flat.shape[0], BLOCK_PIXELS):
         np.matmul(flat[start:start + BLOCK_PIXELS], m, out=out[start:start + BLOCK_PIXELS])

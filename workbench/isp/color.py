@@ -12,6 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.spectra import illuminant_spd, macbeth_reflectances, xyz_from_photons
 from workbench.units import band_widths_nm, energy_to_photons
 
@@ -48,9 +49,9 @@ def macbeth_responses(qe: np.ndarray, wavelengths_nm: np.ndarray,
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     qe = np.asarray(qe, dtype=np.float64)
     if qe.ndim != 2 or qe.shape[0] != wl.size:
-        raise ValueError(f"qe must be Nλ×K with Nλ = {wl.size} wavelengths, got shape {qe.shape}")
+        raise InvalidValueError(f"qe must be Nλ×K with Nλ = {wl.size} wavelengths, got shape {qe.shape}")
     if not np.all(np.isfinite(qe)) or np.any(qe < 0):
-        raise ValueError("qe must be finite and ≥ 0")
+        raise InvalidValueError("qe must be finite and ≥ 0")
     light = energy_to_photons(illuminant_spd(illuminant, wl), wl)
     radiance = macbeth_reflectances(wl) * light                      # 24×Nλ photons (relative)
     weights = qe * band_widths_nm(wl)[:, None]

@@ -19,6 +19,7 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.registry import Registry
 
 BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
@@ -52,7 +53,7 @@ def _inverse_weights(shape: tuple[int, int], tile_bytes: bytes, tile_shape: tupl
     mask = _channel_mask(shape, tile, k).astype(np.float32)
     den = _separable_tent(mask, max(tile_shape) - 1)
     if np.any(den <= 0):
-        raise ValueError(f"CFA channel {k} has pixels with no sample of it within the kernel; "
+        raise InvalidValueError(f"CFA channel {k} has pixels with no sample of it within the kernel; "
                          f"tile {tile.tolist()} is not supported by bilinear demosaicing")
     out = (1.0 / den).astype(np.float32)
     out.setflags(write=False)
@@ -69,14 +70,14 @@ def _check_inputs(mosaic: np.ndarray, cfa_tile: np.ndarray, n_channels: int) -> 
     mosaic = np.asarray(mosaic, dtype=np.float32)
     tile = np.asarray(cfa_tile, dtype=np.int64)
     if mosaic.ndim != 2 or min(mosaic.shape) < 2:
-        raise ValueError(f"demosaic needs an H×W mosaic with H, W ≥ 2, got shape {mosaic.shape}")
+        raise InvalidValueError(f"demosaic needs an H×W mosaic with H, W ≥ 2, got shape {mosaic.shape}")
     if tile.ndim != 2 or tile.size == 0:
-        raise ValueError(f"cfa_tile must be a 2-D integer array, got shape {tile.shape}")
+        raise InvalidValueError(f"cfa_tile must be a 2-D integer array, got shape {tile.shape}")
     if tile.shape[0] > mosaic.shape[0] or tile.shape[1] > mosaic.shape[1]:
-        raise ValueError(f"cfa_tile {tile.shape} is larger than the mosaic {mosaic.shape}")
+        raise InvalidValueError(f"cfa_tile {tile.shape} is larger than the mosaic {mosaic.shape}")
     present = set(np.unique(tile).tolist())
     if present != set(range(n_channels)):
-        raise ValueError(f"cfa_tile holds channel indices {sorted(present)}, but the sensor has "
+        raise InvalidValueError(f"cfa_tile holds channel indices {sorted(present)}, but the sensor has "
                          f"{n_channels} channels (every index 0..{n_channels - 1} must appear)")
     return mosaic, tile
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.isp.blocked import pixels_matmul, pixels_sum
 from workbench.registry import Registry
 
@@ -91,7 +92,7 @@ def _manual(flat, to_ics, white, white_world_fraction, manual_gains):
     """The user's gains."""
     gains = np.asarray(manual_gains, dtype=np.float64)
     if gains.shape != (3,) or not np.all(np.isfinite(gains)) or np.any(gains <= 0):
-        raise ValueError(f"manual_gains must be three positive numbers, got {manual_gains}")
+        raise InvalidValueError(f"manual_gains must be three positive numbers, got {manual_gains}")
     return gains, []
 
 
@@ -111,7 +112,7 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
     correct = ILLUMINANT_CORRECTIONS[method]
     k = linear.shape[-1]
     if linear.ndim != 3 or to_ics.shape != (k, 3):
-        raise ValueError(f"illuminant correction needs an H×W×K image and a K×3 matrix, got "
+        raise InvalidValueError(f"illuminant correction needs an H×W×K image and a K×3 matrix, got "
                          f"shapes {linear.shape} and {to_ics.shape}")
     flat = linear.reshape(-1, k)
     notes: list[str] = []

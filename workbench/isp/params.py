@@ -5,6 +5,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator
 
+from workbench.errors import InvalidValueError
 from workbench.params import Params
 
 
@@ -71,5 +72,5 @@ class ISPParams(Params):
     @classmethod
     def _positive_gains(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
         if not all(0.0 < g <= 100.0 and g == g for g in value):
-            raise ValueError(f"manual_gains must be three numbers in (0, 100], got {value}")
+            raise InvalidValueError(f"manual_gains must be three numbers in (0, 100], got {value}")
         return value

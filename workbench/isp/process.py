@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.isp.blocked import pixels_matmul
 from workbench.isp.color import (
     ColourFit,
@@ -60,19 +61,19 @@ def _validate(image: SensorImage) -> float:
     """Check what the ISP relies on; return the black level in dn."""
     dn = np.asarray(image.dn)
     if dn.ndim != 2 or min(dn.shape) < 1:
-        raise ValueError(f"ISP: SensorImage.dn must be H×W with H, W ≥ 1, got shape {dn.shape}")
+        raise InvalidValueError(f"ISP: SensorImage.dn must be H×W with H, W ≥ 1, got shape {dn.shape}")
     if not np.all(np.isfinite(dn)):
-        raise ValueError("ISP: SensorImage.dn contains NaN or Inf")
+        raise InvalidValueError("ISP: SensorImage.dn contains NaN or Inf")
     if not (np.isfinite(image.max_dn) and image.max_dn > 0):
-        raise ValueError(f"ISP: SensorImage.max_dn must be a positive number, got {image.max_dn}")
+        raise InvalidValueError(f"ISP: SensorImage.max_dn must be a positive number, got {image.max_dn}")
     k = len(image.channel_names)
     qe = np.asarray(image.qe)
     if k == 0 or qe.ndim != 2 or qe.shape[1] != k or qe.shape[0] != np.asarray(image.wavelengths_nm).size:
-        raise ValueError(f"ISP: SensorImage.qe must be Nλ×K with K = {k} channels "
+        raise InvalidValueError(f"ISP: SensorImage.qe must be Nλ×K with K = {k} channels "
                          f"{image.channel_names} and Nλ = len(wavelengths_nm); got shape {qe.shape}")
     black = float(image.meta.get(BLACK_LEVEL_KEY, 0.0))
     if not 0.0 <= black < image.max_dn:
-        raise ValueError(f"ISP: SensorImage.meta['{BLACK_LEVEL_KEY}'] = {black} must lie in "
+        raise InvalidValueError(f"ISP: SensorImage.meta['{BLACK_LEVEL_KEY}'] = {black} must lie in "
                          f"[0, max_dn = {image.max_dn})")
     return black
 
@@ -85,7 +86,7 @@ def raw_to_linear(raw: np.ndarray, cfa_tile: np.ndarray, channel_names: list[str
     Every DEMOSAIC_METHODS entry keeps values within the range of its input."""
     if black_level:
         if not 0.0 <= black_level < 1.0:
-            raise ValueError(f"black_level must lie in [0, 1) of the raw scale, got {black_level}")
+            raise InvalidValueError(f"black_level must lie in [0, 1) of the raw scale, got {black_level}")
         raw = np.clip((raw - np.float32(black_level)) * np.float32(1.0 / (1.0 - black_level)), 0.0, 1.0)
     return demosaic(raw, cfa_tile, channel_names, method)
 
@@ -96,7 +97,7 @@ def linear_to_xyz(linear: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     The matrix is normally ColourFit.matrix (sensor → XYZ); any K×3 channel transform works."""
     h, w, k = linear.shape
     if matrix.shape != (k, 3):
-        raise ValueError(f"colour matrix must be {k}×3 for {k} channels, got {matrix.shape}")
+        raise InvalidValueError(f"colour matrix must be {k}×3 for {k} channels, got {matrix.shape}")
     return pixels_matmul(linear.reshape(-1, k), matrix).reshape(h, w, 3)
 
 
@@ -125,7 +126,7 @@ def _normalise(rgb_linear: np.ndarray, normalize: str, notes: list[str]) -> np.n
             notes.append("normalize='max': the image is black; left unscaled")
             return rgb_linear
         return rgb_linear * np.float32(1.0 / peak)
-    raise ValueError(f"normalize '{normalize}' is unknown; allowed: 'swing', 'max'")
+    raise InvalidValueError(f"normalize '{normalize}' is unknown; allowed: 'swing', 'max'")
 
 
 def xyz_to_srgb(xyz: np.ndarray, normalize: str = "swing") -> np.ndarray:
@@ -231,7 +232,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     srgb = srgb_encode(_normalise(rgb_linear, params.normalize, notes))
     for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
         if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum
-            raise ValueError(f"ISP produced non-finite values in '{name}' (input dn was finite)")
+            raise InvalidValueError(f"ISP produced non-finite values in '{name}' (input dn was finite)")
     return ISPResult(raw=raw, linear=linear, srgb=srgb, channel_names=names, xyz=xyz,
                      colour_fit=fit, gains=gains, notes=notes)
 
@@ -257,5 +258,5 @@ def representation_to_uint8(result: ISPResult, representation: str) -> np.ndarra
     elif representation == "srgb":
         image = result.srgb
     else:
-        raise ValueError(f"representation '{representation}' is unknown; allowed: {', '.join(REPRESENTATIONS)}")
+        raise InvalidValueError(f"representation '{representation}' is unknown; allowed: {', '.join(REPRESENTATIONS)}")
     return np.rint(np.clip(image, 0.0, 1.0) * np.float32(255.0)).astype(np.uint8)

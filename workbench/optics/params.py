@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from workbench.errors import ParameterError
+from workbench.errors import InvalidValueError, ParameterError
 
 from workbench.params import Params
 
@@ -27,18 +27,18 @@ PAPER_HFOV_DEG = 44.0
 def focal_length_for_fov_mm(hfov_deg: float, sensor_width_mm: float) -> float:
     """Focal length (mm) whose horizontal field of view over `sensor_width_mm` is `hfov_deg`."""
     if not 0 < hfov_deg < 180:
-        raise ValueError(f"hfov_deg must be in (0, 180) degrees, got {hfov_deg}")
+        raise InvalidValueError(f"hfov_deg must be in (0, 180) degrees, got {hfov_deg}")
     if not sensor_width_mm > 0:
-        raise ValueError(f"sensor_width_mm must be > 0, got {sensor_width_mm}")
+        raise InvalidValueError(f"sensor_width_mm must be > 0, got {sensor_width_mm}")
     return sensor_width_mm / 2 / math.tan(math.radians(hfov_deg) / 2)
 
 
 def fov_deg(focal_length_mm: float, sensor_width_mm: float) -> float:
     """Full field of view (degrees) that `sensor_width_mm` spans at focal length `focal_length_mm`."""
     if not focal_length_mm > 0:
-        raise ValueError(f"focal_length_mm must be > 0, got {focal_length_mm}")
+        raise InvalidValueError(f"focal_length_mm must be > 0, got {focal_length_mm}")
     if not sensor_width_mm > 0:
-        raise ValueError(f"sensor_width_mm must be > 0, got {sensor_width_mm}")
+        raise InvalidValueError(f"sensor_width_mm must be > 0, got {sensor_width_mm}")
     return math.degrees(2 * math.atan(sensor_width_mm / 2 / focal_length_mm))
 
 
@@ -139,7 +139,7 @@ class OpticsParams(Params):
             return v
         p = PurePosixPath(v.replace("\\", "/"))
         if not v or p.is_absolute() or ".." in p.parts:
-            raise ValueError(f"lens_file must be a lens library name (resources/lenses/ or the user's "
+            raise InvalidValueError(f"lens_file must be a lens library name (resources/lenses/ or the user's "
                              f"lens folder; no '..', not absolute), got {v!r}")
         from workbench.optics.lens.io import check_library_lens
         check_library_lens(str(p))          # a missing or broken lens is refused here, not at the optics stage
@@ -149,7 +149,7 @@ class OpticsParams(Params):
     @classmethod
     def _finite_coefficients(cls, v: tuple[float, ...]) -> tuple[float, ...]:
         if not all(math.isfinite(k) for k in v):
-            raise ValueError(f"distortion_k must be finite numbers, got {v}")
+            raise InvalidValueError(f"distortion_k must be finite numbers, got {v}")
         return v
 
     @model_validator(mode="after")

@@ -12,7 +12,7 @@ from typing import Callable
 
 import numpy as np
 
-from workbench.errors import StageError
+from workbench.errors import InvalidValueError, StageError
 from workbench.jobs import Job
 from workbench.render.labels import Labels
 
@@ -32,7 +32,7 @@ class FrameSeeds:
 def frame_seeds(project_seed: int, index: int) -> FrameSeeds:
     """Seeds of frame `index`, derived from the project seed (independent streams per frame)."""
     if index < 0:
-        raise ValueError(f"frame index must be ≥ 0, got {index}")
+        raise InvalidValueError(f"frame index must be ≥ 0, got {index}")
     words = np.random.SeedSequence([int(project_seed), DATASET_SEED_TAG, int(index)]).generate_state(3)
     return FrameSeeds(int(index), int(words[0] >> 1), int(words[1] >> 1), int(words[2]))
 
@@ -53,7 +53,7 @@ def frame_optical_image(data: FrameData):
     from workbench.optics.types import OpticalImage
     missing = [k for k in ("sample_spacing_m", "focal_length_m", "f_number") if k not in data.meta]
     if missing:
-        raise ValueError(f"frame meta lacks {missing}: it was not made by render_city_frame")
+        raise InvalidValueError(f"frame meta lacks {missing}: it was not made by render_city_frame")
     return OpticalImage(data.irradiance_photons, np.asarray(data.wavelengths_nm, np.float64),
                         float(data.meta["sample_spacing_m"]), float(data.meta["focal_length_m"]),
                         float(data.meta["f_number"]), depth_m=data.labels.depth_m,
@@ -210,7 +210,7 @@ class CitySceneSession:
                 raise JobCancelled(f"frame {seeds.index}: cancelled")
 
         if inputs.scene.kind != "city":
-            raise ValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
+            raise InvalidValueError(f"scene.kind is '{inputs.scene.kind}'; rendering a frame needs scene.kind 'city'")
         yield Progress(0.0, 1.0, f"frame {seeds.index}: building the city")
         recipe = inputs.city.updated(arrangement=seeds.arrangement)
         night = inputs.render.world.lighting == "night"
@@ -329,7 +329,7 @@ def sensor_matched_error(inputs: CitySceneInputs, render: CityRender, shot_noise
     exposure_s = float(np.mean(resolve_exposure(rate, inputs.sensor)))
     mean_e = float(np.mean(rate, dtype=np.float64)) * exposure_s
     if not mean_e > 0:
-        raise ValueError("render.shot_noise_ratio: the pilot render collects no electrons at this exposure; "
+        raise InvalidValueError("render.shot_noise_ratio: the pilot render collects no electrons at this exposure; "
                          "give spp or target_rel_error instead")
     return float(min(shot_noise_ratio / np.sqrt(mean_e), 0.99))
 

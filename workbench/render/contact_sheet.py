@@ -27,6 +27,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.dataset_stats import CLASSES_OF_INTEREST
 
 # One colour per road-user class (RGB), chosen to stand out from grey streets and blue skies.
@@ -116,10 +117,10 @@ def compose_sheet(tiles: Sequence[SheetTile], columns: int, title: str,
     captions under the tiles."""
     from PIL import Image, ImageDraw
     if not tiles:
-        raise ValueError("a contact sheet needs at least one tile")
+        raise InvalidValueError("a contact sheet needs at least one tile")
     shapes = {t.srgb.shape[:2] for t in tiles}
     if len(shapes) != 1:
-        raise ValueError(f"tiles differ in size: {sorted(shapes)}")
+        raise InvalidValueError(f"tiles differ in size: {sorted(shapes)}")
     tile_hw = shapes.pop()
     columns = max(1, min(columns, len(tiles)))
     layout = SheetLayout(tile_hw, columns, -(-len(tiles) // columns), header_px=2 * LINE_PX + 2 * GAP_PX,
@@ -158,7 +159,7 @@ def to_palette(sheet, colours: int, exact: Sequence[tuple[int, int, int]]):
     from PIL import Image
     exact = list(dict.fromkeys(tuple(c) for c in exact))
     if not len(exact) < colours <= 256:
-        raise ValueError(f"a palette of {colours} colours must hold the {len(exact)} exact ones and more, "
+        raise InvalidValueError(f"a palette of {colours} colours must hold the {len(exact)} exact ones and more, "
                          "and at most 256")
     adaptive = sheet.quantize(colors=colours - len(exact), method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
     entries = adaptive.getpalette()[:3 * (colours - len(exact))] + [v for c in exact for v in c]
@@ -269,9 +270,9 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
         from workbench.errors import OutputPathError
         raise OutputPathError(out_png, "must name a .png file")
     if frames_per_scene < 1:
-        raise ValueError(f"frames_per_scene must be ≥ 1, got {frames_per_scene}")
+        raise InvalidValueError(f"frames_per_scene must be ≥ 1, got {frames_per_scene}")
     if colours is not None and not len(CLASS_COLOURS) + 2 < colours <= 256:
-        raise ValueError(f"colours must lie in {len(CLASS_COLOURS) + 3}…256, got {colours}")
+        raise InvalidValueError(f"colours must lie in {len(CLASS_COLOURS) + 3}…256, got {colours}")
     sized = [sheet_project(p, width, height, spp) for p in projects]
     total = len(sized) * frames_per_scene
     tiles, t0 = [], time.perf_counter()

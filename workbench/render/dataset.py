@@ -36,7 +36,7 @@ import numpy as np
 
 from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
-from workbench.errors import InputFileError, OutputPathError, ParameterError
+from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
@@ -60,10 +60,10 @@ IRRADIANCE_NOTE = ("float16: E/2^k stored, 2^k puts the frame maximum in (2^14, 
 def encode_irradiance(irradiance: np.ndarray, dtype: str) -> tuple[np.ndarray, float]:
     """(stored array, scale) with irradiance ≈ stored × scale (see the module docstring)."""
     if dtype not in IRRADIANCE_DTYPES:
-        raise ValueError(f"irradiance dtype '{dtype}' not allowed; allowed: {', '.join(IRRADIANCE_DTYPES)}")
+        raise InvalidValueError(f"irradiance dtype '{dtype}' not allowed; allowed: {', '.join(IRRADIANCE_DTYPES)}")
     arr = np.asarray(irradiance, dtype=np.float32)
     if not np.all(np.isfinite(arr)) or (arr.size and arr.min() < 0):
-        raise ValueError("irradiance has NaN/Inf or negative values; refusing to store it")
+        raise InvalidValueError("irradiance has NaN/Inf or negative values; refusing to store it")
     if dtype == "float32":
         return arr, 1.0
     peak = float(arr.max(initial=0.0))
@@ -85,7 +85,7 @@ def encode_frame(data: FrameData, header: dict, dtype: str) -> bytes:
     gives the same bytes wherever and whenever it is made."""
     stored, scale = encode_irradiance(data.irradiance_photons, dtype)
     if stored.shape[:2] != data.labels.shape:
-        raise ValueError(f"frame {header.get('index')}: irradiance is {stored.shape[:2]} but the labels "
+        raise InvalidValueError(f"frame {header.get('index')}: irradiance is {stored.shape[:2]} but the labels "
                          f"are {data.labels.shape}; they must share the pixel grid")
     head = {**header, "irradiance_dtype": dtype, "irradiance_scale": scale,
             "label_meta": data.labels.meta, "meta": data.meta}
@@ -114,7 +114,7 @@ def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameD
         arrays = {k: z[k] for k in keys}
     head = json.loads(str(arrays.pop("header_json")))
     if head.get("format") != FRAME_FORMAT:
-        raise ValueError(f"{path}: not a workbench frame (format {head.get('format')!r})")
+        raise InvalidValueError(f"{path}: not a workbench frame (format {head.get('format')!r})")
     labels = labels_from_arrays(arrays, head.get("label_meta"))
     irr = (decode_irradiance(arrays.pop("irradiance"), head["irradiance_scale"]) if irradiance
            else np.zeros((*labels.shape, 0), np.float32))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.params import DaylightParams
 from workbench.render.solar import solar_position
 from workbench.spectra import blackbody_spd
@@ -33,7 +34,7 @@ def sun_angles(daylight: DaylightParams) -> tuple[float, float]:
         return daylight.sun_elevation_deg, daylight.sun_azimuth_deg
     el, az = solar_position(daylight.time_of_day_h, daylight.latitude_deg, daylight.day_of_year)
     if el <= 0.5:
-        raise ValueError(f"time_of_day_h={daylight.time_of_day_h} puts the sun at {el:.1f}° "
+        raise InvalidValueError(f"time_of_day_h={daylight.time_of_day_h} puts the sun at {el:.1f}° "
                          f"elevation (latitude {daylight.latitude_deg}°, day {daylight.day_of_year});"
                          " daylight needs the sun above the horizon (> 0.5°)")
     return el, az

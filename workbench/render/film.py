@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.units import photon_energy_J
 
 EDGE_RAMP_NM = 0.1   # width of the linear ramp that stands in for a box band's sharp edge
@@ -36,10 +37,10 @@ class FilmSRFs:
         wl = np.asarray(self.wavelengths_nm, dtype=np.float64)
         r = np.atleast_2d(np.asarray(self.responses, dtype=np.float64))
         if r.shape[1] != wl.size or np.any(np.diff(wl) <= 0):
-            raise ValueError(f"film SRFs: responses must be K×M on M increasing wavelengths, got "
+            raise InvalidValueError(f"film SRFs: responses must be K×M on M increasing wavelengths, got "
                              f"{r.shape} on {wl.size} wavelengths")
         if not np.all(np.isfinite(r)) or np.any(r < 0) or np.any(r.max(axis=1) <= 0):
-            raise ValueError("film SRFs: every response must be finite, ≥ 0 and not all zero")
+            raise InvalidValueError("film SRFs: every response must be finite, ≥ 0 and not all zero")
         self.wavelengths_nm, self.responses = wl, r
         if not self.names:
             self.names = [f"ch{k:03d}" for k in range(r.shape[0])]
@@ -140,5 +141,5 @@ def sensor_wavelength_range(wavelengths_nm: np.ndarray, qe: np.ndarray,
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     live = np.nonzero(np.any(q > rel_threshold * q.max(axis=1, keepdims=True), axis=0))[0]
     if live.size == 0:
-        raise ValueError("sensor QE is zero everywhere: cannot choose a wavelength range")
+        raise InvalidValueError("sensor QE is zero everywhere: cannot choose a wavelength range")
     return float(wl[live[0]]), float(wl[live[-1]])

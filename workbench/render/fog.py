@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 KOSCHMIEDER = 3.912          # −ln(0.02)
 FOG_BOX_ID = "fog_box"
 FOG_MEDIUM_ID = "fog"
@@ -25,7 +27,7 @@ FOG_MEDIUM_ID = "fog"
 def extinction_per_m(visibility_m: float) -> float:
     """Extinction coefficient σ (1/m) for meteorological visibility V: 3.912 / V."""
     if not visibility_m > 0:
-        raise ValueError(f"visibility_m must be > 0, got {visibility_m}")
+        raise InvalidValueError(f"visibility_m must be > 0, got {visibility_m}")
     return KOSCHMIEDER / float(visibility_m)
 
 
@@ -52,7 +54,7 @@ def check_camera_inside(origin_m, extent_m, height_m: float, margin_m: float = 5
     x0, y0, x1, y1 = extent_m
     x, y, z = (float(v) for v in origin_m)
     if not (x0 - margin_m < x < x1 + margin_m and y0 - margin_m < y < y1 + margin_m and -1 < z < height_m):
-        raise ValueError(f"camera at ({x:.1f}, {y:.1f}, {z:.1f}) m is outside the fog layer "
+        raise InvalidValueError(f"camera at ({x:.1f}, {y:.1f}, {z:.1f}) m is outside the fog layer "
                          f"(height_m = {height_m}); raise fog.height_m")
 
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.fog import (FOG_BOX_ID, box_bounds_m, exit_distance_m, extinction_per_m, fog_box, fog_medium,
                                   pixel_directions, transmittance)
 
@@ -180,7 +181,7 @@ def ground_reflectance(city) -> dict:
                 m = city.materials[obj.meshes[0].material]
                 return {"type": "spectrum", "value": list(zip(np.asarray(m.wavelengths_nm, float).tolist(),
                                                               np.asarray(m.reflectance, float).tolist()))}
-    raise ValueError(f"the city has no {'/'.join(GROUND_CLASSES)} object to stand the fog layer on")
+    raise InvalidValueError(f"the city has no {'/'.join(GROUND_CLASSES)} object to stand the fog layer on")
 
 
 def koschmieder_fog(mi_scene, depth_m: np.ndarray, city, pan_deg: float, film, daylight, world,

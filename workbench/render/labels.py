@@ -20,6 +20,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 BACKGROUND_DEPTH_M = 1.0e4      # depth given to sky pixels (finite, far beyond any city object)
 OBJECT_FIELDS = ("instance_id", "class_id", "bbox_xywh", "amodal_bbox_xywh", "visible_px",
                  "amodal_px", "occlusion", "truncated", "truncation", "distance_m")
@@ -126,9 +128,9 @@ def _entry(key: str, value: Any, class_ids: Mapping[str, int]) -> tuple[int, int
     else:
         inst, cname = getattr(value, "instance_id", None), getattr(value, "class_name", None)
     if not isinstance(inst, (int, np.integer)) or int(inst) <= 0:
-        raise ValueError(f"id_table['{key}']: instance_id must be an integer > 0, got {inst!r}")
+        raise InvalidValueError(f"id_table['{key}']: instance_id must be an integer > 0, got {inst!r}")
     if cname not in class_ids:
-        raise ValueError(f"id_table['{key}']: unknown class {cname!r}; allowed: "
+        raise InvalidValueError(f"id_table['{key}']: unknown class {cname!r}; allowed: "
                          f"{', '.join(sorted(class_ids))}")
     return int(inst), int(class_ids[cname]), str(cname)
 
@@ -141,7 +143,7 @@ def _shape_luts(mi_scene, id_table: Mapping[str, Any], class_ids: Mapping[str, i
     shapes = list(mi_scene.shapes())
     missing = [s.id() for s in shapes if s.id() not in id_table]
     if missing:
-        raise ValueError(f"id_table has no entry for scene shape(s) {missing[:5]}"
+        raise InvalidValueError(f"id_table has no entry for scene shape(s) {missing[:5]}"
                          f"{' …' if len(missing) > 5 else ''}; every top-level shape needs "
                          "(instance_id, class_name)")
     entries = {key: _entry(key, val, class_ids) for key, val in id_table.items() if val is not None}
@@ -153,7 +155,7 @@ def _shape_luts(mi_scene, id_table: Mapping[str, Any], class_ids: Mapping[str, i
     inst_to_class = np.zeros(n_inst, dtype=np.int32)
     for inst, cid, _ in entries.values():
         if inst_to_class[inst] not in (0, cid):
-            raise ValueError(f"id_table: instance {inst} is given two classes "
+            raise InvalidValueError(f"id_table: instance {inst} is given two classes "
                              f"({inst_to_class[inst]} and {cid})")
         inst_to_class[inst] = cid
     names = {cid: cname for _, cid, cname in entries.values()}
@@ -249,28 +251,28 @@ def render_labels(mi_scene, id_table: Mapping[str, Any], width: int, height: int
     import mitsuba as mi
 
     if not mi.variant() or not mi.variant().startswith(("llvm", "cuda")):
-        raise ValueError(f"the label pass needs a JIT Mitsuba variant (llvm_ad_spectral or "
+        raise InvalidValueError(f"the label pass needs a JIT Mitsuba variant (llvm_ad_spectral or "
                          f"cuda_ad_spectral); the scene was loaded in {mi.variant()!r}")
     if width < 1 or height < 1:
-        raise ValueError(f"label resolution must be ≥ 1×1, got width={width}, height={height}")
+        raise InvalidValueError(f"label resolution must be ≥ 1×1, got width={width}, height={height}")
     if not 1 <= max_layers <= 1024:
-        raise ValueError(f"max_layers must be in 1…1024, got {max_layers}")
+        raise InvalidValueError(f"max_layers must be in 1…1024, got {max_layers}")
     sensors = mi_scene.sensors()
     if not 0 <= sensor_index < len(sensors):
-        raise ValueError(f"sensor_index {sensor_index} out of range: the scene has {len(sensors)} sensor(s)")
+        raise InvalidValueError(f"sensor_index {sensor_index} out of range: the scene has {len(sensors)} sensor(s)")
     sensor = sensors[sensor_index]
     if class_ids is None:
         from workbench.scene.city.recipe import CLASS_IDS as class_ids
     film_w, film_h = (int(v) for v in sensor.film().crop_size())
     if abs(width * film_h - height * film_w) > max(film_w, film_h):
-        raise ValueError(f"label resolution {width}×{height} does not have the film's aspect ratio "
+        raise InvalidValueError(f"label resolution {width}×{height} does not have the film's aspect ratio "
                          f"({film_w}×{film_h})")
     bad = {k: v for k, v in class_ids.items() if int(v) <= 0}
     if bad:
-        raise ValueError(f"class_ids must be > 0 (0 is background), got {bad}")
+        raise InvalidValueError(f"class_ids must be > 0 (0 is background), got {bad}")
     margin = max(2, int(np.ceil(0.1 * max(width, height)))) if margin_px is None else int(margin_px)
     if margin < 1:
-        raise ValueError(f"margin_px must be ≥ 1 to detect truncation, got {margin_px}")
+        raise InvalidValueError(f"margin_px must be ≥ 1 to detect truncation, got {margin_px}")
 
     shape_to_inst, inst_to_class, class_names = _shape_luts(mi_scene, id_table, class_ids)
     inst, dist, dirs, saturated, forward = _peel(mi_scene, sensor, shape_to_inst, width, height,
@@ -346,7 +348,7 @@ def labels_to_coco(frames: Sequence[tuple[str, Labels]], categories: Mapping[str
         from workbench.scene.city.recipe import CLASS_IDS as categories
     bad = {k: v for k, v in categories.items() if not isinstance(v, (int, np.integer)) or v <= 0}
     if bad:
-        raise ValueError(f"categories: ids must be integers > 0, got {bad}")
+        raise InvalidValueError(f"categories: ids must be integers > 0, got {bad}")
     images, annotations = [], []
     for image_id, (file_name, labels) in enumerate(frames, start=1):
         h, w = labels.shape

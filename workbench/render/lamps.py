@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.spectra import blackbody_spd, luminous_efficiency
 
 LAMP_KINDS = ("lps", "hps", "led", "metal_halide")
@@ -73,7 +74,7 @@ def lamp_spectrum(kind: str, wavelengths_nm: np.ndarray = LAMP_WAVELENGTHS_NM) -
         return blackbody_spd(3200.0, wl)
     if kind == "led_red":
         return _g(wl, 625.0, 18.0)
-    raise ValueError(f"unknown lamp kind {kind!r}; known: {', '.join(LAMP_KINDS + ('halogen', 'led_red'))}")
+    raise InvalidValueError(f"unknown lamp kind {kind!r}; known: {', '.join(LAMP_KINDS + ('halogen', 'led_red'))}")
 
 
 def luminous_intensity_spectrum(kind: str, intensity_cd: float,
@@ -81,7 +82,7 @@ def luminous_intensity_spectrum(kind: str, intensity_cd: float,
     """Radiant intensity I(λ) (W/sr/nm) of the lamp's spectrum scaled to `intensity_cd` candela:
     683 ∫ I V dλ = intensity_cd."""
     if not intensity_cd > 0:
-        raise ValueError(f"intensity_cd must be > 0, got {intensity_cd}")
+        raise InvalidValueError(f"intensity_cd must be > 0, got {intensity_cd}")
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     s = lamp_spectrum(kind, wl)
     lum = LUMINOUS_EFFICACY_LM_W * np.trapezoid(s * luminous_efficiency(wl), wl)
@@ -91,7 +92,7 @@ def luminous_intensity_spectrum(kind: str, intensity_cd: float,
 def hemisphere_intensity_cd(flux_lm: float) -> float:
     """Luminous intensity (cd) of a source spreading `flux_lm` evenly over a hemisphere: Φ/(2π)."""
     if not flux_lm > 0:
-        raise ValueError(f"flux_lm must be > 0, got {flux_lm}")
+        raise InvalidValueError(f"flux_lm must be > 0, got {flux_lm}")
     return float(flux_lm / (2 * np.pi))
 
 
@@ -106,7 +107,7 @@ def street_lamp_emitter(position_m, kind: str, flux_lm: float | None = None) -> 
     `flux_lm` (default RATED_FLUX_LM[kind]) spread evenly over the lower hemisphere, I = Φ/(2π),
     none upward (the luminaire housing)."""
     if kind not in LAMP_KINDS:
-        raise ValueError(f"street lamp kind must be one of {LAMP_KINDS}, got {kind!r}")
+        raise InvalidValueError(f"street lamp kind must be one of {LAMP_KINDS}, got {kind!r}")
     flux = RATED_FLUX_LM[kind] if flux_lm is None else float(flux_lm)
     return spot_emitter(position_m, (0.0, 0.0, -1.0), kind, hemisphere_intensity_cd(flux),
                         cutoff_deg=HEMISPHERE_CUTOFF_DEG, beam_deg=HEMISPHERE_CUTOFF_DEG - 0.1)
@@ -142,7 +143,7 @@ def _lamp_head_points(city) -> list[np.ndarray]:
             continue
         heads = [m.vertices for m in obj.meshes if m.material == "metal_dark"]
         if not heads:
-            raise ValueError(f"lamp {obj.instance_id} has no 'metal_dark' luminaire head mesh")
+            raise InvalidValueError(f"lamp {obj.instance_id} has no 'metal_dark' luminaire head mesh")
         head = max(heads, key=lambda v: v[:, 2].max())
         lo, hi = head.min(0), head.max(0)
         points.append(np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - 0.02]))

@@ -19,6 +19,8 @@ import hashlib
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 _ROWS: dict[str, tuple] = {}       # row key → (centres N×3, half x, half y, radiance texture)
 MAX_ROWS = 64                      # newest rows kept; a row is read only while its scene is loaded
 _REGISTERED: set[str] = set()
@@ -131,9 +133,9 @@ def luminaire_row_shapes(centres_m: np.ndarray, half_size_m: tuple[float, float]
     pts = np.atleast_2d(np.asarray(centres_m, dtype=np.float64))
     hx, hy = (float(h) for h in half_size_m)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
-        raise ValueError(f"lens centres must be N×3 finite (N ≥ 1), got shape {pts.shape}")
+        raise InvalidValueError(f"lens centres must be N×3 finite (N ≥ 1), got shape {pts.shape}")
     if not (hx > 0 and hy > 0 and sampling_weight > 0):
-        raise ValueError(f"half sizes and sampling_weight must be > 0, got {half_size_m}, {sampling_weight}")
+        raise InvalidValueError(f"half sizes and sampling_weight must be > 0, got {half_size_m}, {sampling_weight}")
     key = hashlib.sha1(np.r_[pts.ravel(), hx, hy].tobytes() + repr(radiance_spectrum).encode()).hexdigest()
     _ROWS.pop(key, None)
     _ROWS[key] = (pts, hx, hy, mi.load_dict(radiance_spectrum))

@@ -5,6 +5,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
+from workbench.errors import InvalidValueError
 from workbench.params import Params
 
 class DaylightParams(Params):
@@ -183,11 +184,11 @@ class RenderParams(Params):
     def _check(self) -> "RenderParams":
         chosen = [n for n in ("spp", "target_rel_error", "shot_noise_ratio") if getattr(self, n) is not None]
         if len(chosen) != 1:
-            raise ValueError(f"give exactly one of spp ({self.spp}), target_rel_error ({self.target_rel_error}) "
+            raise InvalidValueError(f"give exactly one of spp ({self.spp}), target_rel_error ({self.target_rel_error}) "
                              f"or shot_noise_ratio ({self.shot_noise_ratio}); set the others to None")
         lo, hi = self.wavelength_min_nm, self.wavelength_max_nm
         if (lo is None) != (hi is None):
-            raise ValueError("wavelength_min_nm and wavelength_max_nm must both be set or both None")
+            raise InvalidValueError("wavelength_min_nm and wavelength_max_nm must both be set or both None")
         if lo is not None and hi - lo < 1.0:
-            raise ValueError(f"wavelength_max_nm ({hi}) must exceed wavelength_min_nm ({lo}) by ≥ 1 nm")
+            raise InvalidValueError(f"wavelength_max_nm ({hi}) must exceed wavelength_min_nm ({lo}) by ≥ 1 nm")
         return self

@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 
 def noise_constant(a: np.ndarray, b: np.ndarray, spp: int, metric: str = "broadband") -> float:
     """c in rel_error = c/√spp from two independent H×W×K renders at `spp` each.
@@ -17,7 +19,7 @@ def noise_constant(a: np.ndarray, b: np.ndarray, spp: int, metric: str = "broadb
     over channels of each channel's relative RMS error (channels with zero mean are skipped)."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if a.shape != b.shape or a.ndim != 3:
-        raise ValueError(f"noise_constant needs two H×W×K images of one shape, got {a.shape}, {b.shape}")
+        raise InvalidValueError(f"noise_constant needs two H×W×K images of one shape, got {a.shape}, {b.shape}")
     if metric == "broadband":
         sa, sb = a.sum(axis=2), b.sum(axis=2)
         mean = 0.5 * (sa.mean() + sb.mean())
@@ -28,16 +30,16 @@ def noise_constant(a: np.ndarray, b: np.ndarray, spp: int, metric: str = "broadb
         live = mean > 0
         rel = float(np.mean(rms[live] / mean[live])) if live.any() else 0.0
     else:
-        raise ValueError(f"error metric '{metric}' is not allowed; allowed: broadband, per_channel")
+        raise InvalidValueError(f"error metric '{metric}' is not allowed; allowed: broadband, per_channel")
     return float(rel * math.sqrt(spp))
 
 
 def spp_for_error(c: float, rel_error: float, max_spp: int = 1 << 20) -> int:
     """Samples per pixel that bring the relative error c/√spp down to rel_error (≥ 1, ≤ max_spp)."""
     if not rel_error > 0:
-        raise ValueError(f"rel_error must be > 0, got {rel_error}")
+        raise InvalidValueError(f"rel_error must be > 0, got {rel_error}")
     if not c >= 0 or not math.isfinite(c):
-        raise ValueError(f"noise constant c must be finite and ≥ 0, got {c}")
+        raise InvalidValueError(f"noise constant c must be finite and ≥ 0, got {c}")
     return int(min(max(math.ceil((c / rel_error) ** 2), 1), max_spp))
 
 
@@ -47,7 +49,7 @@ def spp_for_shot_noise(c: float, mean_electrons: float, noise_ratio: float = 0.3
 
     With ratio 0.3 the render adds √(1 + 0.09) − 1 ≈ 4.4 % to the total noise."""
     if not mean_electrons > 0:
-        raise ValueError(f"mean_electrons must be > 0, got {mean_electrons}")
+        raise InvalidValueError(f"mean_electrons must be > 0, got {mean_electrons}")
     if not 0 < noise_ratio <= 10:
-        raise ValueError(f"noise_ratio must be in (0, 10], got {noise_ratio}")
+        raise InvalidValueError(f"noise_ratio must be in (0, 10], got {noise_ratio}")
     return spp_for_error(c, noise_ratio / math.sqrt(mean_electrons), max_spp)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
@@ -47,7 +48,7 @@ def camera_to_world(pose: CameraPose) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
     """A Mitsuba perspective (pinhole) sensor: horizontal FOV, looking along the pose."""
     if not 0 < fov_deg < 180:
-        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+        raise InvalidValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
     import mitsuba as mi
 
     origin, target, up = camera_to_world(pose)
@@ -71,10 +72,10 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
-        raise ValueError(f"mesh '{name}': vertices must be V×3 and faces F×3 (F ≥ 1), got "
+        raise InvalidValueError(f"mesh '{name}': vertices must be V×3 and faces F×3 (F ≥ 1), got "
                          f"{v.shape} and {f.shape}")
     if f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
-        raise ValueError(f"mesh '{name}': face indices outside 0…{len(v) - 1} or non-finite vertices")
+        raise InvalidValueError(f"mesh '{name}': face indices outside 0…{len(v) - 1} or non-finite vertices")
     props = mi.Properties()
     if exterior is not None:
         props["exterior"] = exterior
@@ -86,7 +87,7 @@ def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior
     if texcoords is not None:
         uv = np.asarray(texcoords, dtype=np.float32)
         if uv.shape != (len(v), 2) or not np.all(np.isfinite(uv)):
-            raise ValueError(f"mesh '{name}': texcoords must be finite V×2, got {uv.shape}")
+            raise InvalidValueError(f"mesh '{name}': texcoords must be finite V×2, got {uv.shape}")
         params["vertex_texcoords"] = type(params["vertex_texcoords"])(uv.ravel())
     params.update()
     mesh.set_bsdf(bsdf)
@@ -112,13 +113,13 @@ def _spectrum(material: Material, film_range_nm: tuple[float, float]) -> dict:
     wl = np.asarray(material.wavelengths_nm, dtype=np.float64)
     refl = np.asarray(material.reflectance, dtype=np.float64)
     if wl.shape != refl.shape or wl.size < 2:
-        raise ValueError(f"material '{material.name}': reflectance and wavelengths_nm must be equal "
+        raise InvalidValueError(f"material '{material.name}': reflectance and wavelengths_nm must be equal "
                          f"length ≥ 2, got {refl.shape} and {wl.shape}")
     if wl[0] > film_range_nm[0] or wl[-1] < film_range_nm[1]:
-        raise ValueError(f"material '{material.name}' is defined on {wl[0]:.0f}–{wl[-1]:.0f} nm but "
+        raise InvalidValueError(f"material '{material.name}' is defined on {wl[0]:.0f}–{wl[-1]:.0f} nm but "
                          f"the film needs {film_range_nm[0]:.0f}–{film_range_nm[1]:.0f} nm")
     if not np.all(np.isfinite(refl)) or refl.min() < 0 or refl.max() > 1:
-        raise ValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
+        raise InvalidValueError(f"material '{material.name}': reflectance must be finite and in 0…1")
     return {"type": "spectrum", "value": list(zip(wl.tolist(), refl.tolist()))}
 
 
@@ -131,7 +132,7 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffus
     with paint='clearcoat': `roughplastic` (GGX α = PAINT_COAT_ALPHA, n = PAINT_COAT_IOR) over
     the paint's reflectance, with the linear internal-scattering model (nonlinear = false)."""
     if paint not in ("diffuse", "clearcoat"):
-        raise ValueError(f"paint must be 'diffuse' or 'clearcoat', got {paint!r}")
+        raise InvalidValueError(f"paint must be 'diffuse' or 'clearcoat', got {paint!r}")
     spectrum = _spectrum(material, film_range_nm)
     if glass == "dielectric" and material.name in GLASS_MATERIALS:
         if pane:
@@ -172,7 +173,7 @@ def surface_bsdf(mi, surface: Surface, materials: dict[str, Material], film_rang
     two nested BSDFs in name order: 'below' (weight 0), then 'layer' (weight 1)."""
     def material(name):
         if name not in materials:
-            raise ValueError(f"procedural surface uses material '{name}', which the city does not define")
+            raise InvalidValueError(f"procedural surface uses material '{name}', which the city does not define")
         return materials[name]
 
     bsdf = lambertian_dict(material(surface.base), film_range_nm)
@@ -205,12 +206,12 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     import mitsuba as mi
 
     if "spectral" not in (mi.variant() or ""):
-        raise ValueError(f"build_scene needs a spectral Mitsuba variant (call "
+        raise InvalidValueError(f"build_scene needs a spectral Mitsuba variant (call "
                          f"workbench.render.variants.select_variant() first); current: {mi.variant()}")
     if not (1 <= width <= 16384 and 1 <= height <= 16384):
-        raise ValueError(f"render resolution must be 1…16384 per side, got {width}×{height}")
+        raise InvalidValueError(f"render resolution must be 1…16384 per side, got {width}×{height}")
     if not 1 <= max_depth <= 64:
-        raise ValueError(f"max_depth must be in 1…64, got {max_depth}")
+        raise InvalidValueError(f"max_depth must be in 1…64, got {max_depth}")
     cam = dict(sensor) if sensor is not None else pinhole_sensor(pose, fov_deg)
     cam["film"] = film_srfs.mitsuba_film(width, height)
     cam["sampler"] = {"type": sampler, "sample_count": 1}
@@ -239,10 +240,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     surfaces = procedural_surfaces(world.wet_road_fraction) if world.materials == "procedural" else {}
     for obj in city.objects:
         if obj.instance_id <= 0:
-            raise ValueError(f"city object '{obj.class_name}' has instance_id {obj.instance_id}; must be > 0")
+            raise InvalidValueError(f"city object '{obj.class_name}' has instance_id {obj.instance_id}; must be > 0")
         for k, m in enumerate(obj.meshes):
             if m.material not in city.materials:
-                raise ValueError(f"mesh {k} of {obj.class_name} {obj.instance_id} uses material "
+                raise InvalidValueError(f"mesh {k} of {obj.class_name} {obj.instance_id} uses material "
                                  f"'{m.material}', which the city does not define")
             pane = obj.class_name == "car"              # closed glass cabin: see-through pane
             key = (m.material, pane and m.material in GLASS_MATERIALS)
@@ -252,7 +253,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
                               _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint))
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
-                raise ValueError(f"duplicate shape id '{sid}': instance ids must be unique")
+                raise InvalidValueError(f"duplicate shape id '{sid}': instance ids must be unique")
             if m.material in surfaces:
                 v, f, uv = planar_uv_m(m.vertices, m.faces)
                 scene[sid] = _mesh(mi, sid, v, f, bsdfs[key], medium, texcoords=uv)

@@ -29,6 +29,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.daylight import (DAYLIGHT_WAVELENGTHS_NM, sky_radiance, sun_angles, sun_direction,
                                        sun_irradiance)
 from workbench.render.params import DaylightParams
@@ -190,7 +191,7 @@ def sky_emitter(daylight: DaylightParams):
     import mitsuba as mi
 
     if daylight.sky_model not in SKY_MODELS:
-        raise ValueError(f"sky_model must be one of {SKY_MODELS}, got {daylight.sky_model!r}")
+        raise InvalidValueError(f"sky_model must be one of {SKY_MODELS}, got {daylight.sky_model!r}")
     wl = DAYLIGHT_WAVELENGTHS_NM
     spec = sky_spectrum(daylight, wl)
     if daylight.sky_scale == 0 or not np.max(spec) > NEGLIGIBLE_SPECTRUM:

@@ -14,6 +14,7 @@ from typing import Generator
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.film import FilmSRFs, box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
 from workbench.render.fog import FOG_BOX_ID
 from workbench.render.labels import BACKGROUND_DEPTH_M
@@ -51,7 +52,7 @@ def film_for(params: RenderParams, sensor_qe: tuple[np.ndarray, np.ndarray] | No
     """The film SRFs for the chosen representation; the range follows the sensor when not given."""
     if params.representation == "sensor":
         if sensor_qe is None:
-            raise ValueError("representation 'sensor' needs sensor_qe=(wavelengths_nm, K×Nλ QE)")
+            raise InvalidValueError("representation 'sensor' needs sensor_qe=(wavelengths_nm, K×Nλ QE)")
         return sensor_channels(*sensor_qe)
     if params.wavelength_min_nm is not None:
         lo, hi = params.wavelength_min_nm, params.wavelength_max_nm
@@ -76,7 +77,7 @@ def _is_cancelled(cancel) -> bool:
         return bool(cancel.is_set())
     if callable(cancel):
         return bool(cancel())
-    raise ValueError(f"cancel must be None, an Event-like object with is_set() or a callable, "
+    raise InvalidValueError(f"cancel must be None, an Event-like object with is_set() or a callable, "
                      f"got {type(cancel).__name__}")
 
 
@@ -125,7 +126,7 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
     import mitsuba as mi
 
     if params.shot_noise_ratio is not None:
-        raise ValueError("render.shot_noise_ratio needs the project's sensor to turn into a target error; "
+        raise InvalidValueError("render.shot_noise_ratio needs the project's sensor to turn into a target error; "
                          "render a city project (render_city_frame) or give spp / target_rel_error")
     t0 = time.perf_counter()
     acc, done, index, c_meas, cancelled = None, 0, 0, None, False
@@ -171,7 +172,7 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
         raise RenderCancelled(f"{name}: cancelled before the first chunk finished")
     channels = acc / done
     if not np.all(np.isfinite(channels)):
-        raise ValueError(f"{name}: the renderer returned NaN/Inf radiance (variant, scene or spectra)")
+        raise InvalidValueError(f"{name}: the renderer returned NaN/Inf radiance (variant, scene or spectra)")
     radiance = film.channels_to_radiance(channels)
     depth = depth_map_m(mi_scene)
     hits = depth[depth < BACKGROUND_DEPTH_M] if depth is not None else np.zeros(0)

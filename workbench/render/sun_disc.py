@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.render.daylight import sun_angles, sun_direction, sun_irradiance
 from workbench.render.film import FilmSRFs
 from workbench.render.params import DaylightParams
@@ -43,7 +44,7 @@ _GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 def sun_solid_angle_sr(radius_deg: float = SUN_ANGULAR_RADIUS_DEG) -> float:
     """Solid angle (sr) of a disc of angular radius `radius_deg`: 2π(1 − cos r)."""
     if not 0 < radius_deg < 90:
-        raise ValueError(f"radius_deg must be in (0, 90), got {radius_deg}")
+        raise InvalidValueError(f"radius_deg must be in (0, 90), got {radius_deg}")
     return float(2 * np.pi * (1 - np.cos(np.radians(radius_deg))))
 
 
@@ -70,7 +71,7 @@ def disc_directions(centre: np.ndarray, count: int, radius_deg: float = SUN_ANGU
     """`count` unit vectors (count×3) uniform in solid angle over the cap of angular radius
     `radius_deg` about `centre` (a sunflower spiral: deterministic, low discrepancy)."""
     if count < 1:
-        raise ValueError(f"count must be ≥ 1, got {count}")
+        raise InvalidValueError(f"count must be ≥ 1, got {count}")
     c = np.asarray(centre, dtype=np.float64)
     c = c / np.linalg.norm(c)
     i = np.arange(count, dtype=np.float64)
@@ -99,7 +100,7 @@ def project_directions(pose: CameraPose, fov_deg: float, width: int, height: int
     """Image position (column, row in pixels, row 0 at the top) of world directions seen through
     the pinhole, and the cosine of their angle to the optical axis (≤ 0: behind the camera)."""
     if not 0 < fov_deg < 180:
-        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+        raise InvalidValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
     fwd, right, down = pinhole_frame(pose)
     d = np.asarray(directions, dtype=np.float64)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
@@ -121,7 +122,7 @@ def _ray_transmittance(mi_scene, origin: np.ndarray, directions: np.ndarray) -> 
     from workbench.render.fog import FOG_BOX_ID
 
     if not mi.variant().startswith(("llvm", "cuda")):
-        raise ValueError(f"sun disc ray tests need a JIT Mitsuba variant (llvm/cuda), got {mi.variant()}; "
+        raise InvalidValueError(f"sun disc ray tests need a JIT Mitsuba variant (llvm/cuda), got {mi.variant()}; "
                          "pass sky_mask instead")
     d = np.ascontiguousarray(directions, dtype=np.float32)
     ray = mi.Ray3f(mi.Point3f(*(float(v) for v in origin)), mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
@@ -148,13 +149,13 @@ def sun_disc_coverage(pose: CameraPose, fov_deg: float, width: int, height: int,
     path t through the fog box), else `sky_mask` (H×W bool, True = sky: the
     pixel-centre label). One of the two is required; mi_scene wins when both are given."""
     if not 0 < fov_deg < 180:
-        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+        raise InvalidValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
     if width < 1 or height < 1:
-        raise ValueError(f"width and height must be ≥ 1, got {width}×{height}")
+        raise InvalidValueError(f"width and height must be ≥ 1, got {width}×{height}")
     if mi_scene is None and sky_mask is None:
-        raise ValueError("sun_disc_coverage needs mi_scene (ray tests) or sky_mask (H×W bool)")
+        raise InvalidValueError("sun_disc_coverage needs mi_scene (ray tests) or sky_mask (H×W bool)")
     if sky_mask is not None and np.shape(sky_mask) != (height, width):
-        raise ValueError(f"sky_mask must be {height}×{width}, got {np.shape(sky_mask)}")
+        raise InvalidValueError(f"sky_mask must be {height}×{width}, got {np.shape(sky_mask)}")
     coverage = np.zeros((height, width), dtype=np.float64)
     sun = sun_direction(*sun_angles(daylight))
     fwd, _, _ = pinhole_frame(pose)
@@ -198,7 +199,7 @@ class SunDisc:
         """radiance + coverage × disc radiance, float32 (the input is not modified)."""
         rad = np.asarray(radiance_photons)
         if rad.shape != (*self.coverage.shape, self.film_radiance.size):
-            raise ValueError(f"radiance must be {self.coverage.shape[0]}×{self.coverage.shape[1]}×"
+            raise InvalidValueError(f"radiance must be {self.coverage.shape[0]}×{self.coverage.shape[1]}×"
                              f"{self.film_radiance.size} (the film's outputs), got {rad.shape}")
         hit = self.coverage > 0
         if not hit.any():
@@ -206,7 +207,7 @@ class SunDisc:
         out = rad.astype(np.float64)
         out[hit] += self.coverage[hit][:, None] * self.film_radiance
         if not np.all(np.isfinite(out[hit])) or out[hit].max() > np.finfo(np.float32).max:
-            raise ValueError("sun disc: composited radiance is not finite in float32 (sun_scale too large?)")
+            raise InvalidValueError("sun disc: composited radiance is not finite in float32 (sun_scale too large?)")
         return out.astype(np.float32)
 
 

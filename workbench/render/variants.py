@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 
+from workbench.errors import InvalidValueError
 from workbench.compute.local import THREAD_BUDGET_ENV
 
 log = logging.getLogger(__name__)
@@ -60,7 +61,7 @@ def choose_variant(compiled: list[str], backends: dict[str, bool], prefer: str |
     Returns (variant, reasons-for-skipping). Raises ValueError for an unknown `prefer` or when
     no spectral variant is usable."""
     if prefer is not None and prefer not in SPECTRAL_VARIANTS:
-        raise ValueError(f"render variant '{prefer}' is not allowed; allowed: "
+        raise InvalidValueError(f"render variant '{prefer}' is not allowed; allowed: "
                          f"{', '.join(SPECTRAL_VARIANTS)} (or None for automatic)")
     order = ([prefer] if prefer else []) + [v for v in SPECTRAL_VARIANTS if v != prefer]
     skipped = []
@@ -72,7 +73,7 @@ def choose_variant(compiled: list[str], backends: dict[str, bool], prefer: str |
             skipped.append(f"{variant}: the {backend} backend is not available on this machine")
         else:
             return variant, skipped
-    raise ValueError("no spectral Mitsuba variant is usable: " + "; ".join(skipped))
+    raise InvalidValueError("no spectral Mitsuba variant is usable: " + "; ".join(skipped))
 
 
 def select_variant(prefer: str | None = None) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench import spectra
 from workbench.registry import Registry
 from workbench.scene.types import Scene
@@ -25,9 +26,9 @@ def _illuminant_photons(illuminant: str, wavelengths_nm: np.ndarray, luminance_c
 def _check_size(size: tuple[int, int]) -> tuple[int, int]:
     rows, cols = (int(size[0]), int(size[1]))
     if rows < 1 or cols < 1:
-        raise ValueError(f"scene size must be at least 1×1 samples, got {rows}×{cols}")
+        raise InvalidValueError(f"scene size must be at least 1×1 samples, got {rows}×{cols}")
     if rows * cols > 64_000_000:
-        raise ValueError(f"scene of {rows}×{cols} samples is too large (limit 64 M samples); "
+        raise InvalidValueError(f"scene of {rows}×{cols} samples is too large (limit 64 M samples); "
                          "lower the resolution or the oversampling")
     return rows, cols
 
@@ -48,7 +49,7 @@ def _scale_to_mean_luminance(reflectance_map: np.ndarray, white_photons: np.ndar
     mean_lum = float(spectra.luminance_from_photons(radiance.reshape(-1, radiance.shape[-1]).mean(0),
                                                     wavelengths_nm))
     if mean_lum <= 0:
-        raise ValueError("the chart has zero luminance under this illuminant")
+        raise InvalidValueError("the chart has zero luminance under this illuminant")
     return radiance * np.float32(mean_luminance_cd_m2 / mean_lum)
 
 
@@ -60,7 +61,7 @@ def uniform_scene(illuminant: str = "D65", mean_luminance_cd_m2: float = 100.0,
     """A uniform field: a diffuser of the given reflectance under the illuminant, set luminance."""
     rows, cols = _check_size(size)
     if mean_luminance_cd_m2 < 0:
-        raise ValueError(f"mean_luminance_cd_m2 must be ≥ 0, got {mean_luminance_cd_m2}")
+        raise InvalidValueError(f"mean_luminance_cd_m2 must be ≥ 0, got {mean_luminance_cd_m2}")
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     white = _illuminant_photons(illuminant, wl, 1.0) * mean_luminance_cd_m2
     radiance = np.broadcast_to(white.astype(np.float32), (rows, cols, wl.size)).copy()
@@ -116,9 +117,9 @@ def slanted_edge_scene(angle_deg: float = 5.0, contrast: float = 0.8, illuminant
     so the chart itself adds no aliasing. contrast = (bright − dark)/bright."""
     rows, cols = _check_size(size)
     if not 0 < contrast <= 1:
-        raise ValueError(f"contrast must be in (0, 1], got {contrast}")
+        raise InvalidValueError(f"contrast must be in (0, 1], got {contrast}")
     if not -45 <= angle_deg <= 45:
-        raise ValueError(f"edge angle must be within ±45° of vertical, got {angle_deg}")
+        raise InvalidValueError(f"edge angle must be within ±45° of vertical, got {angle_deg}")
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     t = np.tan(np.radians(angle_deg))
     sub = (np.arange(supersample) + 0.5) / supersample
@@ -146,7 +147,7 @@ def hdr_tunnel_scene(exit_luminance_cd_m2: float = 20000.0, tunnel_luminance_cd_
     100× the wall luminance; the road is darker than the walls."""
     rows, cols = _check_size(size)
     if exit_luminance_cd_m2 <= 0 or tunnel_luminance_cd_m2 <= 0:
-        raise ValueError("tunnel and exit luminances must be > 0 cd/m²")
+        raise InvalidValueError("tunnel and exit luminances must be > 0 cd/m²")
     wl = np.asarray(wavelengths_nm, dtype=np.float64)
     y = (np.arange(rows) + 0.5)[:, None] / rows - 0.5
     x = (np.arange(cols) + 0.5)[None, :] / cols - 0.5

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.spectra import luminance_from_photons
 
 DR_PERCENTILES = (0.1, 99.9)
@@ -25,10 +26,10 @@ def luminance_dynamic_range(luminance: np.ndarray, percentiles: tuple[float, flo
     values, in ratio and dB; None entries when no pixel is lit."""
     lo_pct, hi_pct = percentiles
     if not 0.0 <= lo_pct < hi_pct <= 100.0:
-        raise ValueError(f"percentiles must satisfy 0 ≤ low < high ≤ 100, got {percentiles}")
+        raise InvalidValueError(f"percentiles must satisfy 0 ≤ low < high ≤ 100, got {percentiles}")
     values = np.asarray(luminance, dtype=np.float64).ravel()
     if not np.all(np.isfinite(values)) or np.any(values < 0):
-        raise ValueError("luminance must be finite and ≥ 0")
+        raise InvalidValueError("luminance must be finite and ≥ 0")
     lit = values[values > 0]
     out = {"percentiles": [lo_pct, hi_pct], "fraction_zero": float(1.0 - lit.size / max(values.size, 1))}
     if lit.size == 0:

@@ -6,6 +6,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
+from workbench.errors import InvalidValueError
 from workbench import spectra
 from workbench.params import Params
 
@@ -20,9 +21,9 @@ class WavelengthParams(Params):
     @model_validator(mode="after")
     def _ordered(self):
         if self.stop_nm < self.start_nm:
-            raise ValueError(f"stop_nm ({self.stop_nm}) must be ≥ start_nm ({self.start_nm})")
+            raise InvalidValueError(f"stop_nm ({self.stop_nm}) must be ≥ start_nm ({self.start_nm})")
         if (self.stop_nm - self.start_nm) / self.step_nm > 400:
-            raise ValueError("more than 400 wavelength samples; use a larger step_nm")
+            raise InvalidValueError("more than 400 wavelength samples; use a larger step_nm")
         return self
 
     def grid(self) -> np.ndarray:

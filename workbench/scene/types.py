@@ -5,6 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 
 @dataclass
 class Scene:
@@ -29,14 +31,14 @@ class Scene:
         rad = np.asarray(self.radiance_photons)
         wl = np.asarray(self.wavelengths_nm, dtype=np.float64)
         if rad.ndim != 3 or rad.shape[2] != wl.size:
-            raise ValueError(f"scene '{self.name}': radiance must be H×W×Nλ with Nλ = "
+            raise InvalidValueError(f"scene '{self.name}': radiance must be H×W×Nλ with Nλ = "
                              f"{wl.size} wavelengths, got shape {rad.shape}")
         if not 0 < self.fov_deg < 180:
-            raise ValueError(f"scene '{self.name}': fov_deg must be in (0, 180), got {self.fov_deg}")
+            raise InvalidValueError(f"scene '{self.name}': fov_deg must be in (0, 180), got {self.fov_deg}")
         if self.distance_m <= 0:
-            raise ValueError(f"scene '{self.name}': distance_m must be > 0, got {self.distance_m}")
+            raise InvalidValueError(f"scene '{self.name}': distance_m must be > 0, got {self.distance_m}")
         if not np.all(np.isfinite(rad)) or np.any(rad < 0):
-            raise ValueError(f"scene '{self.name}': radiance has NaN/Inf or negative values")
+            raise InvalidValueError(f"scene '{self.name}': radiance has NaN/Inf or negative values")
         self.radiance_photons = rad.astype(np.float32, copy=False)
         self.wavelengths_nm = wl
 

@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.registry import Registry
 from workbench.sensor.cfa import cfa_layout
 from workbench.sensor.params import SensorParams
@@ -25,7 +26,7 @@ def _headroom_V(params: SensorParams, fraction: float) -> float:
     offset_V = params.analog_offset_V if params.noise_flag >= 0 else 0.0
     target = fraction * params.voltage_swing_V - offset_V
     if target <= 0:
-        raise ValueError(f"auto-exposure target {fraction} × {params.voltage_swing_V} V is at or below the "
+        raise InvalidValueError(f"auto-exposure target {fraction} × {params.voltage_swing_V} V is at or below the "
                          f"analog offset {offset_V} V; raise auto_exposure_level or lower "
                          "analog_offset_V")
     return target

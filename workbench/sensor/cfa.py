@@ -5,6 +5,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.spectra import load_spectrum_csv
 
 # Channel letters in their canonical order; a pattern's channel_names keep this order.
@@ -24,7 +25,7 @@ def cfa_layout(pattern: str) -> tuple[np.ndarray, list[str]]:
     if key == "MONO":
         return np.zeros((2, 2), dtype=np.int64), ["M"]
     if len(key) != 4 or any(ch not in _CANONICAL[:-1] for ch in key):
-        raise ValueError(f"unknown CFA pattern '{pattern}'; allowed: RGGB, GRBG, GBRG, BGGR, RCCC, RCCB, "
+        raise InvalidValueError(f"unknown CFA pattern '{pattern}'; allowed: RGGB, GRBG, GBRG, BGGR, RCCC, RCCB, "
                          "RGBW, MONO")
     names = [ch for ch in _CANONICAL if ch in key]
     tile = np.array([names.index(ch) for ch in key], dtype=np.int64).reshape(2, 2)

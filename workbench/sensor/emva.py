@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.types import OpticalImage
 from workbench.sensor.cfa import cfa_layout, channel_index_map, channel_qe
 from workbench.sensor.expose import signal_rate_to_sensor_image
@@ -43,7 +44,7 @@ def _pair_stats(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> tuple[float, 
 
 def _characterisation_camera(params: SensorParams, size_px: int, black_level_fraction: float) -> SensorParams:
     if params.noise_flag < 1:
-        raise ValueError(f"EMVA characterisation needs noise (noise_flag 1 or 2), got noise_flag={params.noise_flag}")
+        raise InvalidValueError(f"EMVA characterisation needs noise (noise_flag 1 or 2), got noise_flag={params.noise_flag}")
     offset = max(params.analog_offset_V, black_level_fraction * params.voltage_swing_V)
     return SensorParams.model_validate(params.model_dump() | {
         "rows": size_px, "cols": size_px, "analog_offset_V": offset, "exposure_s": None, "ev_bias": 0.0})
@@ -56,7 +57,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     Figures in electrons refer to the pixel (before analog gain). The result is plain floats and
     lists (JSON-ready); 'configured' holds the values the parameters imply, for comparison."""
     if size_px < 8 or n_levels < 10 or n_dark < 3:
-        raise ValueError(f"characterize needs size_px ≥ 8, n_levels ≥ 10, n_dark ≥ 3; got {size_px}, "
+        raise InvalidValueError(f"characterize needs size_px ≥ 8, n_levels ≥ 10, n_dark ≥ 3; got {size_px}, "
                          f"{n_levels}, {n_dark}")
     cam = _characterisation_camera(params, size_px, black_level_fraction)
     rng = np.random.default_rng([seed, 1288])
@@ -65,7 +66,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     qe = channel_qe(cam, wl)[0]
     k = int(np.argmax(qe))
     if qe[k] <= 0:
-        raise ValueError(f"sensor has no response at {WAVELENGTH_NM} nm; cannot run the photon-transfer test")
+        raise InvalidValueError(f"sensor has no response at {WAVELENGTH_NM} nm; cannot run the photon-transfer test")
     mask = channel_index_map(tile, cam.rows, cam.cols) == k
     unit_oi = OpticalImage(np.ones((cam.rows, cam.cols, 1), dtype=np.float32), wl,
                            cam.pixel_pitch_um * 1e-6, 1e-2, 4.0)
@@ -98,7 +99,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     signal = mu_y - mu_dark
     fit = (signal >= 0) & (signal <= LINEAR_FIT_FRACTION * signal[i_sat]) & (np.arange(levels.size) < i_sat)
     if fit.sum() < 3:
-        raise ValueError("too few unsaturated levels for the photon-transfer fit")
+        raise InvalidValueError("too few unsaturated levels for the photon-transfer fit")
     gain_dn_per_e, _ = np.polyfit(signal[fit], var_y[fit] - var_dark, 1)
     quant_var = 1.0 / 12.0 if cam.bit_depth else 0.0
     read_noise_e = float(np.sqrt(max(var_dark - quant_var, 0.0)) / gain_dn_per_e)

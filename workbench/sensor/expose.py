@@ -17,6 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.sensor.cfa import cfa_layout, channel_qe
 from workbench.sensor.image import SensorImage
 from workbench.sensor.params import SensorParams
@@ -81,12 +82,12 @@ def _exposure_map(exposure_s, tile_shape: tuple[int, int], rows: int, cols: int)
     if t.ndim == 0:
         t_val = float(t)
         if not (0.0 <= t_val <= 3600.0):
-            raise ValueError(f"sensor: exposure_s must lie in 0–3600 s, got {t_val}")
+            raise InvalidValueError(f"sensor: exposure_s must lie in 0–3600 s, got {t_val}")
         return t_val
     if t.shape != tile_shape:
-        raise ValueError(f"sensor: per-CFA exposure must have the CFA tile shape {tile_shape}, got {t.shape}")
+        raise InvalidValueError(f"sensor: per-CFA exposure must have the CFA tile shape {tile_shape}, got {t.shape}")
     if not (np.all(t >= 0) and np.all(t <= 3600.0)):
-        raise ValueError(f"sensor: per-CFA exposures must lie in 0–3600 s, got {t.tolist()}")
+        raise InvalidValueError(f"sensor: per-CFA exposures must lie in 0–3600 s, got {t.tolist()}")
     return np.tile(t.astype(np.float32), (rows // t.shape[0] + 1, cols // t.shape[1] + 1))[:rows, :cols]
 
 
@@ -134,12 +135,12 @@ def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorP
     wavelengths_nm: wavelengths of the optical image, to record the channels' QE in the result."""
     rate = np.asarray(signal_rate_e_per_s)
     if rate.shape != (params.rows, params.cols):
-        raise ValueError(f"sensor: signal rate has shape {rate.shape}, the sensor is "
+        raise InvalidValueError(f"sensor: signal rate has shape {rate.shape}, the sensor is "
                          f"{params.rows}×{params.cols} pixels")
     if rate.dtype != np.float32:
         rate = rate.astype(np.float32)
     if rate.size and not (rate.min() >= 0 and rate.max() < np.inf):
-        raise ValueError("sensor: signal rate (e⁻/s) must be finite and ≥ 0; it holds NaN, Inf or negatives")
+        raise InvalidValueError("sensor: signal rate (e⁻/s) must be finite and ≥ 0; it holds NaN, Inf or negatives")
     tile, names = cfa_layout(params.cfa_pattern)
     t = _exposure_map(exposure_s, tile.shape, params.rows, params.cols)
     if rng is None:

@@ -10,6 +10,7 @@ from typing import Literal
 
 from pydantic import Field, create_model, field_validator, model_validator
 
+from workbench.errors import InvalidValueError
 from workbench.params import Params
 
 MAX_PIXELS = 2 ** 25
@@ -102,9 +103,9 @@ class SensorParams(Params):
         values = [v] if isinstance(v, (int, float)) else [x for row in v for x in row]
         bad = [x for x in values if not (x >= 0.0 and x <= 3600.0)]
         if bad:
-            raise ValueError(f"exposure must lie in 0–3600 s, got {bad[0]}")
+            raise InvalidValueError(f"exposure must lie in 0–3600 s, got {bad[0]}")
         if not isinstance(v, (int, float)) and (not v or len({len(r) for r in v}) != 1 or not v[0]):
-            raise ValueError("a per-CFA exposure must be a non-empty rectangular list of rows")
+            raise InvalidValueError("a per-CFA exposure must be a non-empty rectangular list of rows")
         return v
 
     @field_validator("filter_file", "photodiode_qe_file", "ir_cut_file")
@@ -118,7 +119,7 @@ class SensorParams(Params):
     def _pixels_and_filters(self):
         n = self.rows * self.cols
         if n > MAX_PIXELS:
-            raise ValueError(
+            raise InvalidValueError(
                 f"sensor of rows×cols = {self.rows}×{self.cols} = {n:,} pixels exceeds the simulation limit "
                 f"of {MAX_PIXELS:,} pixels; reduce rows/cols (simulate a crop or a binned sensor with a "
                 f"larger pixel_pitch_um)")
@@ -127,26 +128,26 @@ class SensorParams(Params):
         needed = [c for c in names if c != "M"]
         if needed:
             if self.filter_file is None:
-                raise ValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
+                raise InvalidValueError(f"cfa_pattern {self.cfa_pattern} needs colour filters {needed}; filter_file is None")
             from workbench.spectrum_csv import read_spectrum
             have = read_spectrum(self.filter_file).names
             missing = [c for c in needed if c not in have]
             if missing:
-                raise ValueError(f"filter_file '{self.filter_file}' has no curve {', '.join(missing)}, "
+                raise InvalidValueError(f"filter_file '{self.filter_file}' has no curve {', '.join(missing)}, "
                                  f"needed by cfa_pattern {self.cfa_pattern}")
         return self
 
     @model_validator(mode="after")
     def _consistent(self):
         if abs(self.analog_offset_V) >= self.voltage_swing_V:
-            raise ValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
+            raise InvalidValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
                              f"voltage_swing_V = {self.voltage_swing_V} V")
         from workbench.sensor.cfa import cfa_layout
         tile, _ = cfa_layout(self.cfa_pattern)
         if isinstance(self.exposure_s, list):
             shape = (len(self.exposure_s), len(self.exposure_s[0]))
             if shape != tile.shape:
-                raise ValueError(f"exposure_s tile has shape {shape}, the {self.cfa_pattern} CFA tile is {tile.shape}")
+                raise InvalidValueError(f"exposure_s tile has shape {shape}, the {self.cfa_pattern} CFA tile is {tile.shape}")
         return self
 
     # Derived quantities -------------------------------------------------------------------

@@ -12,6 +12,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from workbench.errors import InvalidValueError
 from workbench.optics.types import OpticalImage
 from workbench.registry import Registry
 from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, cfa_layout, channel_qe
@@ -121,7 +122,7 @@ def film_channel_weights(oi: OpticalImage, params: PixelResponseParams) -> np.nd
     _, names = cfa_layout(params.cfa_pattern)
     integrals = np.asarray(oi.meta.get("channel_integrals_nm", []), dtype=np.float64)
     if integrals.size != len(names) or oi.irradiance_photons.shape[2] != len(names):
-        raise ValueError(f"sensor: the optical image was rendered with {integrals.size} sensor channels "
+        raise InvalidValueError(f"sensor: the optical image was rendered with {integrals.size} sensor channels "
                          f"{oi.meta.get('channel_names')}, this sensor has {len(names)} ({names}); "
                          "render it again with this sensor or use the 'bands' representation")
     return np.diag(params.pixel_area_m2 * params.fill_factor * integrals).astype(np.float32)
@@ -148,10 +149,10 @@ def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, met
     method = method or params.regrid_method
     irr = oi.irradiance_photons
     if irr.ndim != 3 or irr.shape[2] != np.asarray(oi.wavelengths_nm).size:
-        raise ValueError(f"sensor: optical image irradiance must be H×W×Nλ with Nλ = "
+        raise InvalidValueError(f"sensor: optical image irradiance must be H×W×Nλ with Nλ = "
                          f"{np.asarray(oi.wavelengths_nm).size} wavelengths, got shape {irr.shape}")
     if not (oi.sample_spacing_m > 0 and np.isfinite(oi.sample_spacing_m)):
-        raise ValueError(f"sensor: optical image sample_spacing_m must be > 0, got {oi.sample_spacing_m}")
+        raise InvalidValueError(f"sensor: optical image sample_spacing_m must be > 0, got {oi.sample_spacing_m}")
     if irr.dtype != np.float32:
         irr = irr.astype(np.float32)
     weights = (film_channel_weights(oi, params) if oi.meta.get("representation") == "sensor"
@@ -179,7 +180,7 @@ def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, met
                     if mask[i, j]:
                         rate[i::th, j::tw] = resampled[i::th, j::tw]
     if not np.isfinite(rate).all():
-        raise ValueError("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
+        raise InvalidValueError("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
                          "(photons/s/m²/nm); fix the optics stage output")
     np.maximum(rate, 0.0, out=rate)                                 # tiny negatives from FFT optics
     return rate

@@ -18,7 +18,7 @@ from PySide6.QtWidgets import (QComboBox, QFileDialog, QFormLayout, QHBoxLayout,
                                QTabWidget, QVBoxLayout, QWidget)
 from superqt.utils import create_worker
 
-from workbench.errors import WorkbenchError
+from workbench.errors import InvalidValueError, WorkbenchError
 from workbench.gui.forms import ParamsForm
 from workbench.gui.mplcanvas import ChartCanvas
 from workbench.optics.formation.lens_setup import prepare_lens
@@ -281,7 +281,7 @@ class LensEditor(QWidget):
         try:
             if col == 2:
                 if entry.get("is_stop") and "glass" not in entry:
-                    raise ValueError("the stop's material is the medium before it; edit that surface")
+                    raise InvalidValueError("the stop's material is the medium before it; edit that surface")
                 entry["glass"] = _material_value(item.text())
             else:
                 entry[("radius", "thickness", None, "semi_aperture")[col]] = float(item.text())

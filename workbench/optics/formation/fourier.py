@@ -14,6 +14,8 @@ from typing import Callable
 import numpy as np
 from scipy import fft
 
+from workbench.errors import InvalidValueError
+
 
 def frequency_grid(shape: tuple[int, int], spacing_m: float) -> tuple[np.ndarray, np.ndarray]:
     """(fy, fx) in cycles/m for an rfft2 of an image of `shape` (rows, cols)."""
@@ -31,7 +33,7 @@ def kernel_otf(kernel: np.ndarray, padded_shape: tuple[int, int]) -> np.ndarray:
     """rfft2 of a small centred, odd-sized spatial kernel wrapped onto the padded grid."""
     kr, kc = kernel.shape
     if kr > padded_shape[0] or kc > padded_shape[1]:
-        raise ValueError(f"kernel {kernel.shape} is larger than the padded image {padded_shape}")
+        raise InvalidValueError(f"kernel {kernel.shape} is larger than the padded image {padded_shape}")
     grid = np.zeros(padded_shape)
     grid[:kr, :kc] = kernel
     grid = np.roll(grid, (-(kr // 2), -(kc // 2)), axis=(0, 1))

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.errors import check_finite
+from workbench.errors import InvalidValueError, check_finite
 from workbench.optics.formation import diffraction, fourier, geometry, lens_setup
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial
@@ -65,7 +65,7 @@ def full_model_optical_image(irradiance_photons: np.ndarray, wavelengths_nm: np.
     sample (as the raytrace level does: geometric blur ⊛ Airy)."""
     irr = np.asarray(irradiance_photons, dtype=np.float64) * params.transmittance
     if irr.ndim != 3 or irr.shape[2] != np.size(wavelengths_nm):
-        raise ValueError(f"irradiance_photons must be H×W×Nλ with Nλ = {np.size(wavelengths_nm)}, got {irr.shape}")
+        raise InvalidValueError(f"irradiance_photons must be H×W×Nλ with Nλ = {np.size(wavelengths_nm)}, got {irr.shape}")
     dx = camera.sensor_width_mm * 1e-3 / irr.shape[1]
     clipped = 0.0
     if params.raytrace_diffraction:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.params import OpticsParams, fov_deg as _fov_deg
 from workbench.scene.types import Scene
 
@@ -18,11 +19,11 @@ from workbench.scene.types import Scene
 def image_distance_m(focal_length_m: float, object_distance_m: float) -> float:
     """Thin-lens image distance 1/(1/f − 1/s) for an object at s (inf → f)."""
     if not focal_length_m > 0:
-        raise ValueError(f"focal_length_m must be > 0, got {focal_length_m}")
+        raise InvalidValueError(f"focal_length_m must be > 0, got {focal_length_m}")
     if math.isinf(object_distance_m):
         return focal_length_m
     if not object_distance_m > focal_length_m:
-        raise ValueError(f"object distance {object_distance_m} m must exceed the focal length "
+        raise InvalidValueError(f"object distance {object_distance_m} m must exceed the focal length "
                          f"{focal_length_m} m for a real image")
     return 1.0 / (1.0 / focal_length_m - 1.0 / object_distance_m)
 
@@ -81,19 +82,19 @@ def camera_geometry(params: OpticsParams, default_focus_m: float, shape: tuple[i
     `sensor_width_m`, or the horizontal `fov_deg` at the image distance (give exactly one)."""
     from workbench.optics.formation.lens_setup import effective_focal_length_m
     if (sensor_width_m is None) == (fov_deg is None):
-        raise ValueError("camera_geometry: give exactly one of sensor_width_m or fov_deg")
+        raise InvalidValueError("camera_geometry: give exactly one of sensor_width_m or fov_deg")
     rows, cols = (int(shape[0]), int(shape[1]))
     if rows < 1 or cols < 1:
-        raise ValueError(f"camera_geometry: shape must be at least 1×1 samples, got {shape}")
+        raise InvalidValueError(f"camera_geometry: shape must be at least 1×1 samples, got {shape}")
     focus_m = params.focus_distance_m if params.focus_distance_m is not None else float(default_focus_m)
     f_m = effective_focal_length_m(params)
     d_m = image_distance_m(f_m, focus_m)
     if fov_deg is not None:
         if not 0 < fov_deg < 180:
-            raise ValueError(f"fov_deg={fov_deg}: must be in (0, 180) degrees")
+            raise InvalidValueError(f"fov_deg={fov_deg}: must be in (0, 180) degrees")
         sensor_width_m = 2.0 * d_m * math.tan(math.radians(fov_deg) / 2.0)
     if not (math.isfinite(sensor_width_m) and sensor_width_m > 0):
-        raise ValueError(f"sensor_width_m={sensor_width_m}: must be a finite number > 0")
+        raise InvalidValueError(f"sensor_width_m={sensor_width_m}: must be a finite number > 0")
     return CameraGeometry(float(f_m), float(focus_m), float(d_m),
                           float(sensor_width_m), (rows, cols))
 
@@ -105,7 +106,7 @@ def scene_geometry(scene: Scene, params: OpticsParams, camera: CameraGeometry | 
     if camera is None:
         return camera_geometry(params, scene.distance_m, scene.shape, fov_deg=scene.fov_deg)
     if tuple(camera.shape) != tuple(scene.shape):
-        raise ValueError(f"camera geometry of {camera.shape[0]}×{camera.shape[1]} samples does not fit "
+        raise InvalidValueError(f"camera geometry of {camera.shape[0]}×{camera.shape[1]} samples does not fit "
                          f"the scene of {scene.shape[0]}×{scene.shape[1]}")
     return camera
 
@@ -155,7 +156,7 @@ def undistort_radius(r_distorted: np.ndarray, k: tuple[float, ...]) -> np.ndarra
         f = r * (1 + coeffs[0] * r2 + coeffs[1] * r2 ** 2 + coeffs[2] * r2 ** 3) - rd
         df = 1 + 3 * coeffs[0] * r2 + 5 * coeffs[1] * r2 ** 2 + 7 * coeffs[2] * r2 ** 3
         if np.any(df <= 0):
-            raise ValueError(f"distortion_k {k} is not monotonic over the field (the mapping "
+            raise InvalidValueError(f"distortion_k {k} is not monotonic over the field (the mapping "
                              "folds over); use smaller coefficients")
         step = f / df
         r = r - step

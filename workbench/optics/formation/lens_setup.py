@@ -5,6 +5,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.params import OpticsParams
 
 
@@ -29,7 +30,7 @@ def prepared_lens(params: OpticsParams):
     """The prescription of params.lens_file, scaled (if asked) and stopped to params.f_number,
     focused at infinity. ValueError when params has no lens file."""
     if params.lens_file is None:
-        raise ValueError(f"optics model {params.model!r} needs a lens: set lens_file (a prescription "
+        raise InvalidValueError(f"optics model {params.model!r} needs a lens: set lens_file (a prescription "
                          "in the lens library, e.g. 'dgauss.50mm')")
     return _prepared_lens(params.lens_file,
                           params.focal_length_mm if params.scale_lens_to_focal_length else None,

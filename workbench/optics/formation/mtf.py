@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 
 @dataclass
 class EdgeMTF:
@@ -46,7 +48,7 @@ def _edge_line(img: np.ndarray) -> tuple[float, float]:
     weight = deriv.sum(axis=1)
     ok = weight > 1e-12 * max(float(weight.max()), 1e-300)
     if ok.sum() < 2:
-        raise ValueError("slanted-edge MTF: no edge found (the image is flat)")
+        raise InvalidValueError("slanted-edge MTF: no edge found (the image is flat)")
     cols = np.arange(deriv.shape[1]) + 0.5
     centroid = (deriv[ok] * cols).sum(axis=1) / weight[ok]
     rows = np.nonzero(ok)[0].astype(np.float64)
@@ -63,17 +65,17 @@ def slanted_edge_mtf(image: np.ndarray, oversample: int = 4, window: bool = True
     if img.ndim == 3:
         img = img.sum(axis=2)
     if img.ndim != 2 or min(img.shape) < 8:
-        raise ValueError(f"slanted-edge MTF needs a 2-D image of at least 8×8 samples, got {image.shape}")
+        raise InvalidValueError(f"slanted-edge MTF needs a 2-D image of at least 8×8 samples, got {image.shape}")
     if not np.all(np.isfinite(img)):
-        raise ValueError("slanted-edge MTF: the image has NaN/Inf")
+        raise InvalidValueError("slanted-edge MTF: the image has NaN/Inf")
     if oversample < 1:
-        raise ValueError(f"oversample must be ≥ 1, got {oversample}")
+        raise InvalidValueError(f"oversample must be ≥ 1, got {oversample}")
     if np.abs(np.diff(img, axis=0)).sum() > np.abs(np.diff(img, axis=1)).sum():
         img = img.T
     a, b = _edge_line(img)
     angle = float(np.degrees(np.arctan(b)))
     if not 1.0 <= abs(angle) <= 30.0:
-        raise ValueError(f"slanted-edge MTF: the edge is {angle:.2f}° from the grid; 1–30° is needed")
+        raise InvalidValueError(f"slanted-edge MTF: the edge is {angle:.2f}° from the grid; 1–30° is needed")
     rows, cols = img.shape
     cos_t = np.cos(np.arctan(b))
     jj, ii = np.meshgrid(np.arange(cols) + 0.5, np.arange(rows, dtype=np.float64))
@@ -96,7 +98,7 @@ def slanted_edge_mtf(image: np.ndarray, oversample: int = 4, window: bool = True
         lsf = lsf * (0.54 + 0.46 * np.cos(np.pi * np.clip((pos - centre) / half_width, -1, 1)))
     spec = np.abs(np.fft.rfft(lsf))
     if spec[0] <= 0:
-        raise ValueError("slanted-edge MTF: the edge has no contrast")
+        raise InvalidValueError("slanted-edge MTF: the edge has no contrast")
     delta = 1.0 / oversample
     freq = np.fft.rfftfreq(lsf.size, d=delta)
     corr = np.sinc(freq * delta) * np.sinc(2 * freq * delta)

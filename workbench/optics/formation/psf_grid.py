@@ -36,7 +36,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft, ndimage
 
-from workbench.errors import check_finite
+from workbench.errors import InvalidValueError, check_finite
 from workbench.optics.formation import fourier, geometry, lens_setup, thin_lens
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
@@ -115,7 +115,7 @@ def lens_tables(lens, object_distance_m: float, image_distance: float, r_max_m: 
             except ValueError:
                 break
         if len(hs) < 2 or np.any(np.diff(hs) <= 0):
-            raise ValueError(f"psf_grid: lens {lens.name!r} does not image the field monotonically "
+            raise InvalidValueError(f"psf_grid: lens {lens.name!r} does not image the field monotonically "
                              f"at {wl_n:.0f} nm (chief rays traced to {len(hs)} heights)")
         ru.append(ru_table[:len(hs)])
         rd.append(np.array(hs))
@@ -179,7 +179,7 @@ def _axial_depth_checked(scene: Scene, spacing_m: float, image_distance: float, 
     z = thin_lens.axial_depth_m(scene, spacing_m, image_distance)
     bad = ~(z > focal_length_m)
     if bad.any():
-        raise ValueError(f"psf_grid: scene depth_m must exceed the lens's focal length {focal_length_m:.4g} m "
+        raise InvalidValueError(f"psf_grid: scene depth_m must exceed the lens's focal length {focal_length_m:.4g} m "
                          f"(axial; inf allowed, NaN not) at every sample; {int(bad.sum())} samples do not, "
                          f"e.g. {float(z[bad][0]):.4g} m")
     return z

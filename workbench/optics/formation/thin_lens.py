@@ -18,7 +18,7 @@ import math
 import numpy as np
 from scipy.special import j1
 
-from workbench.errors import check_finite
+from workbench.errors import InvalidValueError, check_finite
 from workbench.optics.formation import diffraction, fourier, geometry, pinhole
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OpticalImage, register_optics
@@ -39,7 +39,7 @@ def circle_of_confusion_m(depth_z_m: np.ndarray, focal_length_m: float, f_number
     """Blur-circle diameter (m) on the sensor for objects at axial distance z (inf allowed)."""
     z = np.asarray(depth_z_m, dtype=np.float64)
     if np.any(z <= focal_length_m):
-        raise ValueError(f"thin lens: object depths must exceed the focal length {focal_length_m} m; "
+        raise InvalidValueError(f"thin lens: object depths must exceed the focal length {focal_length_m} m; "
                          f"the nearest is {float(z.min())} m")
     inv_s = 0.0 if math.isinf(focus_distance_m) else 1.0 / focus_distance_m
     return coc_scale_m(focal_length_m, f_number, focus_distance_m) * np.abs(inv_s - 1.0 / z)
@@ -49,7 +49,7 @@ def coc_scale_m(focal_length_m: float, f_number: float, focus_distance_m: float)
     """K = A f s/(s − f) (m²): CoC diameter per unit of |1/s − 1/z| (1/m)."""
     inv_s = 0.0 if math.isinf(focus_distance_m) else 1.0 / focus_distance_m
     if focal_length_m * inv_s >= 1.0:
-        raise ValueError(f"thin lens: focus distance {focus_distance_m} m must exceed the focal "
+        raise InvalidValueError(f"thin lens: focus distance {focus_distance_m} m must exceed the focal "
                          f"length {focal_length_m} m")
     return (focal_length_m / f_number) * focal_length_m / (1.0 - focal_length_m * inv_s)
 
@@ -122,7 +122,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     f_m, d_img, s_m = g.focal_length_m, g.image_distance_m, g.focus_distance_m
     z = axial_depth_m(scene, oi.sample_spacing_m, d_img)
     if np.any(z <= f_m):
-        raise ValueError(f"thin lens: scene depths must exceed the focal length {f_m} m; "
+        raise InvalidValueError(f"thin lens: scene depths must exceed the focal length {f_m} m; "
                          f"the nearest is {float(z.min())} m")
     inv_s = 0.0 if math.isinf(s_m) else 1.0 / s_m
     k_m = coc_scale_m(f_m, params.f_number, s_m)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import LINE_C_NM, LINE_D_NM, LINE_F_NM
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial, sensor_z_mm
@@ -43,7 +44,7 @@ def spot_diagram(lens: Lens, field_angle_deg: float, wavelength_nm: float = LINE
     u, v, _, _ = b.grid(n_side)
     xy, ok, _ = _sensor_hits(b, u, v, wavelength_nm)
     if not ok.any():
-        raise ValueError(f"spot_diagram: no ray of field {field_angle_deg:g}° reaches the sensor")
+        raise InvalidValueError(f"spot_diagram: no ray of field {field_angle_deg:g}° reaches the sensor")
     x = (xy[ok, 0] - cx) * 1e3
     y = (xy[ok, 1] - cy) * 1e3
     mx, my = float(x.mean()), float(y.mean())
@@ -131,7 +132,7 @@ def real_fov_deg(lens: Lens, sensor_size_mm: float, wavelength_nm: float = LINE_
     for an object at infinity; ValueError when the sensor edge is beyond the imaged field."""
     from workbench.optics.lens.pupil import field_angle_for_height
     if not (math.isfinite(sensor_size_mm) and sensor_size_mm > 0):
-        raise ValueError(f"sensor_size_mm={sensor_size_mm}: must be a finite number > 0")
+        raise InvalidValueError(f"sensor_size_mm={sensor_size_mm}: must be a finite number > 0")
     return 2.0 * field_angle_for_height(lens, sensor_size_mm / 2.0, wavelength_nm)
 
 
@@ -219,5 +220,5 @@ def relative_illumination(lens: Lens, field_heights_mm, wavelength_nm: float = L
     h = np.atleast_1d(np.asarray(field_heights_mm, dtype=np.float64))
     e0 = irradiance_per_radiance(lens, 0.0, wavelength_nm, n_side)
     if e0 <= 0:
-        raise ValueError(f"lens {lens.name!r}: no ray reaches the centre of the sensor")
+        raise InvalidValueError(f"lens {lens.name!r}: no ray reaches the centre of the sensor")
     return np.array([irradiance_per_radiance(lens, float(x), wavelength_nm, n_side) / e0 for x in h])

@@ -15,6 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.spectra import RESOURCES
 
 LINE_D_NM = 587.5618
@@ -96,16 +97,16 @@ def material(spec) -> Material:
             wl = tuple(float(v) for v in spec["wavelength_nm"])
             n = tuple(float(v) for v in spec["n"])
         except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"material table {spec!r}: needs numeric lists 'wavelength_nm' and 'n'") from exc
+            raise InvalidValueError(f"material table {spec!r}: needs numeric lists 'wavelength_nm' and 'n'") from exc
         if len(wl) != len(n) or len(wl) < 1 or any(np.diff(wl) <= 0) or min(n) < 1.0:
-            raise ValueError(f"material table {spec!r}: needs equal-length lists, wavelengths "
+            raise InvalidValueError(f"material table {spec!r}: needs equal-length lists, wavelengths "
                              "increasing, indices >= 1")
         nd = float(np.interp(LINE_D_NM, wl, n))
         return Material(spec=("table",), kind="table", nd=nd, table_nm=wl, table_n=n)
     if isinstance(spec, (int, float)) and not isinstance(spec, bool):
         spec = repr(float(spec))
     if not isinstance(spec, str) or not spec.strip():
-        raise ValueError(f"material {spec!r}: expected 'air', a glass name, 'n', 'n/V' or an index table")
+        raise InvalidValueError(f"material {spec!r}: expected 'air', a glass name, 'n', 'n/V' or an index table")
     s = spec.strip()
     if s.lower() == "air":
         return Material(spec="air", kind="constant", nd=1.0)
@@ -117,16 +118,16 @@ def material(spec) -> Material:
     try:
         parts = [float(p) for p in s.split("/")]
     except ValueError:
-        raise ValueError(f"material {spec!r}: not a catalogue glass ({', '.join(sorted(cat))}) "
+        raise InvalidValueError(f"material {spec!r}: not a catalogue glass ({', '.join(sorted(cat))}) "
                          "nor a number 'n' or 'n/V'") from None
     if len(parts) not in (1, 2) or not all(np.isfinite(parts)) or parts[0] < 1.0:
-        raise ValueError(f"material {spec!r}: index must be a finite number >= 1, optionally '/V' (Abbe)")
+        raise InvalidValueError(f"material {spec!r}: index must be a finite number >= 1, optionally '/V' (Abbe)")
     if len(parts) == 1:
         if parts[0] == 1.0:
             return Material(spec="air", kind="constant", nd=1.0)
         return Material(spec=s, kind="constant", nd=parts[0])
     if parts[1] <= 0:
-        raise ValueError(f"material {spec!r}: Abbe number must be > 0")
+        raise InvalidValueError(f"material {spec!r}: Abbe number must be > 0")
     return Material(spec=s, kind="abbe", nd=parts[0], vd=parts[1])
 
 

@@ -14,7 +14,7 @@ import os
 from functools import lru_cache
 from pathlib import Path, PurePosixPath
 
-from workbench.errors import InputFileError, OutputPathError
+from workbench.errors import InputFileError, InvalidValueError, OutputPathError
 from workbench.files import atomic_write_text, parse_json, read_text
 from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
@@ -123,16 +123,16 @@ def _material(spec, where: str):
         return material(spec)
     except (ValueError, TypeError):
         shown = repr(spec) if isinstance(spec, (str, int, float)) and len(str(spec)) <= 40 else "the material"
-        raise ValueError(f"{where}: {shown} is not a catalogue glass (resources/glass/), an index 'n' or "
+        raise InvalidValueError(f"{where}: {shown} is not a catalogue glass (resources/glass/), an index 'n' or "
                          "'n/V', or a [[wavelengths nm], [n]] table") from None
 
 
 def _number(value, what: str, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{where}: {what} must be a number")
+        raise InvalidValueError(f"{where}: {what} must be a number")
     v = float(value)
     if not math.isfinite(v):
-        raise ValueError(f"{where}: {what} must be a finite number, got {v}")
+        raise InvalidValueError(f"{where}: {what} must be a finite number, got {v}")
     return v
 
 
@@ -156,15 +156,15 @@ def lens_from_json(data: dict, default_name: str = "") -> Lens:
     semi_aperture (mm); the stop has radius 0 and ior 0. Our extensions: 'glass' (a material spec),
     'is_stop', 'conic_constant', 'aspheric_coefficients' (r², r⁴ …), top-level 'image_distance_mm'."""
     if not isinstance(data, dict) or not isinstance(data.get("surfaces"), list):
-        raise ValueError("lens JSON: expected an object with a 'surfaces' list")
+        raise InvalidValueError("lens JSON: expected an object with a 'surfaces' list")
     if not 1 <= len(data["surfaces"]) <= MAX_SURFACES:
-        raise ValueError(f"lens JSON: {len(data['surfaces'])} surfaces; allowed 1–{MAX_SURFACES}")
+        raise InvalidValueError(f"lens JSON: {len(data['surfaces'])} surfaces; allowed 1–{MAX_SURFACES}")
     surfaces = []
     prev = AIR
     for i, s in enumerate(data["surfaces"]):
         where = f"lens JSON surface {i}"
         if not isinstance(s, dict) or not all(k in s for k in ("radius", "thickness", "semi_aperture")):
-            raise ValueError(f"{where}: needs numeric 'radius', 'thickness', 'semi_aperture'")
+            raise InvalidValueError(f"{where}: needs numeric 'radius', 'thickness', 'semi_aperture'")
         radius = _number(s["radius"], "radius", where)
         thickness = _number(s["thickness"], "thickness", where)
         sa = s["semi_aperture"]
@@ -174,21 +174,21 @@ def lens_from_json(data: dict, default_name: str = "") -> Lens:
         ior = s.get("ior", 1.0)
         is_stop = s.get("is_stop", radius == 0 and ior == 0 and "glass" not in s)
         if not isinstance(is_stop, bool):
-            raise ValueError(f"{where}: 'is_stop' must be true or false")
+            raise InvalidValueError(f"{where}: 'is_stop' must be true or false")
         if "glass" in s:
             med = _material(s["glass"], where)
         elif is_stop or ior == 0:
             med = prev
         elif isinstance(ior, list):
             if len(ior) != 2 or not all(isinstance(v, list) and len(v) <= MAX_INDEX_TABLE for v in ior):
-                raise ValueError(f"{where}: 'ior' table must be [[wavelengths nm], [n]] of at most "
+                raise InvalidValueError(f"{where}: 'ior' table must be [[wavelengths nm], [n]] of at most "
                                  f"{MAX_INDEX_TABLE} entries")
             med = _material({"wavelength_nm": ior[0], "n": ior[1]}, where)
         else:
             med = _material(ior, where)
         coeffs = s.get("aspheric_coefficients", ()) or ()
         if not isinstance(coeffs, (list, tuple)) or len(coeffs) > MAX_ASPHERE_TERMS:
-            raise ValueError(f"{where}: 'aspheric_coefficients' must be a list of at most {MAX_ASPHERE_TERMS} "
+            raise InvalidValueError(f"{where}: 'aspheric_coefficients' must be a list of at most {MAX_ASPHERE_TERMS} "
                              "numbers")
         try:
             surf = Surface.from_radius(radius, thickness, med, sa, is_stop=is_stop,
@@ -196,13 +196,13 @@ def lens_from_json(data: dict, default_name: str = "") -> Lens:
                                        asphere_coeffs=tuple(_number(a, "aspheric coefficient", where)
                                                             for a in coeffs))
         except ValueError as exc:
-            raise ValueError(f"{where}: {exc}") from None
+            raise InvalidValueError(f"{where}: {exc}") from None
         surfaces.append(surf)
         prev = med
     d = data.get("image_distance_mm")
     meta = data.get("metadata", {})
     if not isinstance(meta, dict):
-        raise ValueError("lens JSON: 'metadata' must be an object")
+        raise InvalidValueError("lens JSON: 'metadata' must be an object")
     return with_aperture_stop(Lens(tuple(surfaces), name=str(data.get("name", default_name)),
                                    image_distance_mm=None if d is None else _number(d, "image_distance_mm",
                                                                                      "lens JSON"),
@@ -246,24 +246,24 @@ def lens_from_dat(text: str, name: str = "") -> Lens:
         if not line:
             continue
         if len(surfaces) == MAX_SURFACES:
-            raise ValueError(f"PBRT lens: more than {MAX_SURFACES} surfaces")
+            raise InvalidValueError(f"PBRT lens: more than {MAX_SURFACES} surfaces")
         fields = line.split()
         try:
             r, t, n, diam = (float(v) for v in fields)
         except ValueError:
-            raise ValueError(f"PBRT lens line {lineno}: expected 4 numbers 'radius thickness n diameter' "
+            raise InvalidValueError(f"PBRT lens line {lineno}: expected 4 numbers 'radius thickness n diameter' "
                              f"(found {len(fields)} field(s))") from None
         if not all(math.isfinite(v) for v in (r, t, n, diam)):
-            raise ValueError(f"PBRT lens line {lineno}: every number must be finite")
+            raise InvalidValueError(f"PBRT lens line {lineno}: every number must be finite")
         stop = r == 0
         med = prev if stop or n == 0 else _material(n, f"PBRT lens line {lineno}")
         try:
             surfaces.append(Surface.from_radius(r, t, med, diam / 2.0, is_stop=stop))
         except ValueError as exc:
-            raise ValueError(f"PBRT lens line {lineno}: {exc}") from None
+            raise InvalidValueError(f"PBRT lens line {lineno}: {exc}") from None
         prev = med
     if not surfaces:
-        raise ValueError("PBRT lens file has no surfaces")
+        raise InvalidValueError("PBRT lens file has no surfaces")
     last_t = surfaces[-1].thickness_mm
     return with_aperture_stop(Lens(tuple(surfaces), name=name, image_distance_mm=last_t if last_t > 0 else None))
 
@@ -305,7 +305,7 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
             units = tok[1].upper()
         if key == "SURF":
             if len(blocks) == MAX_SURFACES + 2:
-                raise ValueError(f"Zemax file: more than {MAX_SURFACES} surfaces")
+                raise InvalidValueError(f"Zemax file: more than {MAX_SURFACES} surfaces")
             cur = {"type": "STANDARD", "curv": 0.0, "disz": 0.0, "glas": None, "diam": None,
                    "stop": False, "coni": 0.0, "parm": {}, "line": lineno}
             blocks.append(cur)
@@ -330,36 +330,36 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
             elif key == "PARM":
                 index = int(tok[1])
                 if not 0 <= index <= MAX_ASPHERE_TERMS:
-                    raise ValueError(f"PARM index {index} outside 0–{MAX_ASPHERE_TERMS}")
+                    raise InvalidValueError(f"PARM index {index} outside 0–{MAX_ASPHERE_TERMS}")
                 cur["parm"][index] = float(tok[2])
             elif key == "MIRR":
-                raise ValueError("mirrors are not supported")
+                raise InvalidValueError("mirrors are not supported")
         except (IndexError, ValueError) as exc:
             detail = str(exc) if str(exc).startswith(("PARM", "mirrors")) else "missing or non-numeric value"
-            raise ValueError(f"Zemax file line {lineno}: cannot read its {key} entry ({detail})") from None
+            raise InvalidValueError(f"Zemax file line {lineno}: cannot read its {key} entry ({detail})") from None
         for k in ("curv", "diam", "coni"):
             if cur[k] is not None and not math.isfinite(cur[k]):
-                raise ValueError(f"Zemax file line {lineno}: {key} must be a finite number")
+                raise InvalidValueError(f"Zemax file line {lineno}: {key} must be a finite number")
     if units != "MM":
-        raise ValueError("Zemax file: only UNIT MM is supported")
+        raise InvalidValueError("Zemax file: only UNIT MM is supported")
     if len(blocks) < 3:
-        raise ValueError("Zemax file: needs an object surface, at least one lens surface and an image surface")
+        raise InvalidValueError("Zemax file: needs an object surface, at least one lens surface and an image surface")
     surfaces = []
     for b in blocks[1:-1]:
         if b["type"] not in ("STANDARD", "EVENASPH"):
             shown = b["type"] if b["type"].isalnum() and len(b["type"]) <= 16 else "this surface TYPE"
-            raise ValueError(f"Zemax surface at line {b['line']}: {shown} not supported "
+            raise InvalidValueError(f"Zemax surface at line {b['line']}: {shown} not supported "
                              "(allowed TYPEs: STANDARD, EVENASPH)")
         med = AIR if b["glas"] is None else _zmx_glass(b["glas"], b["line"])
         coeffs = ()
         if b["type"] == "EVENASPH" and b["parm"]:
             coeffs = tuple(b["parm"].get(i, 0.0) for i in range(1, max(b["parm"]) + 1))
             if not all(math.isfinite(a) for a in coeffs):
-                raise ValueError(f"Zemax surface at line {b['line']}: PARM values must be finite")
+                raise InvalidValueError(f"Zemax surface at line {b['line']}: PARM values must be finite")
         if b["diam"] is None or b["diam"] <= 0:
-            raise ValueError(f"Zemax surface at line {b['line']}: needs DIAM (semi-diameter) > 0")
+            raise InvalidValueError(f"Zemax surface at line {b['line']}: needs DIAM (semi-diameter) > 0")
         if not math.isfinite(b["disz"]):
-            raise ValueError(f"Zemax surface at line {b['line']}: DISZ INFINITY inside the lens")
+            raise InvalidValueError(f"Zemax surface at line {b['line']}: DISZ INFINITY inside the lens")
         surfaces.append(Surface(b["curv"], b["disz"], med, b["diam"], is_stop=b["stop"], conic=b["coni"],
                                 asphere_coeffs=coeffs))
     last_t = surfaces[-1].thickness_mm
@@ -374,6 +374,6 @@ def _zmx_glass(fields: list[str], lineno: int):
     try:  # GLAS NAME code? ? nd vd ...
         nd, vd = float(fields[3]), float(fields[4])
     except (IndexError, ValueError):
-        raise ValueError(f"Zemax file line {lineno}: the glass is not in the catalogue (resources/glass/) and "
+        raise InvalidValueError(f"Zemax file line {lineno}: the glass is not in the catalogue (resources/glass/) and "
                          "the GLAS line carries no n_d, V_d") from None
     return _material(f"{nd}/{vd}" if vd > 0 else f"{nd}", f"Zemax file line {lineno}")

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import AIR, Material, material
 
 
@@ -45,16 +46,16 @@ class Surface:
             except (TypeError, ValueError):
                 fv = math.nan
             if isinstance(v, bool) or not math.isfinite(fv):
-                raise ValueError(f"Surface.{name}={v!r}: must be a finite number")
+                raise InvalidValueError(f"Surface.{name}={v!r}: must be a finite number")
             object.__setattr__(self, name, fv)
         if self.semi_aperture_mm <= 0:
-            raise ValueError(f"Surface.semi_aperture_mm={self.semi_aperture_mm}: must be > 0")
+            raise InvalidValueError(f"Surface.semi_aperture_mm={self.semi_aperture_mm}: must be > 0")
         if self.thickness_mm < 0:
-            raise ValueError(f"Surface.thickness_mm={self.thickness_mm}: must be >= 0")
+            raise InvalidValueError(f"Surface.thickness_mm={self.thickness_mm}: must be >= 0")
         if not all(math.isfinite(a) for a in self.asphere_coeffs):
-            raise ValueError(f"Surface.asphere_coeffs={self.asphere_coeffs}: must be finite")
+            raise InvalidValueError(f"Surface.asphere_coeffs={self.asphere_coeffs}: must be finite")
         if self.is_stop and (self.curvature_per_mm != 0 or self.asphere_coeffs):
-            raise ValueError("Surface.is_stop: the aperture stop must be flat (curvature 0, no asphere)")
+            raise InvalidValueError("Surface.is_stop: the aperture stop must be flat (curvature 0, no asphere)")
 
     @classmethod
     def from_radius(cls, radius_mm: float, thickness_mm: float, material_spec, semi_aperture_mm: float,
@@ -102,24 +103,24 @@ class Lens:
     def __post_init__(self):
         object.__setattr__(self, "surfaces", tuple(self.surfaces))
         if not self.surfaces:
-            raise ValueError(f"Lens {self.name!r}: needs at least one surface")
+            raise InvalidValueError(f"Lens {self.name!r}: needs at least one surface")
         flagged = [i for i, s in enumerate(self.surfaces) if s.is_stop]
         if len(flagged) > 1:
-            raise ValueError(f"Lens {self.name!r}: more than one surface is marked as the stop")
+            raise InvalidValueError(f"Lens {self.name!r}: more than one surface is marked as the stop")
         if flagged and self.stop_index not in (None, flagged[0]):
-            raise ValueError(f"Lens.stop_index={self.stop_index}: surface {flagged[0]} is marked as the stop")
+            raise InvalidValueError(f"Lens.stop_index={self.stop_index}: surface {flagged[0]} is marked as the stop")
         if flagged:
             object.__setattr__(self, "stop_index", flagged[0])
         elif self.stop_index is not None and not (isinstance(self.stop_index, int)
                                                   and 0 <= self.stop_index < len(self.surfaces)):
-            raise ValueError(f"Lens.stop_index={self.stop_index!r}: must be a surface index "
+            raise InvalidValueError(f"Lens.stop_index={self.stop_index!r}: must be a surface index "
                              f"0 … {len(self.surfaces) - 1}")
         if not self.surfaces[-1].material.is_air:
-            raise ValueError(f"Lens {self.name!r}: the last surface must be followed by air, "
+            raise InvalidValueError(f"Lens {self.name!r}: the last surface must be followed by air, "
                              f"got {self.surfaces[-1].material.spec!r}")
         if self.image_distance_mm is not None and not (math.isfinite(self.image_distance_mm)
                                                        and self.image_distance_mm > 0):
-            raise ValueError(f"Lens.image_distance_mm={self.image_distance_mm}: must be a finite "
+            raise InvalidValueError(f"Lens.image_distance_mm={self.image_distance_mm}: must be a finite "
                              "number > 0 (or None for infinity focus)")
 
     @property
@@ -144,7 +145,7 @@ class Lens:
         """The same lens with the stop opened or closed to `semi_aperture_mm`."""
         i = self.stop_index
         if i is None:
-            raise ValueError(f"lens {self.name!r} has no resolved aperture stop; read it with load_lens "
+            raise InvalidValueError(f"lens {self.name!r} has no resolved aperture stop; read it with load_lens "
                              "or pass it through paraxial.with_aperture_stop")
         surfs = list(self.surfaces)
         surfs[i] = replace(surfs[i], semi_aperture_mm=semi_aperture_mm)
@@ -153,7 +154,7 @@ class Lens:
     def scaled(self, factor: float, name: str | None = None) -> "Lens":
         """All lengths multiplied by `factor` (focal length scales, f-number and field do not)."""
         if not (math.isfinite(factor) and factor > 0):
-            raise ValueError(f"scale factor={factor}: must be a finite number > 0")
+            raise InvalidValueError(f"scale factor={factor}: must be a finite number > 0")
         surfs = tuple(replace(s, curvature_per_mm=s.curvature_per_mm / factor,
                               thickness_mm=s.thickness_mm * factor,
                               semi_aperture_mm=s.semi_aperture_mm * factor,

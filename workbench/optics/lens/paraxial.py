@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import LINE_D_NM
 from workbench.optics.lens.model import Lens
 
@@ -83,7 +84,7 @@ def paraxial(lens: Lens, wavelength_nm: float = LINE_D_NM) -> ParaxialData:
     """EFL, BFL, pupils and f-number of `lens` at `wavelength_nm`."""
     (A, _), (C, D) = system_matrix(lens, wavelength_nm).tolist()
     if abs(C) < 1e-15:
-        raise ValueError(f"lens {lens.name!r} is afocal (zero power): no focal length")
+        raise InvalidValueError(f"lens {lens.name!r} is afocal (zero power): no focal length")
     efl = -1.0 / C
     k = with_aperture_stop(lens).stop_index
     stop = lens.surfaces[k]
@@ -114,7 +115,7 @@ def image_distance_mm(lens: Lens, object_distance_m: float, wavelength_nm: float
     s_img = -(A * s + B) / den if den != 0 else math.inf
     if not math.isfinite(s_img) or s_img <= 0:
         ffl = -D / C
-        raise ValueError(f"lens {lens.name!r} cannot focus at object_distance_m={object_distance_m:g}: "
+        raise InvalidValueError(f"lens {lens.name!r} cannot focus at object_distance_m={object_distance_m:g}: "
                          f"the image would be virtual or at infinity; objects must be farther than "
                          f"{max(ffl, 0) * 1e-3:.6g} m from the first vertex (front focal distance), "
                          "with the image behind the last vertex")
@@ -125,7 +126,7 @@ def focus(lens: Lens, object_distance_m: float, wavelength_nm: float = LINE_D_NM
     """The lens with its sensor moved (paraxially) to focus an object `object_distance_m` in front of
     the first vertex; inf focuses at infinity. ValueError when it cannot focus that close."""
     if not (object_distance_m > 0):
-        raise ValueError(f"object_distance_m={object_distance_m}: must be > 0 (or inf)")
+        raise InvalidValueError(f"object_distance_m={object_distance_m}: must be > 0 (or inf)")
     d = image_distance_mm(lens, object_distance_m, wavelength_nm)
     return lens.with_image_distance(d)
 
@@ -136,7 +137,7 @@ def sensor_distance_mm(lens: Lens) -> float:
         return lens.image_distance_mm
     bfl = paraxial(lens).bfl_mm
     if bfl <= 0:
-        raise ValueError(f"lens {lens.name!r}: rear focal point lies inside the lens (BFL={bfl:.4g} mm)")
+        raise InvalidValueError(f"lens {lens.name!r}: rear focal point lies inside the lens (BFL={bfl:.4g} mm)")
     return bfl
 
 

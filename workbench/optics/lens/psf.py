@@ -17,6 +17,7 @@ import math
 import numpy as np
 import scipy.fft
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial, sensor_z_mm
 from workbench.optics.lens.pupil import chief_ray_on_sensor, field_angle_for_height, make_bundle
@@ -28,9 +29,9 @@ _MAX_PUPIL = 512
 
 def _check_grid(grid_spacing_um: float, size: int):
     if not (math.isfinite(grid_spacing_um) and grid_spacing_um > 0):
-        raise ValueError(f"grid_spacing_um={grid_spacing_um}: must be a finite number > 0")
+        raise InvalidValueError(f"grid_spacing_um={grid_spacing_um}: must be a finite number > 0")
     if not (isinstance(size, (int, np.integer)) and 3 <= size <= 4096):
-        raise ValueError(f"size={size}: must be an integer in [3, 4096]")
+        raise InvalidValueError(f"size={size}: must be an integer in [3, 4096]")
 
 
 def _setup(lens, field_height_mm, wavelength_nm, object_distance_m):
@@ -66,7 +67,7 @@ def psf_geometric(lens: Lens, field_height_mm: float, wavelength_nm: float, obje
     np.add.at(psf, (i[inside], j[inside]), w[inside])
     total = psf.sum()
     if total <= 0:
-        raise ValueError(f"psf_geometric: no ray lands within the {size}×{size} grid of "
+        raise InvalidValueError(f"psf_geometric: no ray lands within the {size}×{size} grid of "
                          f"{grid_spacing_um} µm (field height {field_height_mm} mm); enlarge the grid")
     return psf / total
 
@@ -85,7 +86,7 @@ def psf_from_pupil(pupil: np.ndarray, du_mm: float, dv_mm: float, jacobian: np.n
     nv, nu = pupil.shape
     J = np.asarray(jacobian, dtype=np.float64)
     if abs(np.linalg.det(J)) < 1e-300:
-        raise ValueError("psf_from_pupil: singular pupil → direction map")
+        raise InvalidValueError("psf_from_pupil: singular pupil → direction map")
     dl = min(np.hypot(*J[:, 0]) * du_mm, np.hypot(*J[:, 1]) * dv_mm)
     spacing_mm = grid_spacing_um * 1e-3
     if n_fft is None:
@@ -112,7 +113,7 @@ def psf_from_pupil(pupil: np.ndarray, du_mm: float, dv_mm: float, jacobian: np.n
     psf = vals.reshape(size, ss, size, ss).sum(axis=(1, 3))
     total = psf.sum()
     if not total > 0:
-        raise ValueError("psf_from_pupil: the pupil passes no light")
+        raise InvalidValueError("psf_from_pupil: the pupil passes no light")
     return psf / total
 
 
@@ -139,7 +140,7 @@ def pupil_function(lens: Lens, field_height_mm: float, wavelength_nm: float, obj
     r = b.trace(u, v, wavelength_nm)
     ok = r.valid.copy()
     if ok.sum() < 3:
-        raise ValueError(f"pupil_function: fewer than 3 rays pass for field height {field_height_mm} mm")
+        raise InvalidValueError(f"pupil_function: fewer than 3 rays pass for field height {field_height_mm} mm")
     par = paraxial(lens, wavelength_nm)
     e = np.array([0.0, 0.0, lens.total_track_mm + par.exit_pupil_mm])
     if not np.isfinite(e).all():
@@ -182,7 +183,7 @@ def psf_diffraction(lens: Lens, field_height_mm: float, wavelength_nm: float, ob
 def mtf_from_psf(psf: np.ndarray, grid_spacing_um: float, axis: str = "x") -> tuple[np.ndarray, np.ndarray]:
     """MTF slice along `axis` ('x' or 'y') from a PSF grid: (frequencies in cycles/mm, MTF, 1 at 0)."""
     if axis not in ("x", "y"):
-        raise ValueError(f"axis={axis!r}: allowed 'x' or 'y'")
+        raise InvalidValueError(f"axis={axis!r}: allowed 'x' or 'y'")
     otf = np.abs(np.fft.fft2(psf))
     otf /= otf[0, 0]
     line = otf[0, :] if axis == "x" else otf[:, 0]

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import sensor_z_mm, with_aperture_stop
 from workbench.optics.lens.trace import RayTrace, to_plane, trace_rays
@@ -70,14 +71,14 @@ def make_bundle(lens: Lens, field_angle_deg: float, object_distance_m: float, wa
     """The bundle for a field with its pupil box (bounds of the (u, v) that pass, padded one step).
     ValueError when no ray of the field passes through the lens."""
     if not (-90.0 < field_angle_deg < 90.0):
-        raise ValueError(f"field_angle_deg={field_angle_deg}: must be in (−90, 90)")
+        raise InvalidValueError(f"field_angle_deg={field_angle_deg}: must be in (−90, 90)")
     if not object_distance_m > 0:
-        raise ValueError(f"object_distance_m={object_distance_m}: must be > 0 (or inf)")
+        raise InvalidValueError(f"object_distance_m={object_distance_m}: must be > 0 (or inf)")
     D = object_distance_m * 1e3
     rho = _reach_mm(lens)
     if math.isfinite(D):
         if D <= rho * 1.5:
-            raise ValueError(f"object_distance_m={object_distance_m}: object is inside or touching the lens")
+            raise InvalidValueError(f"object_distance_m={object_distance_m}: object is inside or touching the lens")
         rho = rho * D / math.sqrt(D * D - rho * rho)
     from workbench.optics.lens.paraxial import paraxial
     par = paraxial(lens, wavelength_nm)
@@ -91,7 +92,7 @@ def make_bundle(lens: Lens, field_angle_deg: float, object_distance_m: float, wa
         if ok.any():
             break
     if not ok.any():
-        raise ValueError(f"lens {lens.name!r}: no ray from field {field_angle_deg:g}° "
+        raise InvalidValueError(f"lens {lens.name!r}: no ray from field {field_angle_deg:g}° "
                          f"(object at {object_distance_m:g} m) passes through the lens")
     box = (max(u[ok].min() - du, -rho), min(u[ok].max() + du, rho),
            max(v[ok].min() - dv, -rho), min(v[ok].max() + dv, rho))
@@ -115,7 +116,7 @@ def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> floa
     if exact.size:
         return float(v[exact[0]])
     if not cross.size:
-        raise ValueError(f"lens {bundle.lens.name!r}: no ray from field {bundle.field_angle_deg:g}° "
+        raise InvalidValueError(f"lens {bundle.lens.name!r}: no ray from field {bundle.field_angle_deg:g}° "
                          "passes through the centre of the stop (chief ray cannot be aimed)")
     i = cross[0]
     a, b, ya, yb = v[i], v[i + 1], y[i], y[i + 1]
@@ -126,7 +127,7 @@ def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> floa
             m = 0.5 * (a + b)
             (ym,), (okm,) = y_at_stop(np.array([m]))
         if not okm:
-            raise ValueError(f"lens {bundle.lens.name!r}: the chief ray of field {bundle.field_angle_deg:g}° "
+            raise InvalidValueError(f"lens {bundle.lens.name!r}: the chief ray of field {bundle.field_angle_deg:g}° "
                              "is blocked before the stop")
         if abs(ym) < 1e-12 or abs(b - a) < 1e-13:
             return float(m)
@@ -147,7 +148,7 @@ def chief_ray_on_sensor(lens: Lens, field_angle_deg: float, wavelength_nm: float
     r = b.trace(np.array([0.0]), np.array([vc]), wavelength_nm)
     pts, ok = to_plane(r.points, r.dirs, r.valid, sensor_z_mm(lens))
     if not ok[0]:
-        raise ValueError(f"lens {lens.name!r}: the chief ray of field {field_angle_deg:g}° is "
+        raise InvalidValueError(f"lens {lens.name!r}: the chief ray of field {field_angle_deg:g}° is "
                          "vignetted before the sensor")
     return float(pts[0, 0]), float(pts[0, 1])
 
@@ -178,9 +179,9 @@ def field_angle_for_height(lens: Lens, image_height_mm: float, wavelength_nm: fl
             if abs(h1 - h_target) < 1e-9:
                 return t1
     except ValueError as exc:
-        raise ValueError(f"image height {image_height_mm:g} mm of lens {lens.name!r} cannot be "
+        raise InvalidValueError(f"image height {image_height_mm:g} mm of lens {lens.name!r} cannot be "
                          f"reached by a chief ray: {exc}") from None
     if abs(h1 - h_target) > 1e-6:
-        raise ValueError(f"image height {image_height_mm:g} mm of lens {lens.name!r}: chief-ray "
+        raise InvalidValueError(f"image height {image_height_mm:g} mm of lens {lens.name!r}: chief-ray "
                          f"search did not converge (reached {h1:.6g} mm)")
     return t1

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.model import Lens, Surface
 
 _T_MIN_MM = -1e-9
@@ -37,12 +38,12 @@ def _as_rays(points_mm, directions) -> tuple[np.ndarray, np.ndarray]:
     p = np.array(points_mm, dtype=np.float64, ndmin=2, copy=True)
     d = np.array(directions, dtype=np.float64, ndmin=2, copy=True)
     if p.ndim != 2 or p.shape[1] != 3 or d.shape != p.shape:
-        raise ValueError(f"rays: points {p.shape} and directions {d.shape} must both be (N, 3)")
+        raise InvalidValueError(f"rays: points {p.shape} and directions {d.shape} must both be (N, 3)")
     if not (np.isfinite(p).all() and np.isfinite(d).all()):
-        raise ValueError("rays: points and directions must be finite")
+        raise InvalidValueError("rays: points and directions must be finite")
     norm = np.linalg.norm(d, axis=1)
     if np.any(norm == 0):
-        raise ValueError("rays: a direction is the zero vector")
+        raise InvalidValueError("rays: a direction is the zero vector")
     return p, d / norm[:, None]
 
 
@@ -166,9 +167,9 @@ def trace_rays(lens: Lens, points_mm, directions, wavelength_nm, reverse: bool =
     n = p.shape[0]
     wl = np.asarray(wavelength_nm, dtype=np.float64)
     if wl.ndim not in (0, 1) or (wl.ndim == 1 and wl.shape != (n,)):
-        raise ValueError(f"wavelength_nm: a scalar or one value per ray ({n}), got shape {wl.shape}")
+        raise InvalidValueError(f"wavelength_nm: a scalar or one value per ray ({n}), got shape {wl.shape}")
     if np.any(~np.isfinite(wl)) or np.any(wl <= 0):
-        raise ValueError(f"wavelength_nm: must be finite and > 0, got {wavelength_nm!r}")
+        raise InvalidValueError(f"wavelength_nm: must be finite and > 0, got {wavelength_nm!r}")
     media = lens.media()
     zv = lens.vertex_z_mm
     order = list(range(len(lens.surfaces)))

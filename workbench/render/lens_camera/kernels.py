@@ -7,6 +7,7 @@ modules of the current variant, passed in so importing this module needs neither
 """
 from __future__ import annotations
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import Material
 from workbench.optics.lens.model import Lens
 
@@ -25,7 +26,7 @@ def index_expr(mat: Material, wl, dr, mi):
         for k, l in zip(mat.K, mat.L):
             n2 += float(k) * l2 / (l2 - float(l))
         return dr.sqrt(n2)
-    raise ValueError(f"material {mat.spec!r}: tabulated indices are not supported in the Mitsuba lens "
+    raise InvalidValueError(f"material {mat.spec!r}: tabulated indices are not supported in the Mitsuba lens "
                      "camera; use a catalogue glass or 'n/V'")
 
 

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import LINE_D_NM
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial, sensor_z_mm
@@ -37,7 +38,7 @@ def _make_sensor_class(mi, dr):
             mi.Sensor.__init__(self, props)
             key = props.get("lens_key")
             if key not in _LENSES:
-                raise ValueError(f"{PLUGIN_NAME}: unknown lens_key {key!r}; build the dict with "
+                raise InvalidValueError(f"{PLUGIN_NAME}: unknown lens_key {key!r}; build the dict with "
                                  "lens_sensor_dict()")
             self.data = _LENSES[key]
             self.m_needs_sample_3 = True
@@ -109,7 +110,7 @@ def register_lens_sensor() -> str:
     import mitsuba as mi
     variant = mi.variant()
     if variant is None:
-        raise ValueError("Mitsuba has no variant set; call workbench.render.variants.select_variant() first")
+        raise InvalidValueError("Mitsuba has no variant set; call workbench.render.variants.select_variant() first")
     if variant not in _registered:
         cls = _make_sensor_class(mi, dr)
         mi.register_sensor(PLUGIN_NAME, lambda props: cls(props))
@@ -128,17 +129,17 @@ def lens_sensor_dict(lens: Lens, film_dict: dict, to_world, sensor_width_mm: flo
     dispersion: trace the hero wavelength through dispersive glass (False: every ray at the d line,
     no chromatic noise, no colour aberrations)."""
     if weight not in ("irradiance", "radiance"):
-        raise ValueError(f"weight={weight!r}: allowed 'irradiance' or 'radiance'")
+        raise InvalidValueError(f"weight={weight!r}: allowed 'irradiance' or 'radiance'")
     if not (math.isfinite(sensor_width_mm) and sensor_width_mm > 0):
-        raise ValueError(f"sensor_width_mm={sensor_width_mm}: must be a finite number > 0")
+        raise InvalidValueError(f"sensor_width_mm={sensor_width_mm}: must be a finite number > 0")
     try:
         w_px, h_px = int(film_dict["width"]), int(film_dict["height"])
     except (KeyError, TypeError, ValueError):
-        raise ValueError("film_dict: needs integer 'width' and 'height'") from None
+        raise InvalidValueError("film_dict: needs integer 'width' and 'height'") from None
     import drjit as dr
     import mitsuba as mi
     if str(mi.variant()).startswith("scalar"):
-        raise ValueError(f"the Mitsuba lens camera needs a JIT variant (llvm_ad_spectral or cuda_ad_spectral), "
+        raise InvalidValueError(f"the Mitsuba lens camera needs a JIT variant (llvm_ad_spectral or cuda_ad_spectral), "
                          f"not {mi.variant()!r}")
     name = register_lens_sensor()
     dispersive = dispersion and is_dispersive(lens)
@@ -156,7 +157,7 @@ def lens_sensor_dict(lens: Lens, film_dict: dict, to_world, sensor_width_mm: flo
         from workbench.optics.lens.analysis import irradiance_per_radiance
         e0 = irradiance_per_radiance(lens, 0.0)
         if e0 <= 0:
-            raise ValueError(f"lens {lens.name!r}: no ray reaches the centre of the sensor")
+            raise InvalidValueError(f"lens {lens.name!r}: no ray reaches the centre of the sensor")
         scale = 1.0 / e0
     pdata = paraxial(lens)
     ident = (lens, width_mm, height_mm, n_bins, dispersive, float(scale))

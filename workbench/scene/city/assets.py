@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import geometry as g
 from workbench.scene.city.materials import CLOTHES, SKINS
 from workbench.scene.city.types import Mesh
@@ -37,7 +38,7 @@ class Asset:
         for mat, (v, f) in self.parts.items():
             if mat == PAINT:
                 if paint is None:
-                    raise ValueError(f"{self.class_name} '{self.variant}' needs a paint material")
+                    raise InvalidValueError(f"{self.class_name} '{self.variant}' needs a paint material")
                 mat = paint
             out.append(Mesh(v.copy(), f.copy(), mat))
         return out

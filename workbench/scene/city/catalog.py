@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import people, vehicles
 from workbench.scene.city.assets import (BENCH_VARIANTS, BUS_SPECS, CAR_SPECS, LAMP_VARIANTS, MAILBOX_VARIANTS,
                                          PERSON_SPECS, TREE_VARIANTS, TRUCK_SPECS, Asset, _bench, _bus, _car,
@@ -36,9 +37,9 @@ DETAILED_BUILDERS: dict[str, dict[str, tuple]] = {"pedestrian": people.DETAILED_
 
 def _table(class_name: str, detail: str) -> dict[str, tuple]:
     if detail not in DETAIL_LEVELS:
-        raise ValueError(f"asset detail '{detail}' is not one of {', '.join(DETAIL_LEVELS)}")
+        raise InvalidValueError(f"asset detail '{detail}' is not one of {', '.join(DETAIL_LEVELS)}")
     if class_name not in VARIANTS:
-        raise ValueError(f"no assets of class '{class_name}'; classes: {', '.join(VARIANTS)}")
+        raise InvalidValueError(f"no assets of class '{class_name}'; classes: {', '.join(VARIANTS)}")
     if detail == "detailed" and class_name in DETAILED_BUILDERS:
         return DETAILED_BUILDERS[class_name]
     return VARIANTS[class_name]
@@ -54,7 +55,7 @@ def build_asset(class_name: str, variant: str, detail: str = "simple") -> Asset:
     """The (cached) asset of a class and variant at a detail level, in local coordinates."""
     table = _table(class_name, detail)
     if variant not in table:
-        raise ValueError(f"unknown {class_name} variant '{variant}' at detail '{detail}'; known: "
+        raise InvalidValueError(f"unknown {class_name} variant '{variant}' at detail '{detail}'; known: "
                          f"{', '.join(table)}")
     fn, *args = table[variant]
     return fn(*args)

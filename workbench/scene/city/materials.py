@@ -56,6 +56,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city.types import Material
 from workbench.spectra import wavelength_grid
 
@@ -207,7 +208,7 @@ def reflectance(name: str, wavelengths_nm: np.ndarray | None = None) -> np.ndarr
     steps), linearly interpolated; end values are held outside 350–1000 nm."""
     table = _table()
     if name not in table:
-        raise ValueError(f"unknown material '{name}'; known: {', '.join(sorted(table))}")
+        raise InvalidValueError(f"unknown material '{name}'; known: {', '.join(sorted(table))}")
     if wavelengths_nm is None:
         return table[name].copy()
     return np.interp(np.asarray(wavelengths_nm, float), MATERIAL_WAVELENGTHS_NM, table[name])

@@ -38,6 +38,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import norm
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import geometry as g
 from workbench.scene.city.assets import Asset, finish_asset
 from workbench.scene.city.materials import BOTTOMS, HAIRS, SHOES, SKINS, TOPS
@@ -192,7 +193,7 @@ def _two_link(root: np.ndarray, target: np.ndarray, l1: float, l2: float, bend: 
     d = target - root
     dist = float(np.linalg.norm(d))
     if dist >= l1 + l2 or dist <= abs(l1 - l2):
-        raise ValueError(f"limb of {l1:.3f} + {l2:.3f} m cannot reach {dist:.3f} m")
+        raise InvalidValueError(f"limb of {l1:.3f} + {l2:.3f} m cannot reach {dist:.3f} m")
     e = d / dist
     a = (l1 ** 2 - l2 ** 2 + dist ** 2) / (2 * dist)
     n = bend - (bend @ e) * e
@@ -237,7 +238,7 @@ def _standing_skeleton(pose: Pose, b: Body) -> dict[str, np.ndarray]:
         z = j[f"ankle_{side}"][2]
         lowest = lambda deg: z + _rot_y(foot, deg)[:, 2].min() - ground  # noqa: E731
         if lowest(0.0) < -1e-9:
-            raise ValueError(f"pose '{pose.name}': the {side} leg reaches below the ground")
+            raise InvalidValueError(f"pose '{pose.name}': the {side} leg reaches below the ground")
         pitches[side] = brentq(lowest, 0.0, 70.0, xtol=1e-10)
     for key in list(j):
         j[key] = j[key] - np.array([0.0, 0.0, ground])

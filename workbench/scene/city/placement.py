@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import geometry as g
 from workbench.scene.city.catalog import build_asset, variant_names
 from workbench.scene.city.layout import LANE_END_CLEARANCE_M, CityLayout
@@ -129,14 +130,14 @@ def _place_vehicles(kind: str, n: int, field: str, lanes, occ: Occupancy, rng, p
     clear of others; with kerb_gap_m, parked: their side kerb_gap_m from the kerb on the lane's
     right (right-hand traffic), instead of anywhere across the lane."""
     if n and not lanes:
-        raise ValueError(f"{field}={n} but no street segment has a lane for it (parked cars need a kerb lane "
+        raise InvalidValueError(f"{field}={n} but no street segment has a lane for it (parked cars need a kerb lane "
                          f"outside a tunnel); set {field}=0 or add blocks")
     names = variant_names(kind, detail)
     weights = np.array(list(paints.values())) if isinstance(paints, dict) else None
     paint_names = list(paints)
     lengths = np.array([ln.length_m for ln in lanes]) - 2 * LANE_END_CLEARANCE_M
     if n and lengths.max() <= 0:
-        raise ValueError(f"street segments are too short to hold a {kind}: {field}={n}")
+        raise InvalidValueError(f"street segments are too short to hold a {kind}: {field}={n}")
     prob = np.clip(lengths, 0, None) / np.clip(lengths, 0, None).sum()
     out = []
     for k in range(n):
@@ -203,7 +204,7 @@ def check_capacity(recipe: CityRecipe, layout: CityLayout) -> None:
     need = (recipe.n_cars * (4.6 + VEHICLE_GAP_M) + recipe.n_buses * (12.1 + VEHICLE_GAP_M)
             + recipe.n_trucks * (7.9 + VEHICLE_GAP_M) + recipe.n_parked_cars * (4.6 + PARKED_GAP_M))
     if need > RENYI_PARKING * lane_len:
-        raise ValueError(
+        raise InvalidValueError(
             f"too many vehicles for the streets: n_cars={recipe.n_cars}, n_parked_cars={recipe.n_parked_cars}, "
             f"n_buses={recipe.n_buses}, "
             f"n_trucks={recipe.n_trucks} need ~{need:.0f} m of lane but random parking fills at most "
@@ -214,7 +215,7 @@ def check_capacity(recipe: CityRecipe, layout: CityLayout) -> None:
     used = recipe.n_pedestrians * 1.0 + (recipe.n_trees + recipe.n_lamps) * 1.5 + \
         (recipe.n_benches + recipe.n_mailboxes) * 2.0
     if used > 0.3 * walk_area:
-        raise ValueError(
+        raise InvalidValueError(
             f"too many pedestrians and street furniture for {walk_area:.0f} m² of sidewalk: "
             f"n_pedestrians={recipe.n_pedestrians}, n_trees={recipe.n_trees}, n_lamps={recipe.n_lamps}, "
             f"n_benches={recipe.n_benches}, n_mailboxes={recipe.n_mailboxes}; lower them or "

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import geometry as g
 from workbench.scene.city.layout import LANE_END_CLEARANCE_M, CityLayout
 from workbench.scene.city.recipe import PoseParams
@@ -26,7 +27,7 @@ VEHICLES = ("car", "bus", "truck")
 def _layout(city: City) -> CityLayout:
     layout = city.meta.get("layout")
     if not isinstance(layout, CityLayout):
-        raise ValueError("city.meta['layout'] is missing: camera poses need a city made by generate_city")
+        raise InvalidValueError("city.meta['layout'] is missing: camera poses need a city made by generate_city")
     return layout
 
 
@@ -59,7 +60,7 @@ def _manual(city: City, pp: PoseParams, n: int) -> list[CameraPose]:
     x, y = pp.manual_position_xy_m
     x0, y0, x1, y1 = city.extent_m
     if not (x0 <= x <= x1 and y0 <= y <= y1):
-        raise ValueError(f"manual_position_xy_m=({x}, {y}) lies outside the city extent "
+        raise InvalidValueError(f"manual_position_xy_m=({x}, {y}) lies outside the city extent "
                          f"x {x0:.1f}…{x1:.1f}, y {y0:.1f}…{y1:.1f} m")
     return [CameraPose(np.array([x, y, pp.height_m]), _wrap(pp.manual_pan_deg), pp.manual_tilt_deg,
                        pp.manual_roll_deg, meta={"mode": "manual"}) for _ in range(n)]
@@ -135,7 +136,7 @@ def _tunnel_spot(layout: CityLayout, frame: TunnelFrame, pp: PoseParams, rng, ve
 def _tunnel_frame(city: City) -> TunnelFrame:
     frames = [o.meta["frame"] for o in city.objects if o.class_name == "tunnel"]
     if not frames:
-        raise ValueError("mode='tunnel' needs a city with a tunnel (set CityRecipe.tunnel)")
+        raise InvalidValueError("mode='tunnel' needs a city with a tunnel (set CityRecipe.tunnel)")
     return frames[0]
 
 
@@ -147,7 +148,7 @@ def sample_camera_poses(city: City, pose_params: PoseParams, n: int = 1,
     with an ego car of 4.6 m × 1.9 m around the camera that clears every placed vehicle by 1 m.
     meta records the mode, lane, lane heading and pan offset (and the target in 'target' mode)."""
     if not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n (number of poses) must be an integer >= 1, got {n!r}")
+        raise InvalidValueError(f"n (number of poses) must be an integer >= 1, got {n!r}")
     pp = pose_params
     if pp.mode == "manual":
         return _manual(city, pp, n)
@@ -155,12 +156,12 @@ def sample_camera_poses(city: City, pose_params: PoseParams, n: int = 1,
     rng = np.random.default_rng(pp.seed if seed is None else seed)
     lanes = [ln for ln in layout.lanes if ln.length_m > 2 * LANE_END_CLEARANCE_M]
     if not lanes:
-        raise ValueError("no street segment is long enough to hold a camera")
+        raise InvalidValueError("no street segment is long enough to hold a camera")
     lengths = np.array([ln.length_m - 2 * LANE_END_CLEARANCE_M for ln in lanes])
     vehicles = [o.footprint_xy for o in city.objects if o.class_name in VEHICLES]
     targets = [o for o in city.objects if o.class_name in pp.target_classes and "position_m" in o.meta]
     if pp.mode == "target" and not targets:
-        raise ValueError(f"mode='target' but the city has no objects of target_classes="
+        raise InvalidValueError(f"mode='target' but the city has no objects of target_classes="
                          f"{pp.target_classes}")
     poses = []
     frame = _tunnel_frame(city) if pp.mode == "tunnel" else None
@@ -175,7 +176,7 @@ def sample_camera_poses(city: City, pose_params: PoseParams, n: int = 1,
             if spot is not None:
                 break
         else:
-            raise ValueError(f"could not find a free spot in a lane for camera pose {k + 1} of {n} "
+            raise InvalidValueError(f"could not find a free spot in a lane for camera pose {k + 1} of {n} "
                              f"after {MAX_TRIES} tries (mode '{pp.mode}'); the lanes are full of "
                              "vehicles (lower n_cars) or no target is reachable (widen "
                              "target_distance_range_m or max_target_bearing_deg) or, for tunnel poses, "

@@ -12,6 +12,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
+from workbench.errors import InvalidValueError
 from workbench.params import Params
 
 # Label classes (COCO category ids); 0 is background/sky and is not a category.
@@ -111,28 +112,28 @@ class CityRecipe(Params):
     @model_validator(mode="after")
     def _check_consistent(self) -> "CityRecipe":
         if self.building_height_min_m > self.building_height_max_m:
-            raise ValueError(
+            raise InvalidValueError(
                 f"building_height_min_m ({self.building_height_min_m}) must not exceed "
                 f"building_height_max_m ({self.building_height_max_m})")
         lot = self.block_size_m - 2 * self.sidewalk_width_m
         if lot < MIN_LOT_M:
-            raise ValueError(
+            raise InvalidValueError(
                 f"block_size_m={self.block_size_m} leaves a {lot:.1f} m building lot after two "
                 f"sidewalks of sidewalk_width_m={self.sidewalk_width_m}; need block_size_m >= "
                 f"{2 * self.sidewalk_width_m + MIN_LOT_M:.1f}")
         if self.skyline_distance_m > 0 and self.horizon_field_m < self.skyline_distance_m + SKYLINE_DEPTH_M:
-            raise ValueError(
+            raise InvalidValueError(
                 f"skyline_distance_m={self.skyline_distance_m} puts the distant buildings ({SKYLINE_DEPTH_M:.0f} m "
                 f"deep) beyond the horizon field of horizon_field_m={self.horizon_field_m}; set horizon_field_m "
                 f">= {self.skyline_distance_m + SKYLINE_DEPTH_M:.0f} or lower skyline_distance_m")
         t = self.tunnel
         if t is not None:
             if t.street_index > self.blocks_x or t.segment_index >= self.blocks_y:
-                raise ValueError(f"tunnel street_index={t.street_index}, segment_index={t.segment_index}: the "
+                raise InvalidValueError(f"tunnel street_index={t.street_index}, segment_index={t.segment_index}: the "
                                  f"city has streets 0…{self.blocks_x} along +Y with segments 0…{self.blocks_y - 1}")
             room = self.block_size_m - 2 * self.sidewalk_width_m
             if t.length_m > room:
-                raise ValueError(f"tunnel length_m={t.length_m} does not fit its street segment: at most "
+                raise InvalidValueError(f"tunnel length_m={t.length_m} does not fit its street segment: at most "
                                  f"block_size_m − 2·sidewalk_width_m = {room:.1f} m (clear of the cross "
                                  "streets' sidewalks)")
         return self
@@ -198,17 +199,17 @@ class PoseParams(Params):
         for name, lim in limits.items():
             lo, hi = getattr(self, name)
             if not (-lim <= lo <= hi <= lim):
-                raise ValueError(f"{name}=({lo}, {hi}) must satisfy -{lim} <= low <= high <= {lim}")
+                raise InvalidValueError(f"{name}=({lo}, {hi}) must satisfy -{lim} <= low <= high <= {lim}")
         unknown = [c for c in self.target_classes if c not in CLASS_IDS]
         if unknown or not self.target_classes:
-            raise ValueError(f"target_classes={self.target_classes!r}: need one or more of "
+            raise InvalidValueError(f"target_classes={self.target_classes!r}: need one or more of "
                              f"{', '.join(CLASS_IDS)}")
         lo, hi = self.target_distance_range_m
         if not 0 < lo <= hi <= 500:
-            raise ValueError(f"target_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
+            raise InvalidValueError(f"target_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
         lo, hi = self.tunnel_distance_range_m
         if not 0 < lo <= hi <= 500:
-            raise ValueError(f"tunnel_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
+            raise InvalidValueError(f"tunnel_distance_range_m=({lo}, {hi}) must satisfy 0 < low <= high <= 500")
         if self.mode == "manual" and self.manual_position_xy_m is None:
-            raise ValueError("mode='manual' needs manual_position_xy_m=(x, y) in metres")
+            raise InvalidValueError("mode='manual' needs manual_position_xy_m=(x, y) in metres")
         return self

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city.textures import BRICK_TILE_M, SLAB_M
 
 WATER_IOR = 1.33
@@ -52,7 +53,7 @@ def procedural_surfaces(wet_fraction: float) -> dict[str, Surface]:
     """The city materials that become procedural surfaces, by material name. `wet_fraction` of
     the road lies under puddles (0 = dry)."""
     if not 0.0 <= wet_fraction <= 1.0:
-        raise ValueError(f"wet_fraction must be in 0…1, got {wet_fraction}")
+        raise InvalidValueError(f"wet_fraction must be in 0…1, got {wet_fraction}")
     stains = Layer(Texture("stains", 16.0, 512, strength=0.6), "grime")
     joints = Layer(Texture("slab_joints", SLAB_M, 256, strength=0.8), "grime")
     asphalt = [Layer(Texture("asphalt_wear", 32.0, 1024), "asphalt_aged")]

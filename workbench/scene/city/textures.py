@@ -20,6 +20,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
+
 KINDS = ("asphalt_wear", "puddles", "stains", "streaks", "soil_patches", "brick_mortar", "brick_variation",
          "slab_joints")
 BRICK_M = (0.215, 0.065)        # brick length × height (m), UK format
@@ -95,9 +97,9 @@ def brick_bond(size_px: int, rng: np.random.Generator) -> tuple[np.ndarray, np.n
 def bake(kind: str, size_px: int, seed: int, fraction: float = 0.0, strength: float = 1.0) -> np.ndarray:
     """A size_px × size_px float32 texture of `kind` (KINDS) in [0, strength] (read-only)."""
     if kind not in KINDS:
-        raise ValueError(f"unknown texture kind '{kind}'; known: {', '.join(KINDS)}")
+        raise InvalidValueError(f"unknown texture kind '{kind}'; known: {', '.join(KINDS)}")
     if not 16 <= size_px <= 4096:
-        raise ValueError(f"texture size must be 16…4096 px, got {size_px}")
+        raise InvalidValueError(f"texture size must be 16…4096 px, got {size_px}")
     rng = np.random.default_rng([seed, KINDS.index(kind)])
     shape = (size_px, size_px)
     if kind == "asphalt_wear":

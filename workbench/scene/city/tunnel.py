@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city import geometry as g
 from workbench.scene.city.layout import CityLayout
 from workbench.scene.city.recipe import CityRecipe
@@ -46,7 +47,7 @@ def tunnel_frame(recipe: CityRecipe, layout: CityLayout) -> TunnelFrame:
     """The frame of recipe.tunnel (which must be set), centred on its street segment."""
     t = recipe.tunnel
     if t is None:
-        raise ValueError("the recipe has no tunnel (CityRecipe.tunnel is None)")
+        raise InvalidValueError("the recipe has no tunnel (CityRecipe.tunnel is None)")
     x = t.street_index * recipe.pitch_m
     y_mid = (t.segment_index + 0.5) * recipe.pitch_m
     half = layout.street_width_m / 2 + layout.sidewalk_width_m

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.scene.city.poses import pose_basis
 from workbench.scene.city.types import CameraPose, City, Material
 from workbench.spectra import illuminant_spd, xyz_cmfs
@@ -56,7 +57,7 @@ def city_polydata(city: City):
             if not len(m.faces):
                 continue
             if m.material not in city.materials:
-                raise ValueError(f"mesh material '{m.material}' is not in city.materials")
+                raise InvalidValueError(f"mesh material '{m.material}' is not in city.materials")
             if m.material not in srgb:
                 srgb[m.material] = np.round(255 * material_srgb(city.materials[m.material])).astype(np.uint8)
             vertices.append(m.vertices)
@@ -77,7 +78,7 @@ def add_city_to_plotter(plotter, city: City | None = None, pose: CameraPose | No
     ('camera': hfov_deg, 4:3) at the camera, or, with set_view=True, look through that pose
     instead. Returns the actors by name."""
     if color_by not in COLOURINGS:
-        raise ValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
+        raise InvalidValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
     mesh = city_polydata(city) if mesh is None else mesh
     actors = {"city": plotter.add_mesh(mesh, scalars=COLOURINGS[color_by], rgb=True, name="city_mesh",
                                        smooth_shading=False, show_scalar_bar=False)}
@@ -93,7 +94,7 @@ def add_city_to_plotter(plotter, city: City | None = None, pose: CameraPose | No
 def set_city_colouring(actor, color_by: str) -> None:
     """Switch a city actor between the colourings of city_polydata (no rebuild)."""
     if color_by not in COLOURINGS:
-        raise ValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
+        raise InvalidValueError(f"color_by must be 'material' or 'class', given {color_by!r}")
     mapper = actor.mapper
     mapper.dataset.cell_data.active_scalars_name = COLOURINGS[color_by]
     mapper.SetScalarModeToUseCellFieldData()
