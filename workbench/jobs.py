@@ -13,12 +13,15 @@ T = TypeVar("T")
 @dataclass(frozen=True)
 class Progress:
     """done of total steps, and what is being done; preview: an optional partial result the
-    window may show (e.g. a render's H×W×Nλ radiance so far), None when there is none."""
+    window may show (e.g. a render's H×W×Nλ radiance so far), None when there is none; source:
+    the job the step belongs to, when a runner of several jobs passes on their progress
+    (workbench.compute.run_jobs with task_progress=True), else None."""
 
     done: float
     total: float
     message: str = ""
     preview: object = field(default=None, compare=False, repr=False)
+    source: object = field(default=None, compare=False, repr=False)
 
     @property
     def fraction(self) -> float:

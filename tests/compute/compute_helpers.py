@@ -56,10 +56,10 @@ def thread_budget(_job):
 
 def progress_renderer(project, seeds, on_progress=None):
     """tiny_renderer that first reports 4 steps of progress, a little apart."""
-    from types import SimpleNamespace
+    from workbench.jobs import Progress
     for k in range(1, 5):
         time.sleep(0.3)
-        on_progress(SimpleNamespace(spp_done=k, spp_total=4))
+        on_progress(Progress(k, 4))
     return tiny_renderer(project, seeds)
 
 

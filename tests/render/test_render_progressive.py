@@ -4,10 +4,21 @@ import threading
 import numpy as np
 import pytest
 
-from workbench.jobs import run_job
+from workbench.jobs import JobCancelled, run_job
 from workbench.render.demo_scene import demo_city, demo_pose
 from workbench.render.params import RenderParams
-from workbench.render.spectral import RenderCancelled, render_spectral
+from workbench.render.spectral import render_spectral
+
+
+class _Flags:
+    """A cancel flag whose is_set() answers the given values in turn, then True."""
+
+    def __init__(self, values):
+        self.values = iter(values)
+
+    def is_set(self) -> bool:
+        return next(self.values, True)
+
 
 W, H = 32, 24
 
@@ -36,7 +47,7 @@ def test_progress_then_cancel_between_chunks():
     gen = render_spectral(demo_city(), demo_pose(), RenderParams(spp=40, chunk_spp=4, preview_spp=1,
                           band_count=4), width=W, height=H, fov_deg=44.0, cancel=stop)
     scene = run_job(gen, on_step)
-    assert [s.spp_done for s in steps] == [1, 5]
+    assert [s.done for s in steps] == [1, 5]
     assert steps[0].preview.shape == (H, W, 4) and 0 < steps[0].fraction < 1
     assert np.all(np.isfinite(steps[1].preview)) and steps[1].preview.mean() > 0
     assert scene.meta["cancelled"] and scene.meta["spp"] == 5
@@ -44,8 +55,8 @@ def test_progress_then_cancel_between_chunks():
 
 
 def test_cancel_before_start_raises():
-    with pytest.raises(RenderCancelled):
-        run(RenderParams(spp=4, band_count=4), cancel=lambda: True)
+    with pytest.raises(JobCancelled):
+        run(RenderParams(spp=4, band_count=4), cancel=_Flags([]))
 
 
 def test_target_error_chooses_spp_from_measured_constant():
@@ -59,7 +70,6 @@ def test_target_error_chooses_spp_from_measured_constant():
 
 
 def test_cancel_between_pilots_keeps_the_first_pilot():
-    calls = iter([False, True])
     p = RenderParams(spp=None, target_rel_error=0.05, pilot_spp=2, band_count=4)
-    scene = run(p, cancel=lambda: next(calls, True))
+    scene = run(p, cancel=_Flags([False]))
     assert scene.meta["cancelled"] and scene.meta["spp"] == 2 and scene.meta["noise_constant"] is None

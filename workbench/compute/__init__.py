@@ -12,15 +12,15 @@ from dataclasses import dataclass
 from typing import Callable, Generator, Iterable, TypeVar
 
 from workbench.compute.local import JobFailed, apply_thread_budget
-from workbench.compute.progress import TaskProgress, report_progress
+from workbench.compute.progress import report_progress
 from workbench.errors import ParameterError
-from workbench.jobs import CancelToken
+from workbench.jobs import CancelToken, Progress
 
 J = TypeVar("J")
 R = TypeVar("R")
 BACKENDS = ("local", "ray")
 
-__all__ = ["BACKENDS", "ComputeSpec", "JobFailed", "TaskProgress", "apply_thread_budget", "report_progress",
+__all__ = ["BACKENDS", "ComputeSpec", "JobFailed", "apply_thread_budget", "report_progress",
            "run_jobs"]
 
 
@@ -86,13 +86,13 @@ class ComputeSpec:
 
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], spec: ComputeSpec | None = None,
              cancel: CancelToken | None = None, task_progress: bool = False
-             ) -> Generator[tuple[J, R] | TaskProgress, None, None]:
+             ) -> Generator[tuple[J, R] | Progress, None, None]:
     """Run fn(job) for every job where `spec` says; yield (job, result) in completion order.
 
     A job that raises stops the run with JobFailed naming the job (pending jobs are dropped); a
     job whose worker died is retried up to spec.max_retries times, then JobFailed. cancel
-    is checked between jobs (JobCancelled). task_progress=True also yields TaskProgress(job, done,
-    total) items as running jobs call compute.progress.report_progress (process pool and Ray)."""
+    is checked between jobs (JobCancelled). task_progress=True also yields Progress(done, total,
+    source=job) items as running jobs call compute.progress.report_progress (process pool and Ray)."""
     spec = spec or ComputeSpec()
     if spec.backend == "ray":
         from workbench.compute.ray_cluster import run_jobs_ray

@@ -18,9 +18,9 @@ from concurrent.futures.process import BrokenProcessPool
 from queue import Empty
 from typing import Callable, Generator, Iterable, TypeVar
 
-from workbench.compute.progress import TaskProgress, reporting_to
+from workbench.compute.progress import reporting_to
 from workbench.errors import InvalidValueError, WorkbenchError
-from workbench.jobs import CancelToken, JobCancelled
+from workbench.jobs import CancelToken, JobCancelled, Progress
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -77,7 +77,7 @@ def _run_reporting(fn, key: int, job):
 def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
              cancel: CancelToken | None = None, *, max_tasks_per_child: int | None = None,
              threads_per_worker: int | None = None, task_progress: bool = False,
-             max_retries: int = 3) -> Generator[tuple[J, R] | TaskProgress, None, None]:
+             max_retries: int = 3) -> Generator[tuple[J, R] | Progress, None, None]:
     """Run fn(job) for every job; yield (job, result) as each one finishes (completion order).
 
     workers = 0 runs the jobs here, one after another (no pickling; for debugging and tests).
@@ -90,7 +90,7 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
     waited for (their results are not yielded) and JobCancelled is raised.
     A job that raises stops the run (pending jobs are dropped) with JobFailed naming the job. When
     a worker process dies, the jobs in flight are re-run in a fresh pool, each at most max_retries
-    times, then JobFailed names the job and the last error. task_progress=True (pool only) also yields TaskProgress(job, done, total) as running jobs call
+    times, then JobFailed names the job and the last error. task_progress=True (pool only) also yields Progress(done, total, source=job) as running jobs call
     compute.progress.report_progress.
     """
     if not isinstance(workers, int) or workers < 0:
@@ -180,14 +180,14 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_prog
 
 
 def _drain(queue, keys: dict):
-    """TaskProgress for every report waiting in the queue from a job still running."""
+    """Progress (source = the job) for every report waiting in the queue from a job still running."""
     while True:
         try:
             key, done, total = queue.get_nowait()
         except Empty:
             return
         if key in keys:
-            yield TaskProgress(keys[key], done, total)
+            yield Progress(done, total, source=keys[key])
 
 
 _END = object()

@@ -14,9 +14,9 @@ import itertools
 from typing import Callable, Generator, Iterable
 
 from workbench.compute.local import JobFailed, apply_thread_budget
-from workbench.compute.progress import TaskProgress, reporting_to
+from workbench.compute.progress import reporting_to
 from workbench.errors import WorkbenchError
-from workbench.jobs import CancelToken, JobCancelled
+from workbench.jobs import CancelToken, JobCancelled, Progress
 
 POLL_S = 0.2                 # how often the driver checks the cancel token while waiting
 QUEUE_PER_SLOT = 2           # tasks kept submitted per task slot of the cluster
@@ -79,9 +79,9 @@ def task_slots(spec) -> int:
 
 
 def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None = None,
-                 task_progress: bool = False) -> Generator[tuple[object, object] | TaskProgress, None, None]:
+                 task_progress: bool = False) -> Generator[tuple[object, object] | Progress, None, None]:
     """compute.run_jobs on Ray (see the module docstring); jobs are submitted lazily. With
-    task_progress, TaskProgress items are yielded too, from a small progress actor (0 CPUs)."""
+    task_progress, Progress items (source = the job) are yielded too, from a small progress actor (0 CPUs)."""
     ray = import_ray()
     owned = connect(spec)
     options = {"num_cpus": spec.task_cpus, "num_gpus": spec.gpus_per_task,
@@ -118,7 +118,7 @@ def run_jobs_ray(fn: Callable, jobs: Iterable, spec, cancel: CancelToken | None 
             if board is not None:
                 for key, (steps, total) in ray.get(board.drain.remote()).items():
                     if key in keys and keys[key] not in done:
-                        yield TaskProgress(pending[keys[key]][0], steps, total)
+                        yield Progress(steps, total, source=pending[keys[key]][0])
             for ref in done:
                 job, key = pending.pop(ref)
                 keys.pop(key)

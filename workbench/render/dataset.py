@@ -34,7 +34,7 @@ from typing import Callable, Generator
 
 import numpy as np
 
-from workbench.compute import ComputeSpec, TaskProgress, report_progress, run_jobs
+from workbench.compute import ComputeSpec, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes
@@ -200,9 +200,7 @@ def render_frame_job(job: FrameJob) -> FramePayload:
 
 
 def _steps(step) -> tuple[float, float]:
-    """(done, total) of a renderer's progress step (samples per pixel, or a generic Progress)."""
-    if hasattr(step, "spp_done"):
-        return step.spp_done, step.spp_total
+    """(done, total) of a renderer's Progress step."""
     return step.done, step.total
 
 
@@ -263,8 +261,8 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
                 for i in range(frames) if i not in done)
         rendered, running = [], {}
         for item in run_jobs(render_frame_job, todo, compute, cancel, task_progress=True):
-            if isinstance(item, TaskProgress):          # a frame still rendering: overall + per frame
-                running[item.job.index] = item.fraction
+            if isinstance(item, Progress):          # a frame still rendering: overall + per frame
+                running[item.source.index] = item.fraction
                 yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
                                "rendering " + ", ".join(f"frame {i} {100 * f:.0f} %" for i, f in sorted(running.items())))
                 continue

@@ -9,12 +9,12 @@ megakernel), so chunks are the cancellation points (research/mitsuba.md §5).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Generator
 
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.jobs import JobCancelled, Progress
 from workbench.render.film import FilmSRFs, box_bands, raised_cosine_basis, sensor_channels, sensor_wavelength_range
 from workbench.render.fog import FOG_BOX_ID
 from workbench.render.labels import BACKGROUND_DEPTH_M
@@ -26,26 +26,6 @@ from workbench.scene.city.types import CameraPose, City
 from workbench.scene.types import Scene
 
 DEFAULT_RANGE_NM = (400.0, 700.0)
-
-
-@dataclass
-class RenderProgress:
-    """One step of a render: samples done so far, planned total, and a preview: the radiance so
-    far (H×W×Nλ float32, photons/s/sr/m²/nm on the result's wavelengths)."""
-
-    spp_done: int
-    spp_total: int
-    elapsed_s: float
-    message: str
-    preview: np.ndarray
-
-    @property
-    def fraction(self) -> float:
-        return min(self.spp_done / self.spp_total, 1.0)
-
-
-class RenderCancelled(Exception):
-    """Raised when a render is cancelled before its first chunk finished (nothing to return)."""
 
 
 def film_for(params: RenderParams, sensor_qe: tuple[np.ndarray, np.ndarray] | None = None) -> FilmSRFs:
@@ -68,17 +48,6 @@ def film_for(params: RenderParams, sensor_qe: tuple[np.ndarray, np.ndarray] | No
 def chunk_seed(seed: int, index: int) -> int:
     """Mitsuba seed (uint32) of chunk `index` of a render with `seed`."""
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
-
-
-def _is_cancelled(cancel) -> bool:
-    if cancel is None:
-        return False
-    if hasattr(cancel, "is_set"):
-        return bool(cancel.is_set())
-    if callable(cancel):
-        return bool(cancel())
-    raise InvalidValueError(f"cancel must be None, an Event-like object with is_set() or a callable, "
-                     f"got {type(cancel).__name__}")
 
 
 def _render_chunk(mi_scene, spp: int, seed: int, index: int) -> np.ndarray:
@@ -117,12 +86,13 @@ def depth_map_m(mi_scene) -> np.ndarray | None:
 
 
 def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: float,
-                  cancel=None, name: str = "render") -> Generator[RenderProgress, None, Scene]:
+                  cancel=None, name: str = "render") -> Generator[Progress, None, Scene]:
     """Render an already loaded scene (build_scene) progressively; return its spectral Scene.
 
-    Yields RenderProgress after every chunk; between chunks, a set `cancel` (threading.Event or
-    a callable returning True) stops the render: the samples so far are returned with
-    meta['cancelled'] = True, or RenderCancelled is raised when no chunk had finished."""
+    Yields Progress (samples per pixel done of planned; preview: the radiance so far, H×W×Nλ
+    float32 photons/s/sr/m²/nm) after every chunk; between chunks, a set `cancel` (a CancelToken,
+    or anything with is_set()) stops the render: the samples so far are returned with
+    meta['cancelled'] = True, or JobCancelled is raised when no chunk had finished."""
     import mitsuba as mi
 
     if params.shot_noise_ratio is not None:
@@ -143,7 +113,7 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
     if params.spp is None:
         pilots = []
         for _ in range(2):
-            if _is_cancelled(cancel):
+            if (cancel is not None and cancel.is_set()):
                 cancelled = True
                 break
             pilots.append(_render_chunk(mi_scene, params.pilot_spp, params.seed, index))
@@ -155,21 +125,20 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
             total = done
         if acc is not None:
             c_txt = "n/a" if c_meas is None else f"{c_meas:.3g}"
-            yield RenderProgress(done, total, time.perf_counter() - t0,
-                                 f"pilot: c = {c_txt}, {total} spp for {params.target_rel_error:.3g} "
-                                 f"{params.error_metric} error", preview())
+            yield Progress(done, total, f"pilot: c = {c_txt}, {total} spp for {params.target_rel_error:.3g} "
+                                        f"{params.error_metric} error", preview())
     else:
         total = params.spp
     while not cancelled and done < total:
-        if _is_cancelled(cancel):
+        if (cancel is not None and cancel.is_set()):
             cancelled = True
             break
         k = min(params.preview_spp if done == 0 else params.chunk_spp, total - done)
         add(_render_chunk(mi_scene, k, params.seed, index), k)
-        yield RenderProgress(done, total, time.perf_counter() - t0, f"{done}/{total} spp", preview())
+        yield Progress(done, total, f"{done}/{total} spp", preview())
     cancelled = cancelled or done < total
     if acc is None:
-        raise RenderCancelled(f"{name}: cancelled before the first chunk finished")
+        raise JobCancelled(f"{name}: cancelled before the first chunk finished")
     channels = acc / done
     if not np.all(np.isfinite(channels)):
         raise InvalidValueError(f"{name}: the renderer returned NaN/Inf radiance (variant, scene or spectra)")
@@ -189,7 +158,7 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
 def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width: int, height: int,
                     fov_deg: float, sensor_qe: tuple[np.ndarray, np.ndarray] | None = None,
                     lens_sensor: dict | None = None, cancel=None,
-                    name: str = "city") -> Generator[RenderProgress, None, Scene]:
+                    name: str = "city") -> Generator[Progress, None, Scene]:
     """Render the city from `pose` into a spectral Scene (photons/s/sr/m²/nm), progressively.
 
     sensor_qe: (wavelengths_nm, K×Nλ QE) of the camera; it sets the wavelength range (unless
