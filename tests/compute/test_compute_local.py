@@ -32,7 +32,7 @@ def test_a_pool_worker_killed_mid_frame_is_retried_in_a_fresh_pool(tmp_path, mar
     from workbench.compute import JobFailed
     from workbench.jobs import run_job
     from workbench.project import Project
-    from workbench.render.dataset import run_dataset
+    from workbench.datasets.dataset import run_dataset
     result = run_job(run_dataset(Project(seed=31), 3, tmp_path, compute=ComputeSpec(workers=2, cpus_per_task=1),
                                  renderer=crash_once_renderer))
     assert sorted(result.rendered) == [0, 1, 2]                        # none missing, none twice

@@ -18,7 +18,7 @@ from workbench.compute import ComputeSpec, JobFailed, run_jobs
 from workbench.jobs import run_job
 from workbench.project import Project
 from workbench.render.city_frame import render_city_frame
-from workbench.render.dataset import FRAMES_DIR, frame_path, run_dataset
+from workbench.datasets.dataset import FRAMES_DIR, frame_path, run_dataset
 
 N = 3
 RAY = ComputeSpec(backend="ray")
@@ -117,7 +117,7 @@ def test_driver_killed_mid_run_resumes_from_disk(ray_cluster, reference, tmp_pat
               "from compute_helpers import slow_renderer\n"
               "from workbench.compute import ComputeSpec\n"
               "from workbench.project import Project\n"
-              "from workbench.render.dataset import run_dataset\n"
+              "from workbench.datasets.dataset import run_dataset\n"
               f"job = run_dataset(Project(seed=21), {N}, {str(out)!r}, renderer=slow_renderer,\n"
               f"                  compute=ComputeSpec(backend='ray', address={address!r}))\n"
               "for p in job:\n"

@@ -55,7 +55,7 @@ def test_render_noise_follows_the_sensor_shot_noise():
 
 def test_a_stored_sensor_channel_frame_feeds_the_sensor_like_the_live_pipeline(tmp_path):
     from workbench.render.city_frame import frame_optical_image, frame_seeds, render_city_frame
-    from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, read_frame, write_frame
+    from workbench.datasets.dataset import FRAME_FORMAT, FRAME_VERSION, read_frame, write_frame
     from workbench.sensor import irradiance_to_signal_rate
     project = tiny_city(representation="sensor")
     live = Pipeline(project).signal_rate()

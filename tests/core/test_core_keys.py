@@ -3,7 +3,7 @@ added later with a default gives the same digest for every model that leaves it 
 and a different one as soon as it is set; different values never share a digest."""
 from pydantic import create_model
 
-from workbench.render.dataset import dataset_fingerprint
+from workbench.datasets.dataset import dataset_fingerprint
 from workbench.render.city_frame import render_city_frame
 from workbench.project import load_project
 from workbench.stages.keys import digest

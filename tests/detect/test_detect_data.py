@@ -43,7 +43,7 @@ def test_exposure_is_auto_exposure_times_two_to_the_ev(synthetic_dir, ev):
 def test_the_mirror_is_taken_before_the_cfa(synthetic_dir):
     from workbench.detect.data import load_signal_rates
     from workbench.render.city_frame import frame_optical_image
-    from workbench.render.dataset import read_frame
+    from workbench.datasets.dataset import read_frame
     ds = DetectionDataset(synthetic_dir)
     view = DetectionView(ds, ds.indices("train"), "raw")
     rec = view.frame_record(0)

@@ -16,7 +16,7 @@ from workbench.cli import main
 from workbench.errors import InputFileError, OutputPathError, ParameterError
 from workbench.jobs import run_job
 from workbench.project import Project, save_project
-from workbench.render.dataset import MAX_FRAMES, frame_path, run_dataset
+from workbench.datasets.dataset import MAX_FRAMES, frame_path, run_dataset
 
 
 def start(project, frames, out, **kw):
@@ -95,7 +95,7 @@ def test_pool_workers_die_with_the_run(tmp_path, sig):
     script = (f"import sys; sys.path.insert(0, {str(helpers)!r})\n"
               "from compute_helpers import slow_renderer\n"
               "from workbench.project import Project\n"
-              "from workbench.render.dataset import run_dataset\n"
+              "from workbench.datasets.dataset import run_dataset\n"
               f"for p in run_dataset(Project(seed=5), 6, {str(tmp_path / 'k')!r}, workers=2,\n"
               "                      renderer=slow_renderer):\n"
               "    print(p.message, flush=True)\n")

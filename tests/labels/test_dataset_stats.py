@@ -1,4 +1,4 @@
-"""Per-data-set statistics (workbench.render.dataset_stats) against hand-counted label records,
+"""Per-data-set statistics (workbench.datasets.stats) against hand-counted label records,
 and the files and command that write them (no renders: frames are built from label records)."""
 import json
 import math
@@ -7,10 +7,10 @@ import numpy as np
 from PIL import Image
 
 from workbench.cli import main
-from workbench.render import dataset_stats
+from workbench.datasets import stats as dataset_stats
 from workbench.render.city_frame import FrameData
-from workbench.render.dataset import FRAME_FORMAT, frame_path, write_folder_statistics, write_frame
-from workbench.render.dataset_stats import dataset_statistics
+from workbench.datasets.dataset import FRAME_FORMAT, frame_path, write_folder_statistics, write_frame
+from workbench.datasets.stats import dataset_statistics
 from workbench.render.labels import Labels, ObjectLabel
 
 

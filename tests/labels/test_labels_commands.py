@@ -8,8 +8,9 @@ from PIL import Image
 
 from workbench.cli import main
 from workbench.project import Project, save_project
-from workbench.render import city_frame, dataset
-from workbench.render.dataset import read_frame
+from workbench.datasets import dataset
+from workbench.render import city_frame
+from workbench.datasets.dataset import read_frame
 
 
 def test_render_command_writes_previews_arrays_and_coco(tmp_path, monkeypatch, capsys):

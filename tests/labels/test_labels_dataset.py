@@ -14,7 +14,7 @@ from workbench.errors import OutputPathError, ParameterError
 from workbench.jobs import CancelToken, JobCancelled, run_job
 from workbench.project import Project
 from workbench.render.city_frame import FrameData, frame_optical_image, frame_seeds
-from workbench.render.dataset import (FLOAT16_REL_ERROR, FRAME_FORMAT, dataset_fingerprint,
+from workbench.datasets.dataset import (FLOAT16_REL_ERROR, FRAME_FORMAT, dataset_fingerprint,
                                       decode_irradiance, encode_irradiance, frame_path, read_frame,
                                       run_dataset, write_frame)
 from workbench.render.labels import Labels
@@ -207,7 +207,7 @@ def test_run_killed_with_sigkill_resumes_to_the_same_frames(tmp_path):
     script = (f"import sys; sys.path.insert(0, {str(here)!r})\n"
               "from labels_helpers import tiny_renderer\n"
               "from workbench.project import Project\n"
-              "from workbench.render.dataset import run_dataset\n"
+              "from workbench.datasets.dataset import run_dataset\n"
               f"for p in run_dataset(Project(seed=5), 4, {str(tmp_path / 'k')!r}, workers=0,\n"
               "                      renderer=tiny_renderer):\n"
               "    print(p.message, flush=True)\n")

@@ -1,4 +1,4 @@
-"""Contact sheet (render/contact_sheet.py, `workbench contact-sheet`): the tile grid has the stated
+"""Contact sheet (datasets/contact_sheet.py, `workbench contact-sheet`): the tile grid has the stated
 size, each road user's amodal box is drawn in its class colour where its label box lies (scaled to
 the tile), and a failed render writes nothing."""
 import json
@@ -10,7 +10,7 @@ from PIL import Image
 from workbench.cli import main
 from workbench.project import load_project
 from workbench.render import city_frame
-from workbench.render.contact_sheet import (BACKGROUND, CAPTION_LINES, CLASS_COLOURS, GAP_PX, LINE_PX, TEXT,
+from workbench.datasets.contact_sheet import (BACKGROUND, CAPTION_LINES, CLASS_COLOURS, GAP_PX, LINE_PX, TEXT,
                                             SheetTile, compose_sheet, to_palette, write_contact_sheet)
 from workbench.render.labels import Labels, ObjectLabel
 
@@ -119,7 +119,8 @@ def test_a_failed_render_leaves_no_sheet(tmp_path, monkeypatch, capsys):
     def fails_second(project, seeds, on_progress=None):
         calls.append(seeds.index)
         if len(calls) == 2:
-            raise ValueError("render failed on purpose")
+            from workbench.errors import StageError
+            raise StageError("scene", "render failed on purpose")
         return real(project, seeds)
     monkeypatch.setattr(city_frame, "render_city_frame", fails_second)
     rc = main(["contact-sheet", "city_day_clear_sky", "--out", str(out), "--frames-per-scene", "2",

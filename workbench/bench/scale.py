@@ -30,7 +30,7 @@ def _project(spp: int):
 
 def _run(project, frames: int, spec) -> dict:
     """Render `frames` frames with `spec` into a temporary folder; timings of the run."""
-    from workbench.render.dataset import run_dataset
+    from workbench.datasets.dataset import run_dataset
     with tempfile.TemporaryDirectory(prefix="wb-bench-scale-") as out:
         t0 = time.perf_counter()
         finished, render_s = [], []

@@ -61,7 +61,7 @@ def cmd_render(args) -> int:
     from workbench.previews import irradiance_preview, save_image, save_png
     from workbench.project import load_project
     from workbench.render.city_frame import frame_seeds, render_city_frame
-    from workbench.render.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
+    from workbench.datasets.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
     from workbench.errors import ParameterError
@@ -101,7 +101,7 @@ def cmd_dataset(args) -> int:
     from workbench.compute import JobFailed
     from workbench.errors import WorkbenchError
     from workbench.project import load_project
-    from workbench.render.dataset import run_dataset
+    from workbench.datasets.dataset import run_dataset
 
     try:
         project = load_project(args.project)
@@ -137,7 +137,7 @@ def cmd_dataset(args) -> int:
 
 def cmd_dataset_stats(args) -> int:
     from workbench.errors import WorkbenchError
-    from workbench.render.dataset import write_folder_statistics
+    from workbench.datasets.dataset import write_folder_statistics
 
     try:
         json_path, png_path = write_folder_statistics(args.folder)

@@ -1,5 +1,5 @@
 """`workbench contact-sheet`: city frames of several scene types through the camera, tiled with
-their label boxes and captions (render/contact_sheet.py) into one PNG and a JSON record."""
+their label boxes and captions (datasets/contact_sheet.py) into one PNG and a JSON record."""
 from __future__ import annotations
 
 import json
@@ -32,7 +32,7 @@ def cmd_contact_sheet(args) -> int:
     from workbench.detect.data import keep_box
     from workbench.errors import ParameterError
     from workbench.project import load_project
-    from workbench.render.contact_sheet import write_contact_sheet
+    from workbench.datasets.contact_sheet import write_contact_sheet
 
     for name, lo, hi in (("--frames-per-scene", 1, None), ("--width", 8, None), ("--height", 8, None),
                          ("--spp", 1, None), ("--columns", 1, None), ("--colours", 7, 256)):

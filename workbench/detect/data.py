@@ -39,7 +39,7 @@ import numpy as np
 
 from workbench.detect.boxes import clip_boxes, crop_boxes, crop_corner, keep_box, mirror_boxes
 from workbench.errors import InputFileError, ParameterError
-from workbench.render.dataset_stats import CLASSES_OF_INTEREST
+from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
 TEST_FRACTION = 0.3
@@ -106,7 +106,7 @@ class DetectionDataset:
     frame records with the label rule applied, and the train/test split.
 
     project: the project whose sensor, ISP and experiment settings the views use (default the one
-    the frames were rendered from); its frame settings (render.dataset.FRAME_PROJECT_SECTIONS and
+    the frames were rendered from); its frame settings (datasets.dataset.FRAME_PROJECT_SECTIONS and
     the sensor's grid and channels) must be the data set's.
     Raises InputFileError naming the file when the folder is missing, half-written (no
     manifest.json / coco.json, or a listed frame absent) or of another format or version."""
@@ -114,7 +114,7 @@ class DetectionDataset:
     def __init__(self, folder: str | Path, classes: tuple[str, ...] = DETECT_CLASSES,
                  test_fraction: float = TEST_FRACTION, project=None):
         from workbench.project import project_from_dict
-        from workbench.render.dataset import DATASET_FORMAT
+        from workbench.datasets.dataset import DATASET_FORMAT
 
         self.folder = Path(folder)
         if not self.folder.is_dir():
@@ -199,7 +199,7 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
     """(rate, mirrored-scene rate): mean e⁻/s per pixel of the frame and of its mirror image
     (irradiance flipped left-right before the CFA samples it). Errors name the frame file."""
     from workbench.render.city_frame import frame_optical_image
-    from workbench.render.dataset import FRAME_VERSION, read_frame
+    from workbench.datasets.dataset import FRAME_VERSION, read_frame
     from workbench.sensor import irradiance_to_signal_rate
 
     try:

@@ -75,6 +75,6 @@ def synthetic_project(rows: int = 48, cols: int = 64):
 def make_synthetic_dataset(folder, frames: int = 12, rows: int = 48, cols: int = 64):
     """Render a complete synthetic data set (a `workbench dataset` folder) in this process."""
     from workbench.jobs import run_job
-    from workbench.render.dataset import run_dataset
+    from workbench.datasets.dataset import run_dataset
     project = synthetic_project(rows, cols)
     return run_job(run_dataset(project, frames, folder, workers=0, renderer=synthetic_frame))

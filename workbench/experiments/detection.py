@@ -280,7 +280,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     from workbench.compute import run_jobs
     from workbench.detect.data import DetectionDataset
     from workbench.detect.job import run_detection_job
-    from workbench.render.dataset import code_version
+    from workbench.datasets.dataset import code_version
 
     if profile_override is None and profile not in PROFILES:
         raise ParameterError("profile", profile, f"one of {', '.join(PROFILES)}")

@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from workbench.errors import InvalidValueError
-from workbench.render.dataset_stats import CLASSES_OF_INTEREST
+from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 # One colour per road-user class (RGB), chosen to stand out from grey streets and blue skies.
 CLASS_COLOURS = {"car": (255, 48, 48), "pedestrian": (0, 230, 255), "bus": (255, 210, 0), "truck": (210, 90, 255)}

@@ -40,7 +40,7 @@ from workbench.errors import InputFileError, InvalidValueError, OutputPathError,
 from workbench.files import atomic_write_bytes
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
-from workbench.render.dataset_stats import PLOT_NAME, STATS_NAME, write_statistics
+from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
 DATASET_FORMAT = "camera-workbench-dataset"
@@ -363,7 +363,7 @@ def remove_index(out: Path) -> None:
 
 
 def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dtype: str, renderer):
-    """Write coco.json, manifest.json and the statistics (dataset_stats) from the frames on disk
+    """Write coco.json, manifest.json and the statistics (datasets.stats) from the frames on disk
     (a job step: yields Progress)."""
     yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []
