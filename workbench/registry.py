@@ -8,12 +8,16 @@ registered names.
 """
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Iterator, Mapping
 from typing import Generic, TypeVar
 
 from workbench.errors import InvalidValueError, ParameterError
 
 F = TypeVar("F", bound=Callable)
+
+
+NAME = re.compile(r"[A-Za-z0-9_.\-]{1,40}")
 
 
 class Registry(Mapping[str, F], Generic[F]):
@@ -27,8 +31,16 @@ class Registry(Mapping[str, F], Generic[F]):
         self._methods: dict[str, F] = {}
 
     def register(self, name: str) -> Callable[[F], F]:
-        """Decorator: register `fn` under `name` (a second, different function for a name is refused)."""
+        """Decorator: register `fn` under `name` (a second, different function for a name is refused).
+        A name is 1–40 characters of letters, digits, '_', '-' and '.', as the project file spells it."""
+        if not (isinstance(name, str) and NAME.fullmatch(name)):
+            shown = repr(name) if not isinstance(name, str) else repr(name[:40] + ("…" if len(name) > 40 else ""))
+            raise ParameterError(f"{self.field} name", shown, "1–40 letters, digits, '_', '-' or '.'")
+
         def deco(fn: F) -> F:
+            if not callable(fn):
+                raise InvalidValueError(f"{self.what} '{name}': a function or class is registered, not a "
+                                        f"{type(fn).__name__}")
             old = self._methods.get(name)
             if old is not None and (old.__module__, old.__qualname__) != (fn.__module__, fn.__qualname__):
                 raise InvalidValueError(f"{self.what} '{name}' is already registered ({old.__module__}.{old.__qualname__})")

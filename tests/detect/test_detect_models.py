@@ -66,3 +66,19 @@ def test_train_step_and_decode_on_cuda(name):
     total.backward()
     assert parts["heatmap"].device.type == "cuda" and math.isfinite(total.item())
     assert len(decode(outputs)) == 2
+
+
+@pytest.mark.parametrize("name", [123, "", "x" * 41, "has space", None])
+def test_a_detector_name_that_no_project_file_can_spell_is_refused(name):
+    with pytest.raises(ParameterError, match="detector name"):
+        register_detector(name)
+
+
+def test_a_factory_that_returns_no_trainable_network_is_named(monkeypatch):
+    monkeypatch.setattr(DETECTORS, "_methods", dict(DETECTORS._methods))
+    register_detector("returns-none")(lambda c, k, s: None)
+    register_detector("no-params")(lambda c, k, s: torch.nn.Identity())
+    with pytest.raises(ParameterError, match="torch.nn.Module.*NoneType"):
+        build_detector("returns-none", 3, 2)
+    with pytest.raises(ParameterError, match="trainable parameters"):
+        build_detector("no-params", 3, 2)

@@ -37,4 +37,11 @@ def build_detector(name: str, in_channels: int, num_classes: int, input_stride: 
         raise ParameterError("num_classes", num_classes, "a positive integer")
     if input_stride not in INPUT_STRIDES:
         raise ParameterError("input_stride", input_stride, f"one of {INPUT_STRIDES}")
-    return factory(in_channels, num_classes, input_stride)
+    import torch
+    net = factory(in_channels, num_classes, input_stride)
+    if not isinstance(net, torch.nn.Module):
+        raise ParameterError("detector", name, f"a factory that returns a torch.nn.Module (it returned a "
+                                               f"{type(net).__name__})")
+    if not any(p.requires_grad for p in net.parameters()):
+        raise ParameterError("detector", name, "a network with trainable parameters (this one has none)")
+    return net
