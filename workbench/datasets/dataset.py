@@ -36,11 +36,12 @@ import numpy as np
 
 from workbench.compute import ComputeSpec, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
+from workbench.datasets.files import check_npz, read_json_object
+from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
-from workbench.files import atomic_write_bytes
+from workbench.files import atomic_write_bytes, parse_json
 from workbench.jobs import CancelToken, Progress
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
-from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
 DATASET_FORMAT = "camera-workbench-dataset"
@@ -108,13 +109,18 @@ def write_frame(path: str | os.PathLike, data: FrameData, header: dict, dtype: s
 
 def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameData, dict]:
     """Load a frame file: (FrameData with decoded irradiance, header dict). With
-    irradiance=False only the labels are read (the irradiance is then an empty H×W×0 array)."""
+    irradiance=False only the labels are read (the irradiance is then an empty H×W×0 array).
+    The members' sizes are checked from their headers before any array is read
+    (datasets.files.check_npz); a file that is no frame is an InputFileError naming it."""
+    members = check_npz(path)
+    if "header_json" not in members or "irradiance" not in members:
+        raise InputFileError(path, "lacks a frame's members (header_json, irradiance): not a workbench frame")
     with np.load(path, allow_pickle=False) as z:
         keys = [k for k in z.files if irradiance or k != "irradiance"]
         arrays = {k: z[k] for k in keys}
-    head = json.loads(str(arrays.pop("header_json")))
-    if head.get("format") != FRAME_FORMAT:
-        raise InvalidValueError(f"{path}: not a workbench frame (format {head.get('format')!r})")
+    head = parse_json(str(arrays.pop("header_json")), path, "frame header")
+    if not isinstance(head, dict) or head.get("format") != FRAME_FORMAT:
+        raise InputFileError(path, "its header is not a workbench frame's")
     labels = labels_from_arrays(arrays, head.get("label_meta"))
     irr = (decode_irradiance(arrays.pop("irradiance"), head["irradiance_scale"]) if irradiance
            else np.zeros((*labels.shape, 0), np.float32))
@@ -298,14 +304,7 @@ def check_spec(out: Path, fingerprint: str, project, irradiance_dtype: str) -> N
                                       "project": json.loads(project.model_dump_json()),
                                       "irradiance_dtype": irradiance_dtype})
         return
-    try:
-        spec = json.loads(spec_path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
-        raise InputFileError(spec_path, f"cannot be read as JSON ({type(exc).__name__}); delete the "
-                                        "folder or choose another output folder") from None
-    if not isinstance(spec, dict):
-        raise InputFileError(spec_path, f"holds a JSON {type(spec).__name__}, not a data-set spec "
-                                        "(an object); delete the folder or choose another output folder")
+    spec = read_json_object(spec_path, "data-set spec", "")
     old = spec.get("fingerprint")
     if old != fingerprint:
         raise OutputPathError(out, f"holds a data set made from {spec_differences(spec, project)} "

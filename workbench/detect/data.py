@@ -28,7 +28,6 @@ the window.
 """
 from __future__ import annotations
 
-import json
 import time
 import zipfile
 from collections import OrderedDict
@@ -37,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.datasets.files import coco_tables, inside, manifest_frames, read_json_object
 from workbench.detect.boxes import clip_boxes, crop_boxes, crop_corner, keep_box, mirror_boxes
 from workbench.errors import InputFileError, ParameterError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
@@ -46,19 +46,6 @@ TEST_FRACTION = 0.3
 SPLIT_TAG = 0x73706C74                 # 'splt': separates the split draw from other seed uses
 TEST_NOISE_SEED = 0x74657374           # 'test': the seed of every test view's captures
 RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDER`"
-
-
-def _read_json(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise InputFileError(path, f"missing: {what}")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputFileError(path, f"not valid JSON ({exc.__class__.__name__}); the file is damaged "
-                                   "or not part of a workbench data set") from None
-    if not isinstance(data, dict):
-        raise InputFileError(path, "holds no JSON object; not part of a workbench data set")
-    return data
 
 
 def split_of(seeds: dict, test_fraction: float = TEST_FRACTION) -> str:
@@ -120,14 +107,14 @@ class DetectionDataset:
         if not self.folder.is_dir():
             raise InputFileError(self.folder, f"no such data-set folder; {RENDER_HINT}")
         spec_path = self.folder / "dataset_spec.json"
-        spec = _read_json(spec_path, f"not a workbench data set folder; {RENDER_HINT}")
+        spec = read_json_object(spec_path, "data-set spec", f"not a workbench data set folder; {RENDER_HINT}")
         if spec.get("format") != DATASET_FORMAT:
-            raise InputFileError(spec_path, f"format {spec.get('format')!r} is not '{DATASET_FORMAT}'; "
-                                            "a file of another schema")
+            raise InputFileError(spec_path, f"format is not '{DATASET_FORMAT}': a file of another schema")
         manifest_path = self.folder / "manifest.json"
-        manifest = _read_json(manifest_path, "the data set is half-written (its frames were not all "
-                                             "rendered); rerun the same `workbench dataset` command to finish it")
-        if manifest.get("format") != DATASET_FORMAT or manifest.get("fingerprint") != spec.get("fingerprint"):
+        manifest = read_json_object(manifest_path, "data-set manifest", "the data set is half-written (its "
+                                    "frames were not all rendered); rerun the same `workbench dataset` command to finish it")
+        if manifest.get("format") != DATASET_FORMAT or manifest.get("fingerprint") != spec.get("fingerprint") \
+                or not isinstance(spec.get("fingerprint"), str):
             raise InputFileError(manifest_path, "does not belong to dataset_spec.json (format or fingerprint "
                                                 "differ): a file of another schema or another data set")
         try:
@@ -137,19 +124,12 @@ class DetectionDataset:
         if project is not None:
             _check_same_frames(project, self.project, manifest_path)
             self.project = project
-        self.fingerprint = str(manifest["fingerprint"])
-        coco_path = self.folder / str(manifest.get("coco", "coco.json"))
-        coco = _read_json(coco_path, "the data set is half-written; rerun `workbench dataset` to finish it")
-        try:
-            cat_names = {int(c["id"]): str(c["name"]) for c in coco["categories"]}
-            images = {int(im["frame_index"]): im for im in coco["images"]}
-            anns_of: dict[int, list] = {}
-            for ann in coco["annotations"]:
-                anns_of.setdefault(int(ann["image_id"]), []).append(ann)
-            entries = [(int(e["index"]), str(e["file"]), dict(e["seeds"])) for e in manifest["frames"]]
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputFileError(coco_path, f"lacks the fields a workbench data set writes ({exc}); "
-                                            "a file of another schema") from None
+        self.fingerprint = manifest["fingerprint"]
+        entries = manifest_frames(manifest, self.folder, manifest_path)
+        coco_path = inside(self.folder, manifest.get("coco", "coco.json"), manifest_path, "coco")
+        coco = read_json_object(coco_path, "COCO label file", "the data set is half-written; rerun "
+                                "`workbench dataset` to finish it")
+        cat_names, images, anns_of = coco_tables(coco, coco_path)
         self.image_hw = (self.project.sensor.rows, self.project.sensor.cols)
         rows = self.image_hw[0]
         present = {cat_names.get(int(a["category_id"])) for anns in anns_of.values() for a in anns
@@ -157,8 +137,7 @@ class DetectionDataset:
         self.class_names = tuple(c for c in classes if c in present) or tuple(classes)
         cls_index = {c: k for k, c in enumerate(self.class_names)}
         self.frames: list[FrameRecord] = []
-        for index, rel, seeds in entries:
-            path = self.folder / rel
+        for index, path, seeds in entries:
             if not path.is_file():
                 raise InputFileError(path, "listed in manifest.json but missing: the data set is damaged; "
                                            "rerun `workbench dataset` on the folder to render it again")
@@ -204,6 +183,8 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
 
     try:
         data, head = read_frame(record.path)
+    except InputFileError:
+        raise
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
         raise InputFileError(record.path, f"cannot be read ({exc.__class__.__name__}: {exc}); the frame is "
                                           "damaged or half-written: rerun `workbench dataset` on the folder") from None

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.datasets.files import read_json_object
 from workbench.errors import InputFileError
 
 RESULTS_FORMAT = "camera-workbench-experiment"
@@ -78,15 +79,9 @@ def read_results(path: str | Path) -> dict:
     p = Path(path)
     if p.is_dir():
         p = p / RESULTS_FILE
-    try:
-        if p.stat().st_size > MAX_RESULTS_BYTES:
-            raise InputFileError(p, f"larger than {MAX_RESULTS_BYTES >> 20} MiB: not an experiment results file")
-        doc = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputFileError(p, "no such file: a result folder holds results.json") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise InputFileError(p, f"cannot be read as JSON ({exc.__class__.__name__})") from None
-    if not isinstance(doc, dict) or doc.get("format") != RESULTS_FORMAT:
+    doc = read_json_object(p, "experiment results file", "no such file: a result folder holds results.json",
+                           MAX_RESULTS_BYTES)
+    if doc.get("format") != RESULTS_FORMAT:
         raise InputFileError(p, f"not an experiment results file (format must be '{RESULTS_FORMAT}')")
     if doc.get("schema_version") != RESULTS_SCHEMA_VERSION:
         raise InputFileError(p, f"schema_version {doc.get('schema_version')!r}; this workbench reads "
