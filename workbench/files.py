@@ -185,6 +185,37 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
     keeps its permission bits (and owner where allowed); a new file gets 0666 less the umask. The
     data go to a temporary file in the same folder, is flushed to disk and renamed over the
     target; temporaries that a killed writer left behind are removed on the next save."""
+    return atomic_write_files({path: data})[0]
+
+
+def atomic_write_files(files: dict) -> list[Path]:
+    """Write several files (path → bytes) so that none changes unless all could be written: each
+    goes to a temporary file first (as atomic_write_bytes); only when every one is on disk are
+    they renamed over their targets, in the order given (e.g. an image before the record that
+    describes it). A failure before that (a full disk) removes the temporaries and names the file."""
+    staged = []
+    try:
+        for path, data in files.items():
+            staged.append(_stage(path, data))
+        for given, tmp, target in staged:
+            try:
+                os.replace(tmp, target)
+            except OSError as exc:
+                raise OutputPathError(given, f"cannot be written ({exc.strerror or exc})") from None
+    except BaseException:
+        for _, tmp, _ in staged:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+        raise
+    for folder in {target.parent for _, _, target in staged}:
+        _fsync_folder(folder)
+    return [target for _, _, target in staged]
+
+
+def _stage(path: str | os.PathLike, data: bytes) -> tuple[Path, Path, Path]:
+    """(given path, its temporary file written and flushed, the target it will replace)."""
     given = Path(path)
     target = Path(os.path.realpath(given))
     folder = target.parent
@@ -222,7 +253,6 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
             os.fsync(fd)
         finally:
             os.close(fd)
-        os.replace(tmp, target)
     except BaseException as exc:
         try:
             os.unlink(tmp)
@@ -231,8 +261,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
         if isinstance(exc, OSError) and not isinstance(exc, OutputPathError):
             raise OutputPathError(given, f"cannot be written ({exc.strerror or exc})") from None
         raise
-    _fsync_folder(folder)
-    return target
+    return given, tmp, target
 
 
 def _fsync_folder(folder: Path) -> None:

@@ -136,3 +136,36 @@ def test_a_failed_render_leaves_no_sheet(tmp_path, monkeypatch, capsys):
 def test_bad_options_are_refused(tmp_path, flag, value, capsys):
     assert main(["contact-sheet", "city_day_clear_sky", "--out", str(tmp_path / "cs.png"), flag, value]) == 2
     assert flag in capsys.readouterr().err and not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("option,value", [("--frames-per-scene", "100000"), ("--width", "99999"),
+                                          ("--height", "3"), ("--spp", "10000000"), ("--columns", "0")])
+def test_options_out_of_range_are_one_line_errors(tmp_path, capsys, option, value):
+    rc = main(["contact-sheet", "city_day_clear_sky", "--out", str(tmp_path / "cs.png"), option, value])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and option in err and "\n" not in err and "validation error" not in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_sheet_and_its_record_are_written_together_or_not_at_all(tmp_path, monkeypatch, capsys):
+    """A disk that fills up while the record is staged leaves the older sheet and record as they
+    were, and no temporary file (the PNG is never replaced alone)."""
+    import os
+
+    import workbench.files as files
+    out = tmp_path / "cs.png"
+    out.write_bytes(b"older sheet")
+    out.with_suffix(".json").write_text("older record")
+    real = files._write_all
+
+    def full_disk(fd, data):
+        if data.startswith(b"{"):                      # the record, staged after the sheet
+            raise OSError(28, "No space left on device")
+        real(fd, data)
+    monkeypatch.setattr(files, "_write_all", full_disk)
+    rc = main(["contact-sheet", "city_day_clear_sky", "--out", str(out), "--frames-per-scene", "1",
+               "--width", str(W), "--height", str(H), "--spp", "2"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "cs.json" in err and "No space left" in err
+    assert out.read_bytes() == b"older sheet" and out.with_suffix(".json").read_text() == "older record"
+    assert sorted(os.listdir(tmp_path)) == ["cs.json", "cs.png"]

@@ -34,8 +34,10 @@ def cmd_contact_sheet(args) -> int:
     from workbench.project import load_project
     from workbench.datasets.contact_sheet import write_contact_sheet
 
-    for name, lo, hi in (("--frames-per-scene", 1, None), ("--width", 8, None), ("--height", 8, None),
-                         ("--spp", 1, None), ("--columns", 1, None), ("--colours", 7, 256)):
+    from workbench.datasets.contact_sheet import MAX_FRAMES_PER_SCENE, MAX_TILE_PX
+    for name, lo, hi in (("--frames-per-scene", 1, MAX_FRAMES_PER_SCENE), ("--width", 8, MAX_TILE_PX),
+                         ("--height", 8, MAX_TILE_PX), ("--spp", 1, 1 << 16), ("--columns", 1, 64),
+                         ("--colours", 7, 256)):
         value = getattr(args, name[2:].replace("-", "_"))
         if value is not None and not lo <= value <= (hi or value):
             raise ParameterError(name, value, f"must be an integer from {lo} to {hi}" if hi

@@ -27,10 +27,13 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from workbench.errors import InvalidValueError
+from workbench.errors import InvalidValueError, ParameterError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 # One colour per road-user class (RGB), chosen to stand out from grey streets and blue skies.
+MAX_FRAMES_PER_SCENE = 64
+MAX_TILE_PX = 4096
+MAX_SHEET_PIXELS = 2 ** 28                # 268 Mpx: the composed sheet is held in memory as RGB
 CLASS_COLOURS = {"car": (255, 48, 48), "pedestrian": (0, 230, 255), "bus": (255, 210, 0), "truck": (210, 90, 255)}
 GAP_PX = 4
 FONT_PX = 10
@@ -170,8 +173,12 @@ def to_palette(sheet, colours: int, exact: Sequence[tuple[int, int, int]]):
 
 def sheet_project(project, width: int, height: int, spp: int):
     """The project at width × height (sensor binned: pixel pitch × cols / width, same horizontal
-    field of view) rendered at a fixed `spp`."""
-    from workbench.errors import ParameterError
+    field of view) rendered at a fixed `spp`; a size or spp the project refuses is a one-line
+    ParameterError naming the option."""
+    for name, value, lo, hi in (("width", width, 8, MAX_TILE_PX), ("height", height, 8, MAX_TILE_PX),
+                                ("spp", spp, 1, 1 << 16)):
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            raise ParameterError(name, value, f"an integer from {lo} to {hi:,}")
     sensor = project.sensor
     pitch_um = sensor.pixel_pitch_um * sensor.cols / width
     if pitch_um > 100.0:
@@ -264,13 +271,19 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
     colours exact) instead of RGB; on_tile(k, total, tile) is called after each frame."""
     import io
 
-    from workbench.files import atomic_write_bytes, atomic_write_text
+    from workbench.files import atomic_write_files
     out_png = Path(out_png)
     if out_png.suffix.lower() != ".png":
         from workbench.errors import OutputPathError
         raise OutputPathError(out_png, "must name a .png file")
-    if frames_per_scene < 1:
-        raise InvalidValueError(f"frames_per_scene must be ≥ 1, got {frames_per_scene}")
+    if not 1 <= frames_per_scene <= MAX_FRAMES_PER_SCENE:
+        raise ParameterError("frames_per_scene", frames_per_scene, f"an integer from 1 to {MAX_FRAMES_PER_SCENE}")
+    sheet_px = len(projects) * frames_per_scene * width * height
+    if sheet_px > MAX_SHEET_PIXELS:
+        raise ParameterError("frames_per_scene", frames_per_scene,
+                             f"a sheet of at most {MAX_SHEET_PIXELS:,} pixels ({len(projects)} projects × "
+                             f"{frames_per_scene} frames × {width}×{height} px is {sheet_px:,}); fewer frames or "
+                             "smaller tiles")
     if colours is not None and not len(CLASS_COLOURS) + 2 < colours <= 256:
         raise InvalidValueError(f"colours must lie in {len(CLASS_COLOURS) + 3}…256, got {colours}")
     sized = [sheet_project(p, width, height, spp) for p in projects]
@@ -295,6 +308,6 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
               "sensor_binning": "pixel pitch × cols / width: the project's horizontal field of view",
               "tiles": [{**t.record, "origin_xy": list(layout.tile_origin(k))} for k, t in enumerate(tiles)]}
     json_path = out_png.with_suffix(".json")
-    atomic_write_text(json_path, json.dumps(record, indent=1, default=float) + "\n")   # a sheet always has its record
-    atomic_write_bytes(out_png, buf.getvalue())
+    atomic_write_files({out_png: buf.getvalue(),                 # both or neither: no record of a missing sheet
+                        json_path: (json.dumps(record, indent=1, default=float) + "\n").encode()})
     return out_png, json_path
