@@ -10,7 +10,7 @@ import sys
 from workbench.errors import WorkbenchError
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
-COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "sheet")
+COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "sheet", "metrics")
 
 
 def _bench(args: argparse.Namespace) -> int:

@@ -1,0 +1,91 @@
+"""`workbench metrics`, `compare` and `study` as a user runs them: reports written whole, a study
+resumed without re-measuring, and bad requests refused by name."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from workbench.cli import main
+from workbench.project import load_project, save_project
+
+
+@pytest.fixture(scope="module")
+def small_camera(tmp_path_factory):
+    """paper_camera on a 120×160 sensor (the charts scale with it): fast enough for the suite."""
+    p = load_project("paper_camera")
+    p = p.updated(name="small_camera", sensor=p.sensor.updated(rows=120, cols=160))
+    return save_project(p, tmp_path_factory.mktemp("projects") / "small_camera.json")
+
+
+def test_metrics_command_prints_and_writes_the_measurements(small_camera, tmp_path, capsys):
+    assert main(["metrics", str(small_camera), "--out", str(tmp_path / "m")]) == 0
+    out = capsys.readouterr().out
+    assert "mtf50_cy_px" in out and "delta_e_mean" in out
+    doc = json.loads((tmp_path / "m" / "metrics.json").read_text())
+    assert {r["plane"] for r in doc["mtf"]} == {"raw G", "linear G", "sRGB luminance", "optics alone"}
+    s = doc["summary"]
+    assert 0.05 < s["mtf50_cy_px"] < 0.6 and 0 < s["delta_e_mean"] < s["delta_e_max"] < 30
+    assert s["noise_equivalent_exposure_lux_s"] > 0
+    assert (tmp_path / "m" / "metrics.png").stat().st_size > 10_000
+
+
+def test_compare_of_smaller_pixels_reports_the_expected_trade(small_camera, tmp_path, capsys):
+    p = load_project(small_camera)
+    b = save_project(p.updated(name="small_pixels", sensor=p.sensor.updated(pixel_pitch_um=1.5)), tmp_path / "b.json")
+    assert main(["compare", str(small_camera), str(b), "--out", str(tmp_path / "cmp")]) == 0
+    doc = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    rows = {r["metric"]: r for r in doc["table"]}
+    # a quarter of the area: a quarter of the electrons per lux·s, so 4× the noise-equivalent exposure,
+    # and twice the resolution per millimetre at a similar MTF per pixel
+    nee = rows["noise_equivalent_exposure_lux_s"]
+    assert nee["B"] / nee["A"] == pytest.approx(4.0, rel=0.1) and nee[""] == "A better"
+    assert rows["mtf50_lp_mm"]["B"] / rows["mtf50_lp_mm"]["A"] == pytest.approx(2.0, rel=0.15)
+    md = (tmp_path / "cmp" / "compare.md").read_text()
+    assert "| metric | A | B | B − A |" in md
+    assert (tmp_path / "cmp" / "compare.png").stat().st_size > 10_000
+
+
+def test_study_runs_the_grid_resumes_and_draws_the_pareto_chart(small_camera, tmp_path, capsys):
+    out = tmp_path / "study"
+    args = ["study", str(small_camera), "--vary", "sensor.pixel_pitch_um=1.5,3", "--vary", "sensor.read_noise_V=0.001",
+            "--out", str(out)]
+    assert main(args) == 0
+    doc = json.loads((out / "study.json").read_text())
+    assert [d["design"] for d in doc["designs"]] == ["pixel_pitch_um=1.5 read_noise_V=0.001",
+                                                      "pixel_pitch_um=3 read_noise_V=0.001"]
+    assert all(d["seconds"] > 0 for d in doc["designs"])
+    assert (out / "pareto.png").stat().st_size > 5_000 and "Pareto front" in (out / "study.md").read_text()
+    capsys.readouterr()
+    assert main(args) == 0                                   # a rerun measures nothing again
+    assert "2 designs, 2 already measured" in capsys.readouterr().err
+    assert json.loads((out / "study.json").read_text())["designs"] == doc["designs"]
+
+
+@pytest.mark.parametrize("vary, message", [
+    ("sensor.pixel_pitch_um", "SECTION.FIELD=V1,V2"),
+    ("sensor.no_such_field=1,2", "no_such_field"),
+    ("nosection.x=1", "nosection"),
+    ("sensor.pixel_pitch_um=-1", "pixel_pitch_um"),
+])
+def test_study_refuses_a_bad_grid_by_name_and_writes_nothing(small_camera, tmp_path, capsys, vary, message):
+    assert main(["study", str(small_camera), "--vary", vary, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    assert not (tmp_path / "s").exists()
+
+
+def test_study_refuses_a_folder_of_another_study(small_camera, tmp_path, capsys):
+    out = tmp_path / "s"
+    assert main(["study", str(small_camera), "--vary", "optics.f_number=4", "--out", str(out)]) == 0
+    assert main(["study", str(small_camera), "--vary", "optics.f_number=8", "--out", str(out)]) == 2
+    assert "holds another study" in capsys.readouterr().err
+
+
+def test_study_with_a_detector_needs_its_data_and_a_real_checkpoint(small_camera, tmp_path, capsys):
+    assert main(["study", str(small_camera), "--vary", "optics.f_number=4", "--out", str(tmp_path / "s"),
+                 "--detector", str(tmp_path / "none.pt")]) == 2
+    assert "--detector/--data" in capsys.readouterr().err
+    assert main(["study", str(small_camera), "--vary", "optics.f_number=4", "--out", str(tmp_path / "s"),
+                 "--detector", str(tmp_path / "none.pt"), "--data", str(tmp_path)]) == 2
+    assert "no such checkpoint" in capsys.readouterr().err

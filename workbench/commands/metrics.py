@@ -1,0 +1,92 @@
+"""`workbench metrics`, `workbench compare` and `workbench study`: a camera design's measurements
+(system MTF, SNR against signal, ΔE2000), two designs side by side, and a grid of designs with a
+Pareto chart (workbench/metrics)."""
+from __future__ import annotations
+
+import json
+import sys
+
+from workbench.commands.compute_options import add_compute_options, compute_spec
+
+
+def register(sub) -> None:
+    m = sub.add_parser("metrics", help="measure a camera design on test charts: system MTF (ISO 12233 "
+                                       "slanted edge), SNR against signal, ΔE2000 of the Macbeth chart")
+    m.add_argument("project", help="project file or sample name")
+    m.add_argument("--out", default=None, help="folder for metrics.json and metrics.png (default: print only)")
+    m.set_defaults(func=cmd_metrics)
+
+    c = sub.add_parser("compare", help="two camera designs side by side: a report (Markdown table with the "
+                                       "change, PNG charts, JSON) of their measurements")
+    c.add_argument("a", help="design A: project file or sample name")
+    c.add_argument("b", help="design B: project file or sample name")
+    c.add_argument("--out", required=True, help="folder for compare.md, compare.png and compare.json")
+    c.set_defaults(func=cmd_compare)
+
+    from workbench.metrics.study import HIGHER_IS_BETTER
+    s = sub.add_parser("study", help="a grid of camera designs (every combination of --vary values): the "
+                                     "measurements of each, a table and a Pareto chart; resumable")
+    s.add_argument("project", help="the design the grid starts from: project file or sample name")
+    s.add_argument("--vary", action="append", required=True, metavar="SECTION.FIELD=V1,V2,…",
+                   help="a field and its values, e.g. sensor.pixel_pitch_um=1.5,2,3 (repeat for a grid)")
+    s.add_argument("--out", required=True, help="folder for study.json/.csv/.md and pareto.png; rerun to resume")
+    s.add_argument("--x", default="mtf50_cy_px", choices=sorted(HIGHER_IS_BETTER),
+                   help="metric on the Pareto chart's x axis (default mtf50_cy_px)")
+    s.add_argument("--y", default="snr_at_10pct_full_well_dB", choices=sorted(HIGHER_IS_BETTER),
+                   help="metric on its y axis (default snr_at_10pct_full_well_dB)")
+    s.add_argument("--workers", type=int, default=0,
+                   help="local worker processes (default 0: in this process)")
+    s.add_argument("--detector", default=None, metavar="CHECKPOINT",
+                   help="a trained detector checkpoint: also report test mAP@0.5 per design on --data")
+    s.add_argument("--data", default=None, help="the rendered data set for --detector (workbench dataset)")
+    add_compute_options(s)
+    s.set_defaults(func=cmd_study)
+
+
+def _summary_lines(metrics: dict) -> str:
+    return "\n".join(f"  {k:28s} {v:.4g}" if isinstance(v, float) else f"  {k:28s} {v}"
+                     for k, v in metrics["summary"].items())
+
+
+def cmd_metrics(args) -> int:
+    from workbench.metrics.frame import camera_metrics
+    from workbench.metrics.study import write_metrics
+    from workbench.project import load_project
+    project = load_project(args.project)
+    metrics = camera_metrics(project)
+    print(f"{project.name}:\n{_summary_lines(metrics)}")
+    if args.out is not None:
+        paths = write_metrics(metrics, args.out)
+        print(json.dumps({k: str(v) for k, v in paths.items()}))
+    return 0
+
+
+def cmd_compare(args) -> int:
+    from workbench.metrics.study import compare_designs
+    from workbench.project import load_project
+    doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
+    for row in doc["table"]:
+        fmt = (lambda v: "—" if v is None else f"{v:.4g}")
+        print(f"{row['metric']:28s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
+    print(f"report: {args.out}/compare.md")
+    return 0
+
+
+def cmd_study(args) -> int:
+    from workbench.errors import ParameterError
+    from workbench.jobs import run_job
+    from workbench.metrics.study import parse_vary, run_study
+    from workbench.project import load_project
+    if (args.detector is None) != (args.data is None):
+        raise ParameterError("--detector/--data", args.detector or args.data, "give both or neither")
+    if args.workers < 0:
+        raise ParameterError("--workers", args.workers, "must be 0 (this process) or more")
+    project = load_project(args.project)
+
+    def report(p) -> None:
+        print(f"[{p.done}/{p.total}] {p.message}", file=sys.stderr, flush=True)
+    doc = run_job(run_study(project, parse_vary(args.vary), args.out, x=args.x, y=args.y,
+                            compute=compute_spec(args), detector=args.detector, data=args.data), report)
+    print(f"{len(doc['designs'])} designs; machine time {sum(d['seconds'] for d in doc['designs']):.1f} s; "
+          f"table {args.out}/study.md, chart {args.out}/pareto.png")
+    return 0

@@ -1,0 +1,179 @@
+"""A camera design's numbers: read-outs of one frame, and the standard measurements of the camera
+on test charts (camera_metrics), the figures `workbench metrics`, `compare` and `study` report.
+
+frame_readouts(result, project): exposure, analog gain, mean electrons per channel, the share of
+clipped pixels, and for a city frame the SNR at the road users (the noise model's SNR at each
+kept box's mean signal; the median over boxes and the share below SNR 10).
+
+camera_metrics(project): the project's camera (optics, sensor, ISP) in front of charts it builds
+from the project: the slanted edge (e-SFR on the raw G sites, the demosaiced G plane, the sRGB
+luminance and, for comparison, the optical image alone: MTF50 and MTF at Nyquist), the uniform
+field at a series of exposures (SNR against signal per channel, with the model's), and the Macbeth
+chart (ΔE2000 per patch). Charts are at the project's scene distance, noise as configured.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.metrics.colour import macbeth_delta_e
+from workbench.metrics.esfr import edge_sfr
+from workbench.metrics.noise import snr_model, snr_vs_signal
+
+ROAD_USERS = ("car", "pedestrian", "bus", "truck")
+LOW_SNR = 10.0
+SNR_EV_STEPS = tuple(range(-8, 1))     # the uniform field's exposures: auto-exposure × 2^EV
+SNR_AT_LUX_S = 0.01                    # the sensor-plane exposure of the headline SNR (low light)
+LOW_LIGHT_SNR_KEY = f"snr_at_{SNR_AT_LUX_S:g}lux_s_dB"
+COLOUR_CHART_LEVEL = 0.9               # the Macbeth shot's brightest pixels, as a fraction of the swing
+
+
+def frame_readouts(result, project) -> dict:
+    """Read-outs of one pipeline result (module docstring)."""
+    image, sensor = result.sensor_image, project.sensor
+    tile = np.asarray(image.cfa_tile)
+    rr, cc = np.indices(image.dn.shape)
+    channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
+    exposure = float(np.mean(image.exposure_s))
+    out = {"exposure_s": exposure, "analog_gain": sensor.analog_gain,
+           "clipped_pct": float(100 * np.mean(image.dn >= image.max_dn)),
+           "mean_electrons": {name: float(np.mean(image.electrons[channel == k]))
+                              for k, name in enumerate(image.channel_names) if np.any(channel == k)}}
+    labels = getattr(result, "labels", None)
+    if labels is not None:
+        rate = np.asarray(result.signal_rate_e_per_s, np.float64)
+        snrs = []
+        for obj in labels.objects:
+            if obj.class_name not in ROAD_USERS or obj.visible_px <= 0:
+                continue
+            x, y, w, h = (int(v) for v in obj.bbox_xywh)
+            box = rate[y:y + max(h, 1), x:x + max(w, 1)]
+            if box.size:
+                snrs.append(float(snr_model(box.mean() * exposure, sensor, exposure)))
+        out["road_users"] = len(snrs)
+        out["road_user_snr_median"] = float(np.median(snrs)) if snrs else None
+        out["road_user_low_snr_pct"] = float(100 * np.mean(np.asarray(snrs) < LOW_SNR)) if snrs else None
+    return out
+
+
+def _chart(project, kind: str):
+    return project.updated(scene=project.scene.updated(kind=kind, fov_deg=None))
+
+
+def _sfr_row(name: str, image: np.ndarray, px_per_sample: float) -> dict:
+    """e-SFR of a region around the chart's centre; frequencies in cycles per sensor pixel."""
+    h, w = image.shape
+    size = min(h, w) // 2
+    roi = image[h // 2 - size // 2:h // 2 + size // 2, w // 2 - size // 2:w // 2 + size // 2]
+    sfr = edge_sfr(roi)
+    freq = sfr.frequency_cy_px / px_per_sample
+    keep = freq <= 1.0
+    mtf50 = sfr.mtf50_cy_px
+    return {"plane": name, "frequency_cy_px": freq[keep].tolist(), "mtf": sfr.mtf[keep].tolist(),
+            "mtf50_cy_px": None if mtf50 is None else mtf50 / px_per_sample,
+            "mtf_nyquist": float(np.interp(0.5, freq, sfr.mtf)), "edge_angle_deg": sfr.edge_angle_deg}
+
+
+def system_mtf(project) -> list[dict]:
+    """e-SFR rows of the slanted-edge chart seen by the project's camera (module docstring)."""
+    from workbench.pipeline import Pipeline
+    from workbench.spectra import xyz_cmfs
+    result = Pipeline(_chart(project, "slanted_edge")).run()
+    image, isp = result.sensor_image, result.isp
+    rows = []
+    tile = np.asarray(image.cfa_tile)
+    names = list(image.channel_names)
+    green = next((n for n in ("G", "C", "W", "M") if n in names), names[0])
+    k = names.index(green)
+    r0, c0 = map(int, np.argwhere(tile == k)[0])
+    step = 1 if np.all(tile == k) else tile.shape[0]          # a monochrome tile: every pixel
+    rows.append(_sfr_row(f"raw {green}", np.asarray(image.dn, np.float64)[r0::step, c0::step], step))
+    rows.append(_sfr_row(f"linear {green}", np.asarray(isp.linear[..., k], np.float64), 1.0))
+    lin = np.where(isp.srgb <= 0.04045, isp.srgb / 12.92, ((isp.srgb + 0.055) / 1.055) ** 2.4)
+    rows.append(_sfr_row("sRGB luminance", lin @ np.array([0.2126, 0.7152, 0.0722]), 1.0))
+    oi = result.optical_image
+    y = np.asarray(oi.irradiance_photons, np.float64) @ xyz_cmfs(oi.wavelengths_nm)[:, 1]
+    ratio = project.sensor.pixel_pitch_um * 1e-6 / oi.sample_spacing_m      # samples per pixel
+    rows.append(_sfr_row("optics alone", y, 1.0 / ratio))
+    return rows
+
+
+def sensor_illuminance_lux(optical_image, region_frac: float = 0.5) -> float:
+    """Mean photometric illuminance (lux) of the central part of an optical image."""
+    from workbench.spectra import luminous_efficiency
+    from workbench.units import MAX_LUMINOUS_EFFICACY_LM_W, band_widths_nm, photons_to_energy
+    e = np.asarray(optical_image.irradiance_photons, np.float64)
+    h, w = e.shape[:2]
+    dy, dx = int(h * region_frac / 2), int(w * region_frac / 2)
+    mean = e[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, e.shape[2]).mean(axis=0)
+    wl = np.asarray(optical_image.wavelengths_nm, np.float64)
+    watts = photons_to_energy(mean, wl) * band_widths_nm(wl)
+    return float(MAX_LUMINOUS_EFFICACY_LM_W * np.sum(watts * luminous_efficiency(wl)))
+
+
+def noise_series(project) -> list[dict]:
+    """SNR against signal on the uniform chart (module docstring); each row also holds the
+    photometric exposure at the sensor (exposure_lux_s: sensor-plane illuminance × time)."""
+    from workbench.pipeline import Pipeline
+    from workbench.sensor import resolve_exposure
+    result = Pipeline(_chart(project, "uniform")).run()
+    rate = result.signal_rate_e_per_s
+    t = float(np.mean(resolve_exposure(rate, project.sensor)))
+    h, w = rate.shape
+    region = np.zeros(rate.shape, bool)
+    region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
+    lux = sensor_illuminance_lux(result.optical_image)
+    rows = snr_vs_signal(rate, project.sensor, [t * 2.0 ** ev for ev in SNR_EV_STEPS], region)
+    for row in rows:
+        row["exposure_lux_s"] = lux * row["exposure_s"]
+    return rows
+
+
+def exposure_figures(noise: list[dict], sensor, at_lux_s: float = SNR_AT_LUX_S) -> dict:
+    """From a noise series, on its green (or first) channel: the SNR (snr_dB) at a sensor-plane exposure
+    (interpolated log–log between unclipped measurements; None outside them) and the
+    noise-equivalent exposure (lux·s where the model's SNR is 1: N² = N + σ²_floor)."""
+    names = [r["channel"] for r in noise]
+    ch = next((n for n in ("G", "C", "W", "M", "Y") if n in names), names[0])
+    rows = sorted((r for r in noise if r["channel"] == ch and r["clipped"] == 0 and r["mean_e"] > 0),
+                  key=lambda r: r["exposure_lux_s"])
+    h = np.log([r["exposure_lux_s"] for r in rows])
+    snr = np.log([r["snr"] for r in rows])
+    inside = len(rows) >= 2 and h[0] <= np.log(at_lux_s) <= h[-1]
+    e_per_lux_s = float(np.median([r["mean_e"] / r["exposure_lux_s"] for r in rows]))
+    floor = float(snr_model(1.0, sensor, 0.0)) ** -2 - 1.0       # σ² of read + quantisation at N = 1
+    n_eq = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * max(floor, 0.0)))
+    return {"channel": ch, "snr_dB": float(20 / np.log(10) * np.interp(np.log(at_lux_s), h, snr))
+            if inside else None, "electrons_per_lux_s": e_per_lux_s,
+            "noise_equivalent_exposure_lux_s": float(n_eq / e_per_lux_s) if e_per_lux_s > 0 else None}
+
+
+def colour_error(project) -> dict:
+    """ΔE2000 of the Macbeth chart through the project's camera, exposed as a colour-checker shot
+    is: the brightest pixels at 90 % of the swing, so white 9.5 is not clipped."""
+    from workbench.pipeline import Pipeline
+    from workbench.scene.charts import macbeth_layout
+    chart = _chart(project, "macbeth")
+    chart = chart.updated(sensor=chart.sensor.updated(exposure_s=None, ev_bias=0.0, auto_exposure_method="brightest",
+                                                      auto_exposure_level=COLOUR_CHART_LEVEL))
+    result = Pipeline(chart).run()
+    return macbeth_delta_e(result.isp.srgb, macbeth_layout(result.isp.srgb.shape[:2]))
+
+
+def camera_metrics(project) -> dict:
+    """The measurements of module docstring, with a summary of the headline numbers."""
+    mtf, noise, colour = system_mtf(project), noise_series(project), colour_error(project)
+    by_plane = {r["plane"]: r for r in mtf}
+    srgb = by_plane["sRGB luminance"]
+    mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
+           min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
+    pitch_mm = project.sensor.pixel_pitch_um * 1e-3
+    expo = exposure_figures(noise, project.sensor)
+    summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf_nyquist": srgb["mtf_nyquist"],
+               "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
+               "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
+               LOW_LIGHT_SNR_KEY: expo["snr_dB"],
+               "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
+               "delta_e_mean": colour["mean"], "delta_e_max": colour["max"],
+               "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
+               "dynamic_range_dB": float(20 * np.log10(project.sensor.full_well_e / max(project.sensor.read_noise_e, 1e-9)))}
+    return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "colour": colour}

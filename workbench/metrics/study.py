@@ -1,0 +1,256 @@
+"""Design studies and A/B comparisons over camera_metrics.
+
+    designs = design_grid(project, {"sensor.pixel_pitch_um": [1.5, 2, 3], "optics.f_number": [2, 4, 8]})
+    result = run_job(run_study(project, vary, out_dir, compute=ComputeSpec(workers=2)))
+
+A study is a grid of designs: every combination of the values given per field (dotted, as in the
+project file). Each design's metrics are measured by a job of plain data (`measure_design`), so
+the grid runs in this process, a process pool or on a Ray cluster (workbench.compute); the folder
+keeps study.json (rewritten atomically after every design, so a rerun skips the finished ones),
+study.csv, study.md and pareto.png of two chosen summary metrics.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Generator
+
+from workbench.errors import OutputPathError, ParameterError
+from workbench.jobs import Progress
+from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
+
+STUDY_FORMAT = "camera-workbench-study"
+# summary metrics and whether more is better (for the Pareto front)
+HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": True, "snr_at_10pct_full_well_dB": True,
+                    LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
+                    "delta_e_mean": False, "delta_e_max": False, "read_noise_e": False, "full_well_e": True,
+                    "dynamic_range_dB": True, "map": True}
+
+
+def parse_vary(items: list[str]) -> dict[str, list]:
+    """['sensor.pixel_pitch_um=1.5,2,3', …] → {'sensor.pixel_pitch_um': [1.5, 2.0, 3.0], …}; values
+    are JSON (numbers, true/false, null) or else text."""
+    out = {}
+    for item in items:
+        field, sep, values = item.partition("=")
+        if not sep or "." not in field or not values:
+            raise ParameterError("--vary", item, "SECTION.FIELD=V1,V2,… (e.g. sensor.pixel_pitch_um=1.5,2,3)")
+        parsed = []
+        for text in values.split(","):
+            try:
+                parsed.append(json.loads(text))
+            except json.JSONDecodeError:
+                parsed.append(text)
+        out[field.strip()] = parsed
+    if not out:
+        raise ParameterError("--vary", items, "at least one SECTION.FIELD=V1,V2,…")
+    return out
+
+
+def with_fields(project, values: dict):
+    """The project with dotted fields set (each section validated: a bad value names its field)."""
+    from pydantic import ValidationError
+
+    from workbench.project import parameter_error
+    changes: dict[str, dict] = {}
+    for field, value in values.items():
+        section, _, name = field.partition(".")
+        if not hasattr(project, section):
+            raise ParameterError(field, value, f"a field of a project section; '{section}' is none")
+        changes.setdefault(section, {})[name] = value
+    try:
+        return project.updated(**{sec: getattr(project, sec).updated(**vals) for sec, vals in changes.items()})
+    except ValidationError as exc:
+        raise parameter_error(exc) from None
+
+
+def design_name(values: dict) -> str:
+    return " ".join(f"{field.rsplit('.', 1)[-1]}={value:g}" if isinstance(value, (int, float))
+                    and not isinstance(value, bool) else f"{field.rsplit('.', 1)[-1]}={value}"
+                    for field, value in values.items())
+
+
+def design_grid(project, vary: dict[str, list]) -> list[tuple[str, dict, object]]:
+    """(name, field values, project) of every combination."""
+    fields = list(vary)
+    grid = []
+    for combo in itertools.product(*(vary[f] for f in fields)):
+        values = dict(zip(fields, combo))
+        grid.append((design_name(values), values, with_fields(project, values)))
+    return grid
+
+
+@dataclass(frozen=True)
+class DesignJob:
+    """One design of a study as plain data (runs anywhere compute.run_jobs runs jobs)."""
+
+    name: str
+    values: dict
+    project_json: str
+    detector: str | None = None
+    data: str | None = None
+
+    def __repr__(self) -> str:
+        return f"DesignJob({self.name})"
+
+
+def measure_design(job: DesignJob) -> dict:
+    """camera_metrics of a design (and the detector's test mAP when the job names one), with the
+    seconds it took."""
+    from workbench.metrics.frame import camera_metrics
+    from workbench.project import project_from_dict
+    t0 = time.perf_counter()
+    project = project_from_dict(json.loads(job.project_json))
+    metrics = camera_metrics(project)
+    if job.detector is not None:
+        from workbench.metrics.detection import design_map
+        metrics["detection"] = design_map(project, job.detector, job.data)
+        metrics["summary"]["map"] = metrics["detection"]["map"]
+    return {"design": job.name, "values": job.values, **metrics, "seconds": time.perf_counter() - t0}
+
+
+def _table_rows(designs: list[dict]) -> list[dict]:
+    return [{"design": d["design"], **d["values"], **d["summary"], "seconds": round(d["seconds"], 2)}
+            for d in designs]
+
+
+def _markdown(rows: list[dict]) -> str:
+    if not rows:
+        return "(no designs yet)\n"
+    cols = list(rows[0])
+    fmt = (lambda v: f"{v:.4g}" if isinstance(v, float) else str(v))
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def write_study(doc: dict, out: Path, x: str, y: str) -> None:
+    """study.json, study.csv, study.md and pareto.png of a study document, atomically."""
+    from matplotlib.figure import Figure
+
+    from workbench.files import atomic_write_files
+    from workbench.metrics.charts import draw_pareto, pareto_front
+    rows = _table_rows(doc["designs"])
+    buf = io.StringIO()
+    if rows:
+        writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
+    md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
+          f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n" + _markdown(rows) +
+          f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n")
+    fig = Figure(figsize=(6.5, 5))
+    draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
+    fig.tight_layout()
+    png = io.BytesIO()
+    fig.savefig(png, dpi=110, format="png")
+    atomic_write_files({out / "pareto.png": png.getvalue(), out / "study.csv": buf.getvalue().encode(),
+                        out / "study.md": md.encode(),
+                        out / "study.json": (json.dumps(doc, indent=1, default=float) + "\n").encode()})
+
+
+def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px",
+              y: str = "snr_at_10pct_full_well_dB", compute=None, cancel=None, detector=None,
+              data=None) -> Generator[Progress, None, dict]:
+    """Measure every design of the grid (resuming a folder that holds this study); with a detector
+    checkpoint and its data set, each design's test mAP too (summary 'map'). Yields Progress,
+    returns the study document."""
+    from workbench.compute import ComputeSpec, run_jobs
+    from workbench.datasets.files import read_json_object
+    for name in (x, y):
+        if name not in HIGHER_IS_BETTER:
+            raise ParameterError("--x/--y", name, "one of " + ", ".join(HIGHER_IS_BETTER))
+    grid = design_grid(project, vary)
+    if (detector is None) != (data is None):
+        raise ParameterError("detector/data", detector or data, "give both a checkpoint and its data set, or neither")
+    if detector is not None:                      # refuse before any work: the checkpoint, and each design's frames
+        from workbench.detect.data import DetectionDataset
+        from workbench.metrics.detection import read_trained
+        read_trained(detector)
+        for _, _, p in grid:
+            DetectionDataset(data, project=p)
+        detector, data = str(Path(detector).resolve()), str(Path(data).resolve())
+    if "map" in (x, y) and detector is None:
+        raise ParameterError("--x/--y", "map", "needs --detector and --data")
+    out = _output_folder(out_dir)
+    doc = {"format": STUDY_FORMAT, "project": project.name, "vary": vary, "detector": detector,
+           "planned": len(grid), "designs": []}
+    if (out / "study.json").exists():
+        old = read_json_object(out / "study.json", "study file", "")
+        if any(old.get(k) != doc[k] for k in ("format", "vary", "project", "detector")):
+            raise OutputPathError(out, "holds another study (project, --vary or --detector differ); choose another --out")
+        doc["designs"] = [d for d in old.get("designs", []) if isinstance(d, dict) and "design" in d]
+    done = {d["design"] for d in doc["designs"]}
+    jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid if name not in done]
+    yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured")
+    for job, result in run_jobs(measure_design, jobs, compute or ComputeSpec(workers=0), cancel):
+        doc["designs"].append(result)
+        write_study(doc, out, x, y)
+        yield Progress(len(doc["designs"]), len(grid), f"{job.name}: MTF50 {result['summary']['mtf50_cy_px']}")
+    write_study(doc, out, x, y)
+    return doc
+
+
+def write_metrics(metrics: dict, out_dir) -> dict:
+    """metrics.json and metrics.png (MTF, SNR and ΔE charts) of one design; returns their paths."""
+    from matplotlib.figure import Figure
+
+    from workbench.files import atomic_write_files
+    from workbench.metrics.charts import draw_metrics
+    out = _output_folder(out_dir)
+    fig = Figure(figsize=(11, 8))
+    draw_metrics(fig, [metrics])
+    fig.tight_layout()
+    png = io.BytesIO()
+    fig.savefig(png, dpi=110, format="png")
+    paths = {"json": out / "metrics.json", "png": out / "metrics.png"}
+    atomic_write_files({paths["png"]: png.getvalue(),
+                        paths["json"]: (json.dumps(metrics, indent=1, default=float) + "\n").encode()})
+    return paths
+
+
+def _output_folder(out_dir) -> Path:
+    from workbench.files import prepare_output_folder
+    if str(out_dir).strip() == "":
+        raise OutputPathError(out_dir, "--out is empty; name a folder")
+    return prepare_output_folder(out_dir)
+
+
+def compare_designs(a, b, out_dir) -> dict:
+    """camera_metrics of two projects, written as compare.json, compare.md (a table with the
+    change) and compare.png (MTF, SNR and ΔE of both); returns the comparison."""
+    from matplotlib.figure import Figure
+
+    from workbench.files import atomic_write_files
+    from workbench.metrics.charts import draw_metrics
+    from workbench.metrics.frame import camera_metrics
+    out = _output_folder(out_dir)
+    ma, mb = camera_metrics(a), camera_metrics(b)
+    if ma["project"] == mb["project"]:
+        ma["project"], mb["project"] = f"A: {a.name}", f"B: {b.name}"
+    rows = []
+    for key, better in HIGHER_IS_BETTER.items():
+        va, vb = ma["summary"].get(key), mb["summary"].get(key)
+        if va is None and vb is None:
+            continue
+        change = None if va is None or vb is None else vb - va
+        verdict = "" if change is None or change == 0 else ("B better" if (change > 0) == better else "A better")
+        rows.append({"metric": key, "A": va, "B": vb, "B − A": change, "": verdict})
+    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n" + _markdown(rows) +
+          "\nMTF: sRGB luminance by the ISO 12233 slanted edge; SNR: uniform field at 10 % of full well; "
+          "ΔE2000: Macbeth chart, exposure matched on neutral 5.\n")
+    fig = Figure(figsize=(11, 8))
+    draw_metrics(fig, [ma, mb])
+    fig.tight_layout()
+    png = io.BytesIO()
+    fig.savefig(png, dpi=110, format="png")
+    doc = {"A": ma, "B": mb, "table": rows}
+    atomic_write_files({out / "compare.png": png.getvalue(), out / "compare.md": md.encode(),
+                        out / "compare.json": (json.dumps(doc, indent=1, default=float) + "\n").encode()})
+    return doc
