@@ -75,7 +75,7 @@ def test_snr_against_signal_matches_shot_plus_read_noise_within_3_percent():
     p = load_project("paper_camera")
     p = p.updated(sensor=p.sensor.updated(prnu_sigma_pct=0.0, dsnu_sigma_V=0.0, column_fpn_offset_sigma_V=0.0,
                                           column_fpn_gain_sigma_pct=0.0, bit_depth=12))
-    rows = noise_series(p)
+    rows, lux_per_cd_m2 = noise_series(p)
     checked = [r for r in rows if r["clipped"] == 0 and r["mean_e"] > 20]
     assert len(checked) >= 12
     for r in checked:
@@ -124,3 +124,17 @@ def test_delta_e_2000_equals_colour_science_on_hand_made_patches():
 def test_delta_e_2000_matches_the_published_test_pairs(lab1, lab2, expected):
     from workbench.metrics.colour import delta_e_2000
     assert float(delta_e_2000(np.array(lab1), np.array(lab2))) == pytest.approx(expected, abs=1e-4)
+
+
+def test_sensor_illuminance_follows_the_camera_equation():
+    """On axis, a distant surface of luminance L gives E = π T L / (1 + 4 N²) at the sensor (the
+    camera equation as ISETCam writes it; cos⁴ fall-off takes a few % off the central half)."""
+    from workbench.metrics.frame import noise_series
+    from workbench.project import load_project
+    p = load_project("slanted_edge_diffraction_f8")
+    k = {}
+    for n in (4.0, 8.0):
+        _, k[n] = noise_series(p.updated(optics=p.optics.updated(f_number=n)))
+        assert k[n] == pytest.approx(math.pi * p.optics.transmittance / (1 + 4 * n * n), rel=0.06)
+        assert k[n] < math.pi * p.optics.transmittance / (1 + 4 * n * n)
+    assert k[4.0] / k[8.0] == pytest.approx(257 / 65, rel=2e-3)

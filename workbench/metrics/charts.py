@@ -70,8 +70,14 @@ def draw_metrics(fig, designs: list[dict]) -> None:
     draw_delta_e(fig.add_subplot(2, 1, 2), designs)
 
 
-def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True) -> None:
-    """Designs as points of two metrics, the Pareto-optimal ones joined and every one labelled."""
+def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True,
+                fields: list[str] | None = None) -> None:
+    """Designs as points of two metrics, the Pareto-optimal ones joined and every one labelled
+    (by its values of `fields`, named in the title, when given; else by its name)."""
+    def label(r: dict) -> str:
+        return ", ".join(f"{r[f]:g}" if isinstance(r[f], (int, float)) else str(r[f]) for f in fields) \
+            if fields else r["design"]
+    names = {r["design"]: label(r) for r in rows}
     pts = [(r[x], r[y], r["design"]) for r in rows if r.get(x) is not None and r.get(y) is not None]
     if not pts:
         ax.text(0.5, 0.5, "no designs measured yet", ha="center", va="center", transform=ax.transAxes)
@@ -81,8 +87,10 @@ def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, hig
     ax.plot([p[0] for p in pts], [p[1] for p in pts], "o", color="0.6")
     ax.plot([p[0] for p in front], [p[1] for p in front], "o-", color="tab:red", label="Pareto front")
     for px, py, name in pts:
-        ax.annotate(name, (px, py), fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.set(xlabel=x, ylabel=y, title="design study")
+        ax.annotate(names[name], (px, py), fontsize=7, xytext=(4, 3), textcoords="offset points")
+    title = "design study" + (f" (points: {', '.join(f.rsplit('.', 1)[-1] for f in fields)})" if fields else "")
+    arrows = f"{'→' if higher_x else '←'} better, {'↑' if higher_y else '↓'} better"
+    ax.set(xlabel=x, ylabel=y, title=f"{title}\n{arrows}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
 

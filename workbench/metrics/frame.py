@@ -22,8 +22,8 @@ from workbench.metrics.noise import snr_model, snr_vs_signal
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
 LOW_SNR = 10.0
 SNR_EV_STEPS = tuple(range(-8, 1))     # the uniform field's exposures: auto-exposure × 2^EV
-SNR_AT_LUX_S = 0.01                    # the sensor-plane exposure of the headline SNR (low light)
-LOW_LIGHT_SNR_KEY = f"snr_at_{SNR_AT_LUX_S:g}lux_s_dB"
+LOW_LIGHT_CD_M2, LOW_LIGHT_EXPOSURE_S = 10.0, 0.01    # the headline SNR: a road at dusk, a 10 ms exposure
+LOW_LIGHT_SNR_KEY = "snr_at_10cd_m2_10ms_dB"
 COLOUR_CHART_LEVEL = 0.9               # the Macbeth shot's brightest pixels, as a fraction of the swing
 
 
@@ -97,53 +97,55 @@ def system_mtf(project) -> list[dict]:
     return rows
 
 
-def sensor_illuminance_lux(optical_image, region_frac: float = 0.5) -> float:
-    """Mean photometric illuminance (lux) of the central part of an optical image."""
-    from workbench.spectra import luminous_efficiency
-    from workbench.units import MAX_LUMINOUS_EFFICACY_LM_W, band_widths_nm, photons_to_energy
-    e = np.asarray(optical_image.irradiance_photons, np.float64)
-    h, w = e.shape[:2]
-    dy, dx = int(h * region_frac / 2), int(w * region_frac / 2)
-    mean = e[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, e.shape[2]).mean(axis=0)
-    wl = np.asarray(optical_image.wavelengths_nm, np.float64)
-    watts = photons_to_energy(mean, wl) * band_widths_nm(wl)
-    return float(MAX_LUMINOUS_EFFICACY_LM_W * np.sum(watts * luminous_efficiency(wl)))
+def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
+    h, w = values.shape[:2]
+    dy, dx = max(1, int(h * frac / 2)), max(1, int(w * frac / 2))
+    return values[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, values.shape[-1]).mean(axis=0)
 
 
-def noise_series(project) -> list[dict]:
-    """SNR against signal on the uniform chart (module docstring); each row also holds the
-    photometric exposure at the sensor (exposure_lux_s: sensor-plane illuminance × time)."""
+def noise_series(project) -> tuple[list[dict], float]:
+    """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
+    scene luminance to sensor-plane illuminance (lux per cd/m²: πT/4N² on axis, less off axis);
+    each row also holds its sensor-plane exposure (exposure_lux_s)."""
     from workbench.pipeline import Pipeline
     from workbench.sensor import resolve_exposure
-    result = Pipeline(_chart(project, "uniform")).run()
+    from workbench.spectra import luminance_from_photons
+    chart = _chart(project, "uniform")         # light through the optics as it is (πT/4N²), not rescaled
+    result = Pipeline(chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))).run()
     rate = result.signal_rate_e_per_s
     t = float(np.mean(resolve_exposure(rate, project.sensor)))
     h, w = rate.shape
     region = np.zeros(rate.shape, bool)
     region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
-    lux = sensor_illuminance_lux(result.optical_image)
+    oi, scene = result.optical_image, result.scene
+    lux = float(luminance_from_photons(_central_mean(np.asarray(oi.irradiance_photons, np.float64)), oi.wavelengths_nm))
+    nits = float(luminance_from_photons(_central_mean(np.asarray(scene.radiance_photons, np.float64)), scene.wavelengths_nm))
     rows = snr_vs_signal(rate, project.sensor, [t * 2.0 ** ev for ev in SNR_EV_STEPS], region)
     for row in rows:
         row["exposure_lux_s"] = lux * row["exposure_s"]
-    return rows
+    return rows, lux / nits
 
 
-def exposure_figures(noise: list[dict], sensor, at_lux_s: float = SNR_AT_LUX_S) -> dict:
-    """From a noise series, on its green (or first) channel: the SNR (snr_dB) at a sensor-plane exposure
-    (interpolated log–log between unclipped measurements; None outside them) and the
+def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
+    """On the noise series' green (or first) channel: electrons per lux·s at the sensor plane; the
+    SNR of a road at LOW_LIGHT_CD_M2 seen for LOW_LIGHT_EXPOSURE_S (measured, interpolated log–log
+    between unclipped captures; the model's at the measured gain outside them); the
     noise-equivalent exposure (lux·s where the model's SNR is 1: N² = N + σ²_floor)."""
     names = [r["channel"] for r in noise]
     ch = next((n for n in ("G", "C", "W", "M", "Y") if n in names), names[0])
     rows = sorted((r for r in noise if r["channel"] == ch and r["clipped"] == 0 and r["mean_e"] > 0),
                   key=lambda r: r["exposure_lux_s"])
-    h = np.log([r["exposure_lux_s"] for r in rows])
-    snr = np.log([r["snr"] for r in rows])
-    inside = len(rows) >= 2 and h[0] <= np.log(at_lux_s) <= h[-1]
     e_per_lux_s = float(np.median([r["mean_e"] / r["exposure_lux_s"] for r in rows]))
+    at = lux_per_cd_m2 * LOW_LIGHT_CD_M2 * LOW_LIGHT_EXPOSURE_S
+    h = np.log([r["exposure_lux_s"] for r in rows])
+    if len(rows) >= 2 and h[0] <= np.log(at) <= h[-1]:
+        snr = float(np.exp(np.interp(np.log(at), h, np.log([r["snr"] for r in rows]))))
+    else:
+        snr = float(snr_model(e_per_lux_s * at, sensor, LOW_LIGHT_EXPOSURE_S))
     floor = float(snr_model(1.0, sensor, 0.0)) ** -2 - 1.0       # σ² of read + quantisation at N = 1
     n_eq = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * max(floor, 0.0)))
-    return {"channel": ch, "snr_dB": float(20 / np.log(10) * np.interp(np.log(at_lux_s), h, snr))
-            if inside else None, "electrons_per_lux_s": e_per_lux_s,
+    return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
+            "snr_low_light_dB": 20 * float(np.log10(snr)) if snr > 0 else None,
             "noise_equivalent_exposure_lux_s": float(n_eq / e_per_lux_s) if e_per_lux_s > 0 else None}
 
 
@@ -161,19 +163,20 @@ def colour_error(project) -> dict:
 
 def camera_metrics(project) -> dict:
     """The measurements of module docstring, with a summary of the headline numbers."""
-    mtf, noise, colour = system_mtf(project), noise_series(project), colour_error(project)
+    mtf, (noise, lux_per_cd_m2), colour = system_mtf(project), noise_series(project), colour_error(project)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
     mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
            min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
-    expo = exposure_figures(noise, project.sensor)
+    expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
     summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
                "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
-               LOW_LIGHT_SNR_KEY: expo["snr_dB"],
+               LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],
                "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
                "delta_e_mean": colour["mean"], "delta_e_max": colour["max"],
                "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
                "dynamic_range_dB": float(20 * np.log10(project.sensor.full_well_e / max(project.sensor.read_noise_e, 1e-9)))}
-    return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "colour": colour}
+    return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "exposure": expo,
+            "colour": colour}

@@ -146,7 +146,8 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
           f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n" + _markdown(rows) +
           f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n")
     fig = Figure(figsize=(6.5, 5))
-    draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
+    draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True),
+                fields=list(doc["vary"]))
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
