@@ -138,3 +138,26 @@ def test_sensor_illuminance_follows_the_camera_equation():
         assert k[n] == pytest.approx(math.pi * p.optics.transmittance / (1 + 4 * n * n), rel=0.06)
         assert k[n] < math.pi * p.optics.transmittance / (1 + 4 * n * n)
     assert k[4.0] / k[8.0] == pytest.approx(257 / 65, rel=2e-3)
+
+
+def test_frame_readouts_of_a_known_frame():
+    """A uniform signal with one labelled car: mean electrons = rate × t, no clipping, the car's
+    SNR is the model's at its signal, a flat scene has 0 dB of dynamic range."""
+    from types import SimpleNamespace
+
+    from workbench.metrics.frame import frame_readouts
+    from workbench.metrics.noise import snr_model
+    from workbench.project import load_project
+    from workbench.sensor import signal_rate_to_sensor_image
+    sensor = load_project("paper_camera").sensor.updated(rows=64, cols=96)
+    rate = np.full((64, 96), 2.0e6)
+    t = 1e-3
+    image = signal_rate_to_sensor_image(rate, sensor, t, np.random.default_rng(0))
+    car = SimpleNamespace(class_name="car", visible_px=100, bbox_xywh=(10, 10, 20, 10))
+    tree = SimpleNamespace(class_name="vegetation", visible_px=100, bbox_xywh=(40, 10, 20, 10))
+    r = frame_readouts(image, rate, sensor, SimpleNamespace(objects=[car, tree]))
+    assert r["exposure_s"] == pytest.approx(t) and r["clipped_pct"] == 0.0
+    assert all(v == pytest.approx(2000.0, rel=0.01) for v in r["mean_electrons"].values())
+    assert r["road_users"] == 1
+    assert r["road_user_snr_median"] == pytest.approx(float(snr_model(2000.0, sensor, t)))
+    assert r["scene_dynamic_range_dB"] == pytest.approx(0.0, abs=1e-9)

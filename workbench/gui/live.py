@@ -65,6 +65,7 @@ class Frame:
     preview: bool = False
     submitted_at: float = 0.0
     isp_notes: list[str] = field(default_factory=list)
+    readouts: dict | None = None           # metrics.frame.frame_readouts of this frame
 
 
 def _optics_level(oi, project: Project) -> tuple[str, str]:
@@ -92,6 +93,8 @@ class FrameBuilder:
             self._irr_rgb = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta).astype(np.float32)
             self._irr_key = oi
         level, reason = _optics_level(oi, project)
+        from workbench.metrics.frame import frame_readouts
+        readouts = None if preview else frame_readouts(img, pipe.signal_rate(), project.sensor, pipe.labels())
         return Frame(project=project, irradiance_photons=oi.irradiance_photons,
                      wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=self._irr_rgb,
                      colour_wavelengths_nm=colour_wavelengths_nm(oi),
@@ -101,7 +104,7 @@ class FrameBuilder:
                      srgb=np.asarray(isp.srgb, dtype=np.float32), signal_rate_e_per_s=pipe.signal_rate(),
                      optics_level=level, optics_reason=reason, stage_times_s=dict(pipe.stage_times_s),
                      recomputed=list(pipe.recomputed), preview=preview, submitted_at=submitted_at,
-                     isp_notes=list(getattr(isp, "notes", []) or []))
+                     isp_notes=list(getattr(isp, "notes", []) or []), readouts=readouts)
 
 
 WINDOW_BANDS = 16        # a city rendered in the sensor's channels is shown from this many bands

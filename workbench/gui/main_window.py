@@ -26,10 +26,11 @@ EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
            ("Sensor", "workbench.gui.editors.sensor", "SensorEditor"),
            ("ISP", "workbench.gui.editors.isp", "ISPEditor"),
            ("Exposure sweep", "workbench.gui.panels.sweep", "SweepPanel"),
-           ("Experiments", "workbench.gui.panels.experiments", "ExperimentsPanel"))
+           ("Experiments", "workbench.gui.panels.experiments", "ExperimentsPanel"),
+           ("Metrics", "workbench.gui.panels.metrics", "MetricsPanel"))
 # Docks that share one place as tabs: every panel in one column beside the previews, so the four
 # panes keep most of the window (1280×800 included) and each panel has the column's full height.
-DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Exposure sweep", "Experiments"),)
+DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Metrics", "Exposure sweep", "Experiments"),)
 DOCK_FRACTION = 0.36          # of the window's width, on first run
 LAYOUT_KEY = "window/state-v2"     # v1 was the older two-group layout; it is not restored
 
@@ -252,6 +253,9 @@ class MainWindow(QMainWindow):
         sweep = self.editors.get("Exposure sweep")
         if sweep is not None and not frame.preview and "signal" in frame.recomputed:
             sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.colour_wavelengths_nm)
+        metrics = self.editors.get("Metrics")
+        if metrics is not None and not frame.preview:
+            metrics.set_frame(frame)
 
     def _show_inspected(self, text: str) -> None:
         self.statusBar().showMessage(text, 4000)

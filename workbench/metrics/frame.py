@@ -1,7 +1,7 @@
 """A camera design's numbers: read-outs of one frame, and the standard measurements of the camera
 on test charts (camera_metrics), the figures `workbench metrics`, `compare` and `study` report.
 
-frame_readouts(result, project): exposure, analog gain, mean electrons per channel, the share of
+frame_readouts(image, signal_rate, sensor, labels): exposure, analog gain, mean electrons per channel, the share of
 clipped pixels, and for a city frame the SNR at the road users (the noise model's SNR at each
 kept box's mean signal; the median over boxes and the share below SNR 10).
 
@@ -27,20 +27,22 @@ LOW_LIGHT_SNR_KEY = "snr_at_10cd_m2_10ms_dB"
 COLOUR_CHART_LEVEL = 0.9               # the Macbeth shot's brightest pixels, as a fraction of the swing
 
 
-def frame_readouts(result, project) -> dict:
-    """Read-outs of one pipeline result (module docstring)."""
-    image, sensor = result.sensor_image, project.sensor
+def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) -> dict:
+    """Read-outs of one frame (a SensorImage, its noise-free signal e⁻/s and, for a city frame,
+    its labels): module docstring, plus the scene's dynamic range as the sensor sees it (the
+    99.9th over the 0.1th percentile of the pixel signal, in dB)."""
     tile = np.asarray(image.cfa_tile)
     rr, cc = np.indices(image.dn.shape)
     channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
     exposure = float(np.mean(image.exposure_s))
+    rate = np.asarray(signal_rate_e_per_s, np.float64)
+    lo, hi = np.percentile(rate, [0.1, 99.9])
     out = {"exposure_s": exposure, "analog_gain": sensor.analog_gain,
            "clipped_pct": float(100 * np.mean(image.dn >= image.max_dn)),
            "mean_electrons": {name: float(np.mean(image.electrons[channel == k]))
-                              for k, name in enumerate(image.channel_names) if np.any(channel == k)}}
-    labels = getattr(result, "labels", None)
+                              for k, name in enumerate(image.channel_names) if np.any(channel == k)},
+           "scene_dynamic_range_dB": float(20 * np.log10(hi / lo)) if lo > 0 else None}
     if labels is not None:
-        rate = np.asarray(result.signal_rate_e_per_s, np.float64)
         snrs = []
         for obj in labels.objects:
             if obj.class_name not in ROAD_USERS or obj.visible_px <= 0:

@@ -1,0 +1,82 @@
+"""Metrics panel: a frame's read-outs appear with it; an edit re-measures the design on a worker
+(MTF, SNR, ΔE and their chart); pinning A and editing to B shows A, B and the change, and the
+A | B | B − A strip; a burst of edits measures only the newest design after the running one."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench.gui.live import FrameBuilder
+from workbench.gui.panels.metrics import MetricsPanel
+from workbench.pipeline import Pipeline
+from workbench.project import load_project
+
+
+@pytest.fixture(scope="module")
+def small():
+    base = load_project("paper_camera")
+    return base.updated(sensor=base.sensor.updated(rows=120, cols=160))
+
+
+def frame_of(project):
+    return FrameBuilder().build(Pipeline(project), project, preview=False, submitted_at=0.0)
+
+
+def make_panel(qtbot):
+    panel = MetricsPanel()
+    qtbot.addWidget(panel)
+    panel.resize(700, 800)
+    panel.show()
+    qtbot.waitExposed(panel)
+    return panel
+
+
+def table(panel) -> dict[str, list[str]]:
+    t = panel.table
+    return {t.verticalHeaderItem(i).text(): [t.item(i, j).text() for j in range(3)] for i in range(t.rowCount())}
+
+
+def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small):
+    panel = make_panel(qtbot)
+    frame = frame_of(small)
+    with qtbot.waitSignal(panel.measured, timeout=60_000) as got:
+        panel.set_project(small)
+        panel.set_frame(frame)
+    rows = table(panel)
+    assert float(rows["exposure (ms)"][1]) == pytest.approx(1e3 * frame.readouts["exposure_s"], rel=1e-2)
+    assert {"electrons R", "electrons G", "electrons B", "MTF50 sRGB (cy/px)", "ΔE2000 mean"} <= set(rows)
+    assert got.args[0]["summary"]["mtf50_cy_px"] > 0 and got.args[0]["seconds"] > 0
+    assert panel.table.isColumnHidden(0) and panel.table.isColumnHidden(2)       # no A yet
+    qtbot.wait(50)
+    assert len(np.unique(grab(panel.chart).reshape(-1, 3), axis=0)) > 20
+
+    panel.pin()
+    b = small.updated(sensor=small.sensor.updated(pixel_pitch_um=1.5))
+    with qtbot.waitSignal(panel.measured, timeout=60_000):
+        panel.set_project(b)
+        panel.set_frame(frame_of(b))
+    rows = table(panel)
+    assert not panel.table.isColumnHidden(0) and not panel.table.isColumnHidden(2)
+    a_nee, b_nee, change = (float(v) for v in rows["noise-equivalent exposure (mlx·s)"])
+    assert b_nee / a_nee == pytest.approx(4.0, rel=0.1) and change == pytest.approx(b_nee - a_nee, rel=1e-2)
+    panel.charts.setCurrentIndex(1)
+    qtbot.waitUntil(lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull(), timeout=20_000)
+    assert len(np.unique(grab(panel.ab).reshape(-1, 3), axis=0)) > 50
+
+    panel.clear_pin()
+    assert panel.table.isColumnHidden(0) and panel.pinned is None
+
+
+def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small):
+    panel = make_panel(qtbot)
+    designs = [small.updated(sensor=small.sensor.updated(read_noise_V=v)) for v in (0.001, 0.002, 0.003, 0.004)]
+    seen = []
+    panel.measured.connect(lambda m: seen.append(m["summary"]["read_noise_e"]))
+    panel.set_project(designs[0])
+    panel.measure()                                   # start now; the rest arrive while it runs
+    for d in designs[1:]:
+        panel.set_project(d)
+        panel.measure()
+    qtbot.waitUntil(lambda: bool(seen) and seen[-1] == pytest.approx(designs[-1].sensor.read_noise_e), timeout=90_000)
+    qtbot.waitUntil(lambda: panel._worker is None, timeout=60_000)
+    assert len(seen) <= 2                            # the first (if still current) and the newest only

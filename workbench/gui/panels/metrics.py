@@ -1,0 +1,298 @@
+"""Metrics panel: the current frame's read-outs (exposure, gain, electrons per channel, clipping,
+scene dynamic range, SNR at the road users) and the camera's measurements on test charts (system
+MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit on a worker
+thread, with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
+current design B and the change, the charts draw both, and an A | B | B − A strip compares the
+sRGB frames on one colour scale.
+
+Measurements run one at a time; an edit during a measurement queues one more run of the newest
+project (older requests are dropped), so results never arrive out of order."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtWidgets import (QCheckBox, QHBoxLayout, QLabel, QPushButton, QSplitter, QTableWidget,
+                               QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
+from superqt.utils import create_worker
+
+from workbench.gui.mplcanvas import ChartImage, render_rgba
+
+DEBOUNCE_MS = 300
+# (key, label, format) of the rows: frame read-outs, then the camera's summary measurements
+READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
+                ("analog_gain", "analog gain", lambda v: f"{v:.3g}"),
+                ("clipped_pct", "clipped pixels (%)", lambda v: f"{v:.2f}"),
+                ("scene_dynamic_range_dB", "scene dynamic range (dB)", lambda v: f"{v:.1f}"),
+                ("road_users", "road users in view", lambda v: f"{v:d}"),
+                ("road_user_snr_median", "SNR at road users (median)", lambda v: f"{v:.1f}"),
+                ("road_user_low_snr_pct", "road users below SNR 10 (%)", lambda v: f"{v:.0f}"))
+SUMMARY_ROWS = (("mtf50_cy_px", "MTF50 sRGB (cy/px)", lambda v: f"{v:.3f}"),
+                ("mtf50_lp_mm", "MTF50 sRGB (lp/mm)", lambda v: f"{v:.1f}"),
+                ("mtf_nyquist", "MTF at Nyquist", lambda v: f"{v:.3f}"),
+                ("snr_at_10cd_m2_10ms_dB", "SNR, 10 cd/m² for 10 ms (dB)", lambda v: f"{v:.1f}"),
+                ("snr_at_10pct_full_well_dB", "SNR at 10 % full well (dB)", lambda v: f"{v:.1f}"),
+                ("noise_equivalent_exposure_lux_s", "noise-equivalent exposure (mlx·s)", lambda v: f"{1e3 * v:.3g}"),
+                ("dynamic_range_dB", "sensor dynamic range (dB)", lambda v: f"{v:.1f}"),
+                ("delta_e_mean", "ΔE2000 mean", lambda v: f"{v:.2f}"),
+                ("delta_e_max", "ΔE2000 max", lambda v: f"{v:.2f}"))
+
+
+def flat_readouts(readouts: dict | None) -> dict:
+    """Read-outs with the per-channel electrons as rows of their own ('electrons R', …)."""
+    if not readouts:
+        return {}
+    out = {k: v for k, v in readouts.items() if k != "mean_electrons"}
+    out.update({f"electrons {ch}": v for ch, v in readouts.get("mean_electrons", {}).items()})
+    return out
+
+
+def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
+    """camera_metrics of the project and the chart of it (beside the pinned design's): a worker's
+    job, no Qt. Returns (metrics, chart RGBA, seconds)."""
+    from workbench.metrics.charts import draw_metrics
+    from workbench.metrics.frame import camera_metrics
+    t0 = time.perf_counter()
+    metrics = camera_metrics(project)
+    designs = [pinned, metrics] if pinned is not None else [metrics]
+    if pinned is not None and pinned["project"] == metrics["project"]:
+        designs = [{**pinned, "project": f"A: {pinned['project']}"}, {**metrics, "project": f"B: {metrics['project']}"}]
+    rgba = render_rgba(lambda fig: draw_metrics(fig, designs), *chart_px)
+    return metrics, rgba, time.perf_counter() - t0
+
+
+def draw_ab(fig, a: np.ndarray, b: np.ndarray) -> None:
+    """A | B | B − A of two sRGB frames; the difference (luminance) on a symmetric, shared scale."""
+    axes = fig.subplots(1, 3)
+    axes[0].imshow(np.clip(a, 0, 1))
+    axes[0].set_title("A (pinned)", fontsize=8)
+    axes[1].imshow(np.clip(b, 0, 1))
+    axes[1].set_title("B (current)", fontsize=8)
+    if a.shape == b.shape:
+        w = np.array([0.2126, 0.7152, 0.0722], np.float32)
+        diff = (np.asarray(b, np.float32) - np.asarray(a, np.float32)) @ w
+        lim = max(float(np.percentile(np.abs(diff), 99.5)), 1e-3)
+        im = axes[2].imshow(diff, cmap="RdBu_r", vmin=-lim, vmax=lim)
+        fig.colorbar(im, ax=axes[2], fraction=0.046, shrink=0.8)
+        axes[2].set_title("B − A (sRGB luminance)", fontsize=8)
+    else:
+        axes[2].text(0.5, 0.5, f"sizes differ:\n{a.shape[1]}×{a.shape[0]} vs {b.shape[1]}×{b.shape[0]}",
+                     ha="center", va="center", fontsize=8, transform=axes[2].transAxes)
+    for ax in axes:
+        ax.set_xticks([])
+        ax.set_yticks([])
+
+
+class MetricsPanel(QWidget):
+    """Read-outs and measurements of the current design, A/B against a pinned one.
+
+    measured(dict) when a measurement of the current project arrives (with 'seconds')."""
+
+    edited = Signal(str, dict)          # the editor protocol; this panel edits nothing
+    measured = Signal(dict)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self._project = None
+        self._frame = None
+        self._readouts: dict = {}
+        self.metrics: dict | None = None
+        self._measured = None                        # the project self.metrics belongs to
+        self.pinned: dict | None = None              # {'metrics', 'readouts', 'srgb', 'project'}
+        self._worker = None
+        self._queued = None
+        self._ab_worker = None
+        self._ab_queued = False
+        self._timer = QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(DEBOUNCE_MS)
+        self._timer.timeout.connect(lambda: self.measure())
+
+        self.live = QCheckBox("measure after every edit", self)
+        self.live.setChecked(True)
+        self.live.setToolTip("re-measure MTF, SNR and ΔE on test charts after each edit (a few seconds, "
+                             "on a worker thread)")
+        self.measure_button = QPushButton("Measure now", self)
+        self.measure_button.clicked.connect(lambda: self.measure(force=True))
+        self.pin_button = QPushButton("Pin as A", self)
+        self.pin_button.setToolTip("keep the current design as A; edit to make B and compare")
+        self.pin_button.clicked.connect(self.pin)
+        self.clear_button = QPushButton("Clear A", self)
+        self.clear_button.clicked.connect(self.clear_pin)
+        self.status = QLabel("no measurement yet", self)
+        self.status.setWordWrap(True)
+        self.table = QTableWidget(0, 3, self)
+        self.table.setHorizontalHeaderLabels(["A (pinned)", "B (current)", "B − A"])
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
+        self.chart = ChartImage("MTF, SNR against signal and ΔE per patch appear here after a measurement", self)
+        self.ab = ChartImage("Pin a design as A, then edit: A, B and their difference appear here", self)
+        charts = QTabWidget(self)
+        charts.addTab(self.chart, "Charts")
+        charts.addTab(self.ab, "A | B | B − A")
+        self.charts = charts
+
+        buttons = QHBoxLayout()
+        for w in (self.measure_button, self.pin_button, self.clear_button):
+            buttons.addWidget(w)
+        buttons.addStretch(1)
+        split = QSplitter(Qt.Orientation.Vertical, self)
+        split.addWidget(self.table)
+        split.addWidget(charts)
+        split.setStretchFactor(1, 2)
+        lay = QVBoxLayout(self)
+        lay.addWidget(self.live)
+        lay.addLayout(buttons)
+        lay.addWidget(self.status)
+        lay.addWidget(split, 1)
+        self._update_buttons()
+        self._fill_table()
+
+    # -------------------------------------------------------------------------------- inputs
+    def set_project(self, project) -> None:
+        """A new current design: re-measure it (debounced) when live measuring is on and the panel
+        is on screen (a hidden panel measures when it is shown: no CPU for numbers nobody sees)."""
+        changed = project is not self._project and project != self._project
+        self._project = project
+        if changed and self.live.isChecked() and self.isVisible():
+            self._timer.start()
+        self._update_buttons()
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        if self.live.isChecked() and self._project is not None and self._measured != self._project:
+            self._timer.start()
+
+    def set_frame(self, frame) -> None:
+        """A new frame of the current design: its read-outs into the table, A/B strip redrawn."""
+        self._frame = frame
+        self._readouts = flat_readouts(getattr(frame, "readouts", None))
+        self._fill_table()
+        if self.pinned is not None:
+            self._draw_ab()
+
+    # ------------------------------------------------------------------------------- A and B
+    def pin(self) -> None:
+        """Keep the current design's measurements, read-outs and sRGB frame as A."""
+        if self.metrics is None and self._frame is None:
+            self.status.setText("nothing to pin yet: wait for a frame or a measurement")
+            return
+        self.pinned = {"metrics": self.metrics, "readouts": dict(self._readouts),
+                       "srgb": None if self._frame is None else np.array(self._frame.srgb),
+                       "project": getattr(self._project, "name", "A")}
+        self.status.setText(f"pinned '{self.pinned['project']}' as A: edit the design to compare")
+        self._fill_table()
+        self._update_buttons()
+        self._draw_ab()
+
+    def clear_pin(self) -> None:
+        self.pinned = None
+        self.ab.clear()
+        self.ab.setText("Pin a design as A, then edit: A, B and their difference appear here")
+        self._fill_table()
+        self._update_buttons()
+
+    def _draw_ab(self) -> None:
+        if self.pinned is None or self.pinned["srgb"] is None or self._frame is None:
+            return
+        if self._ab_worker is not None:
+            self._ab_queued = True
+            return
+        a, b = self.pinned["srgb"], np.array(self._frame.srgb)
+        self._ab_worker = create_worker(render_rgba, lambda fig: draw_ab(fig, a, b), *self.ab.size_px(),
+                                        _start_thread=False, _ignore_errors=True)
+        self._ab_worker.returned.connect(self.ab.show_rgba)
+        self._ab_worker.finished.connect(self._ab_finished)
+        self._ab_worker.start()
+
+    def _ab_finished(self) -> None:
+        self._ab_worker = None
+        if self._ab_queued:
+            self._ab_queued = False
+            self._draw_ab()
+
+    # ---------------------------------------------------------------------------- measuring
+    def measure(self, force: bool = False) -> None:
+        """Measure the current design on a worker (queued behind a running one); a design already
+        measured is measured again only when forced (Measure now)."""
+        if self._project is None:
+            return
+        if not force and self.metrics is not None and self._measured == self._project:
+            return
+        if self._worker is not None:
+            self._queued = self._project
+            return
+        project = self._project
+        pinned = None if self.pinned is None else self.pinned["metrics"]
+        self._worker = create_worker(measure_and_draw, project, pinned, self.chart.size_px(),
+                                     _start_thread=False, _ignore_errors=True)
+        self._worker.returned.connect(lambda result, p=project: self._returned(p, result))
+        self._worker.errored.connect(self._errored)
+        self._worker.finished.connect(self._finished)
+        self.status.setText(f"measuring {project.name} on test charts…")
+        self._worker.start()
+        self._update_buttons()
+
+    def _returned(self, project, result) -> None:
+        metrics, rgba, seconds = result
+        if project is not self._project and project != self._project:
+            return                                    # an older design; the queued run follows
+        self.metrics = {**metrics, "seconds": seconds}
+        self._measured = project
+        self.chart.show_rgba(rgba)
+        self.status.setText(f"measured {project.name} in {seconds:.1f} s (worker thread)")
+        self._fill_table()
+        self.measured.emit(self.metrics)
+
+    def _errored(self, exc: Exception) -> None:
+        self.status.setText(f"measurement failed: {exc}")
+
+    def _finished(self) -> None:
+        self._worker = None
+        queued, self._queued = self._queued, None
+        if queued is not None:
+            self.measure()
+        self._update_buttons()
+
+    def _update_buttons(self) -> None:
+        self.measure_button.setEnabled(self._project is not None)
+        self.pin_button.setEnabled(self.metrics is not None or self._frame is not None)
+        self.clear_button.setEnabled(self.pinned is not None)
+
+    # -------------------------------------------------------------------------------- table
+    def rows(self) -> list[tuple[str, object, object]]:
+        """(label, A value, B value) of every row the table shows (A None when nothing is pinned)."""
+        a_read = self.pinned["readouts"] if self.pinned else {}
+        a_sum = (self.pinned["metrics"] or {}).get("summary", {}) if self.pinned else {}
+        b_sum = (self.metrics or {}).get("summary", {})
+        keys = list(READOUT_ROWS) + [(k, k, lambda v: f"{v:.4g}") for k in self._readouts
+                                     if k.startswith("electrons ")]
+        out = [(label, fmt, a_read.get(k), self._readouts.get(k)) for k, label, fmt in keys
+               if k in self._readouts or k in a_read]
+        out += [(label, fmt, a_sum.get(k), b_sum.get(k)) for k, label, fmt in SUMMARY_ROWS if k in b_sum or k in a_sum]
+        return out
+
+    def _fill_table(self) -> None:
+        rows = self.rows()
+        self.table.setRowCount(len(rows))
+        self.table.setVerticalHeaderLabels([r[0] for r in rows])
+        for i, (_, fmt, a, b) in enumerate(rows):
+            change = None
+            if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+                change = b - a
+            for j, v in enumerate((a, b, change)):
+                text = "—" if v is None else (fmt(v) if not (j == 2 and isinstance(v, int)) else f"{v:+d}")
+                if j == 2 and v is not None and isinstance(v, float):
+                    text = ("+" if v >= 0 else "") + fmt(v)
+                item = QTableWidgetItem(text)
+                item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+                self.table.setItem(i, j, item)
+        self.table.setColumnHidden(0, self.pinned is None)
+        self.table.setColumnHidden(2, self.pinned is None)
+
+    def shutdown(self) -> None:
+        """The window is closing: no new measurement starts (a running one finishes on its own)."""
+        self._timer.stop()
+        self._queued = None
+        self._ab_queued = False
