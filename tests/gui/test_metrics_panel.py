@@ -80,3 +80,27 @@ def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small):
     qtbot.waitUntil(lambda: bool(seen) and seen[-1] == pytest.approx(designs[-1].sensor.read_noise_e), timeout=90_000)
     qtbot.waitUntil(lambda: panel._worker is None, timeout=60_000)
     assert len(seen) <= 2                            # the first (if still current) and the newest only
+
+
+def test_study_panel_runs_a_grid_resumes_it_and_draws_the_pareto_chart(qtbot, grab, small, tmp_path):
+    from workbench.gui.panels.study import StudyPanel
+    panel = StudyPanel()
+    qtbot.addWidget(panel)
+    panel.resize(700, 800)
+    panel.show()
+    qtbot.waitExposed(panel)
+    panel.set_project(small)
+    panel.folder.setText(str(tmp_path / "study"))
+    panel.grid.setPlainText("sensor.pixel_pitch_um=1.5,3\n\noptics.f_number=4")
+    with qtbot.waitSignal(panel.finished, timeout=120_000) as got:
+        panel.run()
+    assert len(got.args[0]["designs"]) == 2 and panel.table.rowCount() == 2
+    qtbot.wait(50)
+    assert len(np.unique(grab(panel.chart).reshape(-1, 3), axis=0)) > 20
+    with qtbot.waitSignal(panel.finished, timeout=60_000):            # the same grid: nothing measured again
+        panel.run()
+    assert "2 designs, 2 already measured" in panel.status.text() or "2 designs measured" in panel.status.text()
+    qtbot.waitUntil(lambda: panel._worker is None, timeout=10_000)
+    panel.grid.setPlainText("sensor.pixel_pitch_um")
+    panel.run()
+    assert "SECTION.FIELD" in panel.status.text() and panel._worker is None

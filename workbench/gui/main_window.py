@@ -27,10 +27,11 @@ EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
            ("ISP", "workbench.gui.editors.isp", "ISPEditor"),
            ("Exposure sweep", "workbench.gui.panels.sweep", "SweepPanel"),
            ("Experiments", "workbench.gui.panels.experiments", "ExperimentsPanel"),
-           ("Metrics", "workbench.gui.panels.metrics", "MetricsPanel"))
+           ("Metrics", "workbench.gui.panels.metrics", "MetricsPanel"),
+           ("Design study", "workbench.gui.panels.study", "StudyPanel"))
 # Docks that share one place as tabs: every panel in one column beside the previews, so the four
 # panes keep most of the window (1280×800 included) and each panel has the column's full height.
-DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Metrics", "Exposure sweep", "Experiments"),)
+DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Metrics", "Design study", "Exposure sweep", "Experiments"),)
 DOCK_FRACTION = 0.36          # of the window's width, on first run
 LAYOUT_KEY = "window/state-v2"     # v1 was the older two-group layout; it is not restored
 

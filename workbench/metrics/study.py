@@ -114,7 +114,7 @@ def measure_design(job: DesignJob) -> dict:
     return {"design": job.name, "values": job.values, **metrics, "seconds": time.perf_counter() - t0}
 
 
-def _table_rows(designs: list[dict]) -> list[dict]:
+def table_rows(designs: list[dict]) -> list[dict]:
     return [{"design": d["design"], **d["values"], **d["summary"], "seconds": round(d["seconds"], 2)}
             for d in designs]
 
@@ -135,7 +135,7 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
 
     from workbench.files import atomic_write_files
     from workbench.metrics.charts import draw_pareto, pareto_front
-    rows = _table_rows(doc["designs"])
+    rows = table_rows(doc["designs"])
     buf = io.StringIO()
     if rows:
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
@@ -218,8 +218,6 @@ def write_metrics(metrics: dict, out_dir) -> dict:
 
 def _output_folder(out_dir) -> Path:
     from workbench.files import prepare_output_folder
-    if str(out_dir).strip() == "":
-        raise OutputPathError(out_dir, "--out is empty; name a folder")
     return prepare_output_folder(out_dir)
 
 
@@ -244,8 +242,11 @@ def compare_designs(a, b, out_dir) -> dict:
         verdict = "" if change is None or change == 0 else ("B better" if (change > 0) == better else "A better")
         rows.append({"metric": key, "A": va, "B": vb, "B − A": change, "": verdict})
     md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n" + _markdown(rows) +
-          "\nMTF: sRGB luminance by the ISO 12233 slanted edge; SNR: uniform field at 10 % of full well; "
-          "ΔE2000: Macbeth chart, exposure matched on neutral 5.\n")
+          "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
+          "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
+          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "
+          "chart shot with its brightest pixels at 90 % of the swing, exposure matched on neutral 5; it "
+          "includes the optics' fall-off over the chart. Dynamic range: full well over read noise.\n")
     fig = Figure(figsize=(11, 8))
     draw_metrics(fig, [ma, mb])
     fig.tight_layout()
