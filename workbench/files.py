@@ -279,7 +279,10 @@ def _fsync_folder(folder: Path) -> None:
 
 def prepare_output_folder(path: str | os.PathLike) -> Path:
     """Create the output folder `path` (and its parents) and check that files can be written in it;
-    OutputPathError if it is an existing file (or /dev/null), lies below a file, or is read-only."""
+    OutputPathError if it is empty (which would mean the current folder), an existing file (or
+    /dev/null), lies below a file, or is read-only."""
+    if not str(path).strip():
+        raise OutputPathError(path, "an empty output folder name; name a folder (e.g. --out out/)")
     p = Path(path)
     if os.path.lexists(p) and not p.is_dir():
         raise OutputPathError(p, "exists and is not a folder; give a folder for the outputs")

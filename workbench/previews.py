@@ -46,18 +46,27 @@ def channels_to_rgb(channels: np.ndarray, names: list[str]) -> np.ndarray:
     return np.stack([red, grey, grey], axis=-1)
 
 
-def save_png(path: str | Path, image01: np.ndarray) -> None:
-    """Save a [0,1] float image (H×W or H×W×3) as an 8-bit PNG, atomically."""
+def png01(image01: np.ndarray):
+    """A [0,1] float image (H×W or H×W×3) as an 8-bit PIL image."""
     from PIL import Image
     arr = np.clip(np.nan_to_num(np.asarray(image01, dtype=np.float64)), 0.0, 1.0)
-    save_image(path, Image.fromarray(np.round(arr * 255).astype(np.uint8)))
+    return Image.fromarray(np.round(arr * 255).astype(np.uint8))
+
+
+def png_bytes(image) -> bytes:
+    """A PIL image encoded as PNG."""
+    import io
+    buf = io.BytesIO()
+    image.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def save_png(path: str | Path, image01: np.ndarray) -> None:
+    """Save a [0,1] float image (H×W or H×W×3) as an 8-bit PNG, atomically."""
+    save_image(path, png01(image01))
 
 
 def save_image(path: str | Path, image) -> None:
     """Save a PIL image as PNG whole or not at all: a killed run leaves the old file or none."""
-    import io
-
     from workbench.files import atomic_write_bytes
-    buf = io.BytesIO()
-    image.save(buf, format="PNG")
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_write_bytes(path, png_bytes(image))

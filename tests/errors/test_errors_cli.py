@@ -113,3 +113,35 @@ def test_stale_outputs_of_an_earlier_run_are_removed(tmp_path, tiny_project, cap
     assert not (out / "labels.png").exists() and (out / "notes.txt").exists()
     assert "removed" in printed and "labels.png" in printed
     assert json.loads((out / "report.json").read_text())["removed_stale"] == ["labels.png"]
+
+
+def test_an_empty_out_is_refused_and_two_writers_of_one_folder_are_refused(tmp_path, tiny_project, capsys,
+                                                                          monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", str(tiny_project), "--out", ""]) == 2
+    assert "empty output folder" in capsys.readouterr().err and not list(tmp_path.glob("*.png"))
+    out = tmp_path / "out"
+    out.mkdir()
+    import subprocess
+    import sys
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from workbench.compute.folder_lock import hold_folder_lock\n"
+                               "with hold_folder_lock(sys.argv[1], 'a test'):\n print('held', flush=True); time.sleep(60)", str(out)],
+                              stdout=subprocess.PIPE, text=True)
+    try:                                            # another process holds the folder
+        assert holder.stdout.readline().strip() == "held"
+        assert main(["simulate", str(tiny_project), "--out", str(out)]) == 2
+        assert "is in use by a test (pid" in capsys.readouterr().err
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not list(out.glob("*.png")) and not list(out.glob(".*.tmp"))
+    assert main(["simulate", str(tiny_project), "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} >= {"srgb.png", "stages.npz", "report.json"}
+    assert not list(out.glob(".*.tmp"))
+
+
+def test_a_data_set_of_a_chart_project_is_refused_before_anything_is_written(tmp_path, capsys):
+    assert main(["dataset", "paper_camera", "--frames", "2", "--out", str(tmp_path / "set")]) == 2
+    err = capsys.readouterr().err
+    assert "scene.kind" in err and "city" in err and "resume" not in err
+    assert not (tmp_path / "set").exists()

@@ -183,3 +183,13 @@ def test_linear_ramp_is_sampled_at_the_pixel_centres(method, spacing_um):
     exact = method == "isetcam" or float(3.0 / spacing_um).is_integer()
     atol = 0.0 if exact else 1e15 / 100.0 * 9e-12 * spacing_um / 4
     np.testing.assert_allclose(rate[2, 1:-1], expected[1:-1], rtol=1e-4, atol=atol)
+
+
+@pytest.mark.parametrize("method", ["area", "isetcam"])
+def test_regrid_of_a_vanishing_optical_image_is_bounded(method):
+    """A field of view of 1e-9° makes the optical samples ~10¹⁰ times finer than a pixel: the
+    regrid matrix stays as small as the image (it used to loop once per sample in a pixel: a hang)."""
+    from workbench.sensor.signal import REGRID_METHODS
+    m = REGRID_METHODS.get(method)(6, 1e-16, 10, 3e-6)
+    assert m.shape == (10, 6) and m.nnz <= 10 * 7
+    assert np.all(np.isfinite(m.toarray()))

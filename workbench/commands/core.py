@@ -92,22 +92,25 @@ def remove_stale_outputs(out: Path, written: set[str]) -> list[str]:
 
 
 def write_outputs(result, project, out: Path) -> dict:
-    """PNG previews, stages.npz (arrays with units and wavelengths) and report.json; outputs of an
-    earlier run that this one does not replace are removed (named in report['removed_stale'])."""
-    from workbench.files import atomic_write_text, prepare_output_folder
-    from workbench.previews import channels_to_rgb, irradiance_preview, save_image, save_png
+    """PNG previews, stages.npz (arrays with units and wavelengths) and report.json, written as one
+    group (files.atomic_write_files: all or none, the report last); outputs of an earlier run that
+    this one does not replace are removed (named in report['removed_stale']). The caller holds
+    the folder's lock (compute.folder_lock)."""
+    import io
+
+    from workbench.files import atomic_write_files, prepare_output_folder
+    from workbench.previews import channels_to_rgb, irradiance_preview, png01, png_bytes
     prepare_output_folder(out)
     oi, img, isp = result.optical_image, result.sensor_image, result.isp
     preview = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta)
-    save_png(out / "irradiance.png", preview)
+    files = {out / "irradiance.png": png_bytes(png01(preview))}
     labels = getattr(result, "labels", None)
     if labels is not None:
         from workbench.commands.render import label_overlay
-        save_image(out / "labels.png", label_overlay(preview, labels))
-    save_png(out / "raw.png", isp.raw)
-    lin = channels_to_rgb(isp.linear, img.channel_names)
-    save_png(out / "linear.png", lin)
-    save_png(out / "srgb.png", isp.srgb)
+        files[out / "labels.png"] = png_bytes(label_overlay(preview, labels))
+    files[out / "raw.png"] = png_bytes(png01(isp.raw))
+    files[out / "linear.png"] = png_bytes(png01(channels_to_rgb(isp.linear, img.channel_names)))
+    files[out / "srgb.png"] = png_bytes(png01(isp.srgb))
     units = {
         "scene_radiance": "photons/s/sr/m^2/nm", "wavelengths": "nm",
         "irradiance": "photons/s/m^2/nm", "signal_rate": "electrons/s per pixel (noise-free)",
@@ -120,19 +123,21 @@ def write_outputs(result, project, out: Path) -> dict:
                   electrons=img.electrons, volts=img.volts, dn=img.dn, raw=isp.raw,
                   linear=isp.linear, srgb=isp.srgb, sample_spacing_m=np.float64(oi.sample_spacing_m),
                   channel_names=np.array(img.channel_names), units=np.array(json.dumps(units)))
-    tmp = out / ".stages.npz.tmp.npz"
-    np.savez_compressed(tmp, **arrays)
-    tmp.replace(out / "stages.npz")
+    npz = io.BytesIO()
+    np.savez_compressed(npz, **arrays)
+    files[out / "stages.npz"] = npz.getvalue()
     report = stage_report(result, project)
     written = set(SIMULATE_OUTPUTS) - ({"labels.png"} if labels is None else set())
-    report["removed_stale"] = remove_stale_outputs(out, written)
     if labels is not None:
         counts: dict[str, int] = {}
         for o in labels.objects:
             if o.visible_px:
                 counts[o.class_name] = counts.get(o.class_name, 0) + 1
         report["visible_objects"] = counts
-    atomic_write_text(out / "report.json", json.dumps(report, indent=2) + "\n")
+    report["removed_stale"] = [name for name in SIMULATE_OUTPUTS if name not in written and (out / name).is_file()]
+    files[out / "report.json"] = (json.dumps(report, indent=2) + "\n").encode()
+    atomic_write_files(files)                         # the report last: it describes the others
+    remove_stale_outputs(out, written)
     return report
 
 
@@ -140,15 +145,17 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from workbench.jobs import run_job, tqdm_progress
     from workbench.pipeline import Pipeline
     from workbench.project import load_project
+    from workbench.compute.folder_lock import hold_folder_lock
     from workbench.files import prepare_output_folder
     project = load_project(args.project)
     prepare_output_folder(args.out)          # refuse a bad --out before the run, not after
-    bar = tqdm_progress("simulate")
-    try:
-        result = run_job(Pipeline(project).run_job(), bar)
-    finally:
-        bar.close()
-    report = write_outputs(result, project, Path(args.out))
+    with hold_folder_lock(args.out, "workbench simulate"):     # a second run here is refused, not mixed in
+        bar = tqdm_progress("simulate")
+        try:
+            result = run_job(Pipeline(project).run_job(), bar)
+        finally:
+            bar.close()
+        report = write_outputs(result, project, Path(args.out))
     print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
     scene_range, sensor_range = report["scene_dynamic_range"], report["sensor_dynamic_range"]
     if report["scene_exceeds_sensor_range"] is not None:          # both ranges known
@@ -186,13 +193,16 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from workbench.pipeline import Pipeline
     from workbench.files import prepare_output_folder
     from workbench.project import load_project
+    from workbench.compute.folder_lock import hold_folder_lock
     out = prepare_output_folder(args.out)
     base = load_project("paper_camera")
     t0 = time.perf_counter()
     rows = []
     for kind in ("macbeth", "slanted_edge", "hdr_tunnel"):
         project = base.updated(scene=base.scene.updated(kind=kind))
-        report = write_outputs(Pipeline(project).run(), project, out / kind)
+        result = Pipeline(project).run()
+        with hold_folder_lock(prepare_output_folder(out / kind), "workbench demo"):
+            report = write_outputs(result, project, out / kind)
         rows.append((kind, report))
         print(f"{kind:13s} exposure {1e3 * float(np.mean(report['exposure_s'])):8.3f} ms  "
               f"clipped {100 * report['fraction_clipped']:5.1f} %  -> {out / kind}")

@@ -238,6 +238,9 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         raise ParameterError("frames", frames, f"an integer from 1 to {MAX_FRAMES:,}")
     if irradiance_dtype not in IRRADIANCE_DTYPES:
         raise ParameterError("irradiance_dtype", irradiance_dtype, f"one of {', '.join(IRRADIANCE_DTYPES)}")
+    if renderer is None and project.scene.kind != "city":     # refused before the folder is made
+        raise ParameterError("scene.kind", project.scene.kind, "'city': a data set is rendered city frames "
+                             "(choose a city project, e.g. city_detection_quick)")
     compute = compute or ComputeSpec(workers=workers,
                                      max_tasks_per_child=max_tasks_per_child if workers else None)
     renderer = renderer or render_city_frame

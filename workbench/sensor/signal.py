@@ -36,7 +36,7 @@ def _area_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
     lo = _edges(n_dst, p)[:-1]
     hi = lo + p
     j0 = np.clip(np.floor(lo / s + n_src / 2.0).astype(np.int64), 0, n_src - 1)
-    span = int(np.ceil(p / s)) + 2
+    span = int(min(np.ceil(p / s) + 2, n_src + 1))     # a pixel can overlap no more than every sample
     rows, cols, vals = [], [], []
     for k in range(span):
         j = j0 + k
@@ -55,7 +55,7 @@ def _area_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
 def _isetcam_matrix(n_src: int, s: float, n_dst: int, p: float) -> sp.csr_array:
     """ISETCam's regridOI2ISA: Gaussian pre-blur (kernel ceil(pitch/spacing) samples, σ = kernel/4),
     then bilinear interpolation at the pixel centres."""
-    kernel = int(np.ceil(p / s - 1e-9))
+    kernel = int(min(np.ceil(p / s - 1e-9), 4 * n_src + 1))   # wider is flat over the whole image
     if kernel > 1:
         half = kernel // 2
         offsets = np.arange(-half, half + 1)

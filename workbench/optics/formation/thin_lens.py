@@ -28,6 +28,9 @@ SMALL_BLUR_SAMPLES = 2.44   # below this CoC (samples) the pillbox OTF has no ze
 FLAT_BLUR_SAMPLES = 0.05    # a spread of blur diameters below this (samples) is one depth layer
 
 
+MAX_BLUR_IMAGE_WIDTHS = 4          # a wider defocus blur is refused (the padded FFT grid grows with it)
+
+
 def depth_varies(coc_spread_m: float, spacing_m: float) -> bool:
     """Whether blur circles spread over more than FLAT_BLUR_SAMPLES samples, so that a scene
     needs more than one depth layer (shared by every level that splits a scene by depth)."""
@@ -131,6 +134,14 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     n_layers = params.depth_layers if depth_varies(hi - lo, oi.sample_spacing_m) and params.depth_layers > 1 else 1
     coc = np.linspace(lo, hi, n_layers) if n_layers > 1 else np.array([0.5 * (lo + hi)])
     weights = layer_weights(coc_map, coc)
+    blur_samples = 2.0 * float(coc.max()) / oi.sample_spacing_m
+    if blur_samples > MAX_BLUR_IMAGE_WIDTHS * max(oi.shape):
+        from workbench.errors import ParameterError
+        raise ParameterError("optics.focus_distance_m", s_m,
+                             f"a focus farther from the focal length {f_m:.4g} m: the defocus blur of the scene "
+                             f"would be {blur_samples:,.0f} samples wide, over {MAX_BLUR_IMAGE_WIDTHS} image widths "
+                             f"({MAX_BLUR_IMAGE_WIDTHS * max(oi.shape):,} samples; e.g. focus at the scene, "
+                             f"{float(np.median(z)):.3g} m)")
     n_w = diffraction.working_f_number(oi, f_m)
     wl_m = oi.wavelengths_nm * 1e-9
     pad = fourier.pad_width(oi.shape, max(diffraction.blur_radius_samples(oi.wavelengths_nm, n_w,
