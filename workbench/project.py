@@ -15,6 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, ValidationError, model_validator
 
 from workbench.errors import InputFileError, ParameterError
@@ -68,6 +69,21 @@ class Project(Params):
     experiment: ExperimentParams = ExperimentParams()
 
     @model_validator(mode="after")
+    def _spectral_memory(self):
+        """The spectral image's peak working memory (samples × wavelengths × ~24 bytes: the float32
+        scene, the float64 optical image and one depth layer) stays under MAX_SPECTRAL_GIB; the
+        pixel cap alone let 400 wavelengths × 2²⁵ pixels ask for 50 GiB."""
+        gib = spectral_memory_gib(self)
+        if gib > MAX_SPECTRAL_GIB:
+            n = len(self.scene.wavelengths.grid()) if self.scene.kind != "city" else None
+            raise ParameterError("sensor.rows/cols, scene.oversample, scene.wavelengths", f"{gib:.0f} GiB",
+                                 f"a spectral image under {MAX_SPECTRAL_GIB} GiB of working memory: "
+                                 f"{self.sensor.rows}×{self.sensor.cols} px × oversample {self.scene.oversample}² × "
+                                 + (f"{n} wavelengths" if n else "the render's wavelengths")
+                                 + "; use fewer pixels, a smaller oversample or a larger wavelength step")
+        return self
+
+    @model_validator(mode="after")
     def _focus_beyond_focal_length(self):
         """The object in focus (optics.focus_distance_m, else scene.distance_m) lies beyond the
         effective focal length, so the image is real; refused here instead of in the optics stage."""
@@ -79,6 +95,21 @@ class Project(Params):
             raise ParameterError(field, distance_m, f"must exceed the effective focal length ({f_mm:.4g} mm) for "
                                                     "a real image")
         return self
+
+
+MAX_SPECTRAL_GIB = 16.0
+BYTES_PER_SPECTRAL_SAMPLE = 24
+
+
+def spectral_memory_gib(project: Project) -> float:
+    """Estimated peak memory (GiB) of the project's spectral image (see Project._spectral_memory);
+    a city counts the render's output grid over 300–1,100 nm at render.output_step_nm (an upper bound)."""
+    if project.scene.kind == "city":
+        bands = int(np.ceil(800.0 / project.render.output_step_nm)) + 1
+    else:
+        bands = len(project.scene.wavelengths.grid())
+    samples = project.sensor.rows * project.sensor.cols * project.scene.oversample ** 2
+    return samples * bands * BYTES_PER_SPECTRAL_SAMPLE / 2 ** 30
 
 
 # Pydantic's tags of union members in an error location ('float', 'list[list[float]]'): not fields.

@@ -145,3 +145,18 @@ def test_a_data_set_of_a_chart_project_is_refused_before_anything_is_written(tmp
     err = capsys.readouterr().err
     assert "scene.kind" in err and "city" in err and "resume" not in err
     assert not (tmp_path / "set").exists()
+
+
+def test_a_spectral_image_too_large_for_memory_is_refused_naming_its_fields(tmp_path, capsys):
+    """2²⁵ pixels pass the pixel cap, but with 401 wavelengths the spectral image needs ~300 GiB."""
+    data = json.loads(load_project("paper_camera").model_dump_json())
+    data["sensor"].update(rows=4096, cols=8192)
+    data["scene"]["wavelengths"] = {"start_nm": 300.0, "stop_nm": 1100.0, "step_nm": 2.0}
+    path = tmp_path / "huge.json"
+    path.write_text(json.dumps(data))
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "GiB" in err and "scene.wavelengths" in err and "sensor.rows/cols" in err and err.count("\n") == 1
+    data["scene"]["wavelengths"]["step_nm"] = 50.0                    # 17 wavelengths: 13 GiB, allowed
+    from workbench.project import project_from_dict, spectral_memory_gib
+    assert spectral_memory_gib(project_from_dict(data)) < 16

@@ -85,3 +85,26 @@ def test_an_nvidia_gpu_gets_the_cuda_variant_automatically(monkeypatch, caplog):
     with caplog.at_level("WARNING"):
         assert select_variant() in ("llvm_ad_spectral", "scalar_spectral")
     assert "cuda_ad_spectral failed to load" in caplog.text and "cuInit" in caplog.text
+
+
+def test_a_pinned_variant_is_that_variant_or_a_refusal_naming_the_field(monkeypatch):
+    from workbench.errors import ParameterError
+    with pytest.raises(ParameterError, match="render.variant.*cuda backend is not available"):
+        choose_variant(ALL, {"cuda": False, "llvm": True}, "cuda_ad_spectral", strict=True)
+    with pytest.raises(ParameterError, match="not compiled"):
+        choose_variant(["scalar_spectral"], {"llvm": True}, "llvm_ad_spectral", strict=True)
+    assert choose_variant(ALL, {"cuda": False, "llvm": True}, "llvm_ad_spectral", strict=True)[0] == "llvm_ad_spectral"
+    import mitsuba as mi
+    select_variant("scalar_spectral")
+    real = mi.set_variant
+
+    def failing(name, *args):
+        if name == "llvm_ad_spectral":
+            raise RuntimeError("simulated JIT start-up failure")
+        return real(name, *args)
+
+    monkeypatch.setattr(mi, "set_variant", failing)
+    with pytest.raises(ParameterError, match="failed to load"):
+        select_variant("llvm_ad_spectral", strict=True)
+    monkeypatch.undo()
+    select_variant()

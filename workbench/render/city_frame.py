@@ -225,7 +225,7 @@ class CitySceneSession:
             raise StageError("city", f"frame {seeds.index}: {exc}") from None
         camera = inputs.camera
         height, width = camera.shape
-        variant = select_variant(inputs.render.variant)
+        variant = select_variant(inputs.render.variant, strict=inputs.render.variant is not None)
         qe_wl = SENSOR_SPECTRAL_GRID_NM
         fov = camera.hfov_deg
         lens_camera, lens_sensor = None, None

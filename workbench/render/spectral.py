@@ -165,7 +165,7 @@ def render_spectral(city: City, pose: CameraPose, params: RenderParams, *, width
     params give one) and is the film for representation 'sensor'. lens_sensor: an optional
     Mitsuba sensor dict replacing the pinhole (fov_deg must then describe it). Drive with
     `scene = yield from render_spectral(...)` or `workbench.jobs.run_job(render_spectral(...))`."""
-    select_variant(params.variant)
+    select_variant(params.variant, strict=params.variant is not None)
     film = film_for(params, sensor_qe)
     mi_scene, _ = build_scene(city, pose, fov_deg, width, height, film, params.daylight,
                               lens_sensor, max_depth=params.max_depth, sampler=params.sampler)

@@ -53,11 +53,13 @@ def _set_llvm_path() -> None:
     os.environ["DRJIT_LIBLLVM_PATH"] = path
 
 
-def choose_variant(compiled: list[str], backends: dict[str, bool], prefer: str | None = None
-                   ) -> tuple[str, list[str]]:
+def choose_variant(compiled: list[str], backends: dict[str, bool], prefer: str | None = None,
+                   strict: bool = False) -> tuple[str, list[str]]:
     """Pure choice: the first usable variant of [prefer, cuda, llvm, scalar] and why others failed.
 
     compiled: variants the mitsuba build has; backends: {'cuda': bool, 'llvm': bool} availability.
+    strict: `prefer` is pinned (a project's render.variant: bitwise reproducibility is promised for
+    it), so it is that variant or a ParameterError saying why not, never another one.
     Returns (variant, reasons-for-skipping). Raises ValueError for an unknown `prefer` or when
     no spectral variant is usable."""
     if prefer is not None and prefer not in SPECTRAL_VARIANTS:
@@ -73,13 +75,23 @@ def choose_variant(compiled: list[str], backends: dict[str, bool], prefer: str |
             skipped.append(f"{variant}: the {backend} backend is not available on this machine")
         else:
             return variant, skipped
+        if strict and variant == prefer:
+            raise _pinned_refusal(prefer, skipped[-1])
     raise InvalidValueError("no spectral Mitsuba variant is usable: " + "; ".join(skipped))
 
 
-def select_variant(prefer: str | None = None) -> str:
+def _pinned_refusal(variant: str, why: str):
+    from workbench.errors import ParameterError
+    return ParameterError("render.variant", variant, f"a variant this machine can run ({why}); set it to null "
+                          "to choose the best available one (results are then bitwise the same only on "
+                          "machines that choose the same)")
+
+
+def select_variant(prefer: str | None = None, strict: bool = False) -> str:
     """Set the best usable spectral variant (trying `prefer` first) and return its name.
 
-    Order: cuda_ad_spectral → llvm_ad_spectral → scalar_spectral; each skip is logged."""
+    Order: cuda_ad_spectral → llvm_ad_spectral → scalar_spectral; each skip is logged. strict: a
+    pinned `prefer` that cannot load is a ParameterError (choose_variant), not a fallback."""
     _set_llvm_path()
     import drjit as dr
     import mitsuba as mi
@@ -88,7 +100,7 @@ def select_variant(prefer: str | None = None) -> str:
                 "llvm": bool(dr.has_backend(dr.JitBackend.LLVM))}
     compiled = list(mi.variants())
     while True:
-        variant, skipped = choose_variant(compiled, backends, prefer)
+        variant, skipped = choose_variant(compiled, backends, prefer, strict)
         for reason in skipped:
             log.info("render variant skipped: %s", reason)
         try:
@@ -96,6 +108,8 @@ def select_variant(prefer: str | None = None) -> str:
                 mi.set_variant(variant)
             break
         except (ImportError, RuntimeError) as exc:   # e.g. a GPU whose driver/OptiX fails to start
+            if strict and variant == prefer:
+                raise _pinned_refusal(prefer, f"it failed to load: {type(exc).__name__}") from None
             log.warning("render variant %s failed to load (%s); trying the next one", variant, exc)
             compiled.remove(variant)
     allowed = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
