@@ -56,6 +56,34 @@ class _ProgressBoard:
         return latest
 
 
+CONNECT_TIMEOUT_S = 10.0
+
+
+def check_address(address: str) -> None:
+    """Fail fast, naming the address, where Ray itself would retry for minutes: a host:port or
+    ray://host:port that does not answer on TCP, or ray:// without Ray's client support."""
+    import socket
+    from workbench.errors import ParameterError
+    if address == "auto":
+        return
+    target = address[len("ray://"):] if address.startswith("ray://") else address
+    host, sep, port = target.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ParameterError("--address", address, "'auto', HOST:PORT of a cluster's head (GCS) or ray://HOST:PORT")
+    if address.startswith("ray://"):
+        try:
+            import grpc  # noqa: F401  (ray[client]'s transport)
+        except ImportError:
+            raise ParameterError("--address", address, "a ray:// address needs Ray's client support: "
+                                 "pip install 'ray[client]' (the cluster extra installs it)") from None
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise ParameterError("--address", address, f"a Ray cluster that answers: nothing at {host}:{port} "
+                             f"({exc.strerror or type(exc).__name__} within {CONNECT_TIMEOUT_S:g} s); start one "
+                             "with `ray start --head` or check the address") from None
+
+
 def connect(spec) -> bool:
     """Join or start the cluster `spec` names; True when this call started (and so owns) it."""
     ray = import_ray()
@@ -64,6 +92,7 @@ def connect(spec) -> bool:
     if spec.address is None:
         ray.init(num_cpus=spec.workers, include_dashboard=False, log_to_driver=False)
     else:
+        check_address(spec.address)
         ray.init(address=spec.address, log_to_driver=False)
     return True
 
