@@ -160,3 +160,19 @@ def test_a_spectral_image_too_large_for_memory_is_refused_naming_its_fields(tmp_
     data["scene"]["wavelengths"]["step_nm"] = 50.0                    # 17 wavelengths: 13 GiB, allowed
     from workbench.project import project_from_dict, spectral_memory_gib
     assert spectral_memory_gib(project_from_dict(data)) < 16
+
+
+@pytest.mark.parametrize("section, values, field", [
+    ("sensor", {"conversion_gain_uV_per_e": 1e-300}, "conversion_gain_uV_per_e"),
+    ("optics", {"distortion_k": [1e300]}, "distortion_k"),
+])
+def test_values_that_broke_a_later_stage_are_refused_naming_their_field(tmp_path, capsys, section, values, field):
+    """A conversion gain of 1e-300 was reported as 'exposure_s … nan'; distortion_k 1e300 as a
+    black optical image."""
+    data = json.loads(load_project("paper_camera").model_dump_json())
+    data[section].update(values)
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(data))
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert field in err and "nan" not in err and "black" not in err and err.count("\n") == 1

@@ -62,6 +62,9 @@ class ErrorBudget(Params):
                                                             "traced distortion (samples); optics 'auto' selector")
 
 
+MAX_DISTORTION_K = 10.0
+
+
 class OpticsParams(Params):
     """How radiance becomes sensor-plane irradiance.
 
@@ -148,8 +151,9 @@ class OpticsParams(Params):
     @field_validator("distortion_k")
     @classmethod
     def _finite_coefficients(cls, v: tuple[float, ...]) -> tuple[float, ...]:
-        if not all(math.isfinite(k) for k in v):
-            raise InvalidValueError(f"distortion_k must be finite numbers, got {v}")
+        if not all(math.isfinite(k) and abs(k) <= MAX_DISTORTION_K for k in v):
+            raise InvalidValueError(f"distortion_k must be finite numbers within ±{MAX_DISTORTION_K:g} (real lenses: "
+                                    f"|k| < 1 with r = tan of the field angle), got {v}")
         return v
 
     @model_validator(mode="after")

@@ -91,7 +91,9 @@ class FogParams(Params):
     `phase_g` (fog droplets scatter forward, ≈ 0.85), in a layer `height_m` deep over the city.
     Droplets ≫ λ, so σ is the same at every wavelength."""
 
-    visibility_m: float = Field(200.0, gt=1.0, le=1e5, description="meteorological visibility (m); fog medium")
+    visibility_m: float = Field(200.0, ge=10.0, le=1e5, description="meteorological visibility (m), from 10 m "
+                                "(the densest fog the models are checked for; nearer, the fog model's "
+                                "in-scattering underflows) to 100 km; fog medium")
     albedo: float = Field(0.98, ge=0.0, le=1.0, description="single-scattering albedo (0–1); fog medium")
     phase_g: float = Field(0.85, gt=-1.0, lt=1.0, description="Henyey–Greenstein asymmetry (−1…1); fog medium")
     height_m: float = Field(100.0, gt=1.0, le=1e4, description="fog layer depth over the city (m); fog medium")

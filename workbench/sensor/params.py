@@ -42,8 +42,9 @@ class SensorParams(Params):
                                               "view and the optical-image sample spacing (pitch / oversample)")
     fill_factor: float = Field(0.75, gt=0.0, le=1.0,
                                description="photosensitive fraction of the pixel area (0–1); signal stage")
-    conversion_gain_uV_per_e: float = Field(100.0, gt=0.0, le=1000.0,
-                                            description="conversion gain (µV per electron); sensor stage")
+    conversion_gain_uV_per_e: float = Field(100.0, ge=0.1, le=1000.0,
+                                            description="conversion gain (µV per electron, 0.1–1,000: real pixels "
+                                                        "have 10–500); sensor stage")
     voltage_swing_V: float = Field(1.0, gt=0.0, le=10.0, description="pixel output range (V); sensor stage")
     dark_voltage_V_per_s: float = Field(1e-3, ge=0.0, le=10.0,
                                         description="dark-current voltage rate (V/s); sensor stage, noise_flag 2")
