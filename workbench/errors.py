@@ -48,10 +48,23 @@ class InputFileError(WorkbenchError, ValueError):
 
     def __init__(self, path: str | os.PathLike, problem: str):
         self.path, self.problem = str(path), problem
-        super().__init__(f"{self.path}: {problem}")
+        super().__init__(f"{shown_name(self.path)}: {problem}")
 
     def __reduce__(self):
         return type(self), (self.path, self.problem)
+
+
+MAX_SHOWN_NAME = 120
+
+
+def shown_name(name: str) -> str:
+    """A file or lens name as an error shows it: at most MAX_SHOWN_NAME characters (the middle
+    elided), control characters replaced, so a hostile name cannot flood or forge a message."""
+    clean = "".join(c if c.isprintable() else "?" for c in str(name))
+    if len(clean) <= MAX_SHOWN_NAME:
+        return clean
+    half = (MAX_SHOWN_NAME - 1) // 2
+    return f"{clean[:half]}…{clean[-half:]}"
 
 
 class OutputPathError(WorkbenchError, OSError):

@@ -154,8 +154,22 @@ def test_zmx_subset_reader(tmp_path, encoding):
 def test_zmx_unsupported_surface_type_is_refused(tmp_path):
     p = tmp_path / "l.zmx"
     p.write_text(ZMX.replace("TYPE EVENASPH", "TYPE TOROIDAL"))
-    with pytest.raises(ValueError, match="TOROIDAL"):
+    with pytest.raises(ValueError, match="surface TYPE is not supported") as err:
         load_lens(p)
+    assert "TOROIDAL" not in str(err.value)            # the file's content is not echoed
+
+
+def test_errors_never_echo_lens_file_tokens_or_long_names(tmp_path):
+    from workbench.errors import MAX_SHOWN_NAME
+    p = tmp_path / "l.zmx"
+    p.write_text(ZMX.replace("TYPE EVENASPH", "TYPE SECRETTOKEN42"))
+    with pytest.raises(ValueError) as err:
+        load_lens(p)
+    assert "SECRETTOKEN42" not in str(err.value)
+    long_name = "x" * 5000
+    with pytest.raises(InputFileError) as err:
+        load_lens(long_name)
+    assert long_name not in str(err.value) and len(str(err.value).split(":")[0]) <= MAX_SHOWN_NAME
 
 
 def test_unknown_lens_name_lists_available():

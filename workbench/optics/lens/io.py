@@ -122,8 +122,7 @@ def _material(spec, where: str):
     try:
         return material(spec)
     except (ValueError, TypeError):
-        shown = repr(spec) if isinstance(spec, (str, int, float)) and len(str(spec)) <= 40 else "the material"
-        raise InvalidValueError(f"{where}: {shown} is not a catalogue glass (resources/glass/), an index 'n' or "
+        raise InvalidValueError(f"{where}: the material is not a catalogue glass (resources/glass/), an index 'n' or "
                          "'n/V', or a [[wavelengths nm], [n]] table") from None
 
 
@@ -347,8 +346,7 @@ def lens_from_zmx(text: str, name: str = "") -> Lens:
     surfaces = []
     for b in blocks[1:-1]:
         if b["type"] not in ("STANDARD", "EVENASPH"):
-            shown = b["type"] if b["type"].isalnum() and len(b["type"]) <= 16 else "this surface TYPE"
-            raise InvalidValueError(f"Zemax surface at line {b['line']}: {shown} not supported "
+            raise InvalidValueError(f"Zemax surface at line {b['line']}: its surface TYPE is not supported "
                              "(allowed TYPEs: STANDARD, EVENASPH)")
         med = AIR if b["glas"] is None else _zmx_glass(b["glas"], b["line"])
         coeffs = ()
