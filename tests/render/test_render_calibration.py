@@ -10,40 +10,15 @@ import pytest
 
 from workbench.jobs import run_job
 from workbench.render.daylight import sky_radiance, sun_irradiance
-from workbench.render.demo_scene import plane_mesh
 from workbench.render.film import box_bands
 from workbench.render.params import DaylightParams, RenderParams
 from workbench.render.scene_builder import build_scene
 from workbench.render.spectral import render_loaded
-from workbench.scene.city.types import CameraPose, City, CityObject, Material
-from workbench.units import photon_energy_J
+from workbench.scene.city.types import CameraPose
 
-RHO = 0.6
+from render_helpers import RHO, band_mean_photons, check, flat_city
+
 W, H = 64, 48
-
-
-def band_mean_photons(wl, energy, film):
-    """Exact band means of a piecewise-linear energy spectrum, in photons."""
-    fine = np.arange(300.0, 1100.0, 0.01)
-    e = np.interp(fine, wl, energy, left=0, right=0) / photon_energy_J(fine)
-    s = np.stack([np.interp(fine, film.wavelengths_nm, r, left=0, right=0) for r in film.responses])
-    return np.trapezoid(s * e, fine, axis=1) / np.trapezoid(s, fine, axis=1)
-
-
-def check(img, expected, label):
-    p = img.reshape(-1, img.shape[-1])
-    sem = p.std(axis=0) / np.sqrt(p.shape[0])
-    tol = 5 * sem + 3e-3 * expected
-    err = np.abs(p.mean(axis=0) - expected)
-    assert np.all(tol < 0.02 * expected), f"{label}: tolerance {tol / expected} too loose to test anything"
-    assert np.all(err <= tol), f"{label}: rel err {err / expected} > tol {tol / expected}"
-
-
-def flat_city(half_size_m=1.0e4):
-    wl = np.array([350.0, 1000.0])
-    mat = Material("white", wl, np.array([RHO, RHO]))
-    return City([CityObject("ground", 1, [plane_mesh(half_size_m, 0.0, "white")])], {"white": mat},
-                seed=0, extent_m=(-1, -1, 1, 1))
 
 
 def test_constant_environment(mi):

@@ -22,7 +22,7 @@ from workbench.render.scene_builder import build_scene
 from workbench.render.spectral import render_loaded
 from workbench.scene.city import CameraPose, CityRecipe, generate_city
 
-from tests.render.test_render_calibration import band_mean_photons, check
+from render_helpers import band_mean_photons, check, north_rays
 
 W, H, FOV_DEG, CAM_Z = 64, 48, 12.0, 1.5
 FIELD_M = 2000.0
@@ -42,15 +42,6 @@ def _pose(city):
     return CameraPose(np.array([x, margin_edge_y - 5.0, CAM_Z]), pan_deg=90.0, tilt_deg=0.0, roll_deg=0.0)
 
 
-def north_rays(width: int = W, height: int = H, hfov_deg: float = FOV_DEG) -> np.ndarray:
-    """Unit pixel-centre ray directions (height×width×3) of a level pinhole looking along +y."""
-    f_px = (width / 2) / np.tan(np.radians(hfov_deg / 2))
-    u = (np.arange(width) + 0.5 - width / 2) / f_px
-    v = (height / 2 - np.arange(height) - 0.5) / f_px
-    d = np.stack(np.broadcast_arrays(u[None, :], 1.0, v[:, None]), -1).astype(np.float64)
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
-
 def test_off_by_default_and_the_extent_grows_by_the_field():
     assert CityRecipe().horizon_field_m == 0.0
     off, on = _city(0.0), _city(FIELD_M)
@@ -66,7 +57,7 @@ def test_off_by_default_and_the_extent_grows_by_the_field():
 
 def test_the_field_is_labelled_ground_to_its_edge(mi):
     film = box_bands(400.0, 700.0, 2)
-    d = north_rays()
+    d = north_rays(W, H, FOV_DEG)
     for field_m in (0.0, FIELD_M):
         city = _city(field_m)
         pose = _pose(city)

@@ -16,7 +16,7 @@ from workbench.render.spectral import render_loaded
 from workbench.scene.city.types import CameraPose
 from workbench.spectra import luminous_efficiency
 
-from tests.render.test_render_calibration import RHO, band_mean_photons, check, flat_city
+from render_helpers import RHO, band_mean_photons, check, flat_city
 
 W, H = 64, 48
 CLEAR = DaylightParams(sun_elevation_deg=30.0, sun_azimuth_deg=90.0, sun_scale=0.0, turbidity=3.0,

@@ -13,7 +13,7 @@ from workbench.render.scene_builder import build_scene
 from workbench.scene.city import CameraPose, CityRecipe, generate_city
 from workbench.scene.city.buildings import WINDOW_PROUD_M
 
-from tests.render.test_render_horizon import north_rays
+from render_helpers import north_rays
 
 W, H, HFOV_DEG, CAM_Z = 120, 40, 60.0, 1.5
 
