@@ -47,9 +47,12 @@ def test_sweep_runs_to_completion(qtbot, grab, frame):
 def test_cancelled_sweep_leaves_no_partial_results(qtbot, frame):
     panel = make_panel(qtbot, frame)
     panel.step.setValue(0.25)                                   # 33 exposures
+    # cancel from the panel's own progress, connected before the sweep starts (no race with its start)
+    cancel_at_2 = (lambda v: v >= 2 and panel.cancel())
+    panel.progress.valueChanged.connect(cancel_at_2)
     with qtbot.waitSignal(panel.sweep_cancelled, timeout=60_000):
         panel.run()
-        panel._worker.yielded.connect(lambda p: p.done >= 2 and panel.cancel())
+    panel.progress.valueChanged.disconnect(cancel_at_2)
     assert panel.results == [] and panel.thumbnails.count() == 0
     qtbot.waitUntil(lambda: panel.run_button.isEnabled())
     # a complete earlier sweep survives a later cancelled one unchanged
@@ -59,9 +62,9 @@ def test_cancelled_sweep_leaves_no_partial_results(qtbot, frame):
     kept = list(panel.results)
     qtbot.waitUntil(lambda: panel.run_button.isEnabled())
     panel.step.setValue(0.25)
+    panel.progress.valueChanged.connect(cancel_at_2)
     with qtbot.waitSignal(panel.sweep_cancelled, timeout=60_000):
         panel.run()
-        panel._worker.yielded.connect(lambda p: p.done >= 2 and panel.cancel())
     assert panel.results == kept and panel.thumbnails.count() == len(kept) == 5
 
 
