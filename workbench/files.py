@@ -116,11 +116,6 @@ def _valid_unicode(data: object) -> bool:
     return True
 
 
-def read_json(path: str | os.PathLike, what: str, max_bytes: int = MAX_INPUT_BYTES) -> object:
-    """Read and decode a JSON file (see read_text, parse_json)."""
-    return parse_json(read_text(path, what, max_bytes), path, what)
-
-
 # ---------------------------------------------------------------- atomic write
 _TMP_SUFFIX = ".tmp"
 

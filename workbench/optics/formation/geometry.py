@@ -67,10 +67,6 @@ class CameraGeometry:
         return _fov_deg(self.image_distance_m * 1e3, self.sensor_width_m * 1e3)
 
     @property
-    def vfov_deg(self) -> float:
-        return _fov_deg(self.image_distance_m * 1e3, self.sensor_height_m * 1e3)
-
-    @property
     def magnification(self) -> float:
         return magnification(self.focal_length_m, self.focus_distance_m)
 
