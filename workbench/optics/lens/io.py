@@ -19,10 +19,12 @@ from workbench.files import atomic_write_text, parse_json, read_text
 from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
 from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
+from workbench.registry import Registry
 from workbench.spectra import RESOURCES
 
 LENS_DIR = RESOURCES / "lenses"
-_FORMATS = (".json", ".dat", ".zmx")
+# lens file readers by extension: reader(text, path, name) -> Lens; a new format registers here
+LENS_READERS: Registry = Registry("optics.lens_file extension", "lens file format")
 MAX_LENS_BYTES = 2 ** 20
 MAX_SURFACES = 256
 MAX_ASPHERE_TERMS = 16
@@ -53,7 +55,7 @@ def available_lenses() -> list[str]:
     for folder in lens_library():
         if folder.is_dir():
             names += sorted(p.name[: -len(p.suffix)] for p in folder.iterdir()
-                            if p.suffix in _FORMATS and p.name[: -len(p.suffix)] not in names)
+                            if p.suffix in tuple(LENS_READERS) and p.name[: -len(p.suffix)] not in names)
     return names
 
 
@@ -73,7 +75,7 @@ def library_lens_path(name: str) -> Path:
         raise InputFileError(name, "a lens name is relative to the lens library (resources/lenses/ or "
                                    "the user's lens folder; no '..', not absolute)")
     for folder in lens_library():
-        for ext in ("",) + _FORMATS:
+        for ext in ("",) + tuple(LENS_READERS):
             q = folder / f"{rel}{ext}"
             try:
                 if q.is_file():
@@ -103,19 +105,30 @@ def load_lens(path) -> Lens:
     p = resolve_lens_path(path)
     ext = p.suffix.lower()
     text = read_text(p, "lens file", MAX_LENS_BYTES)          # a folder, no permission, … first
-    if ext not in _FORMATS:
-        raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(_FORMATS)}")
+    if ext not in LENS_READERS:
+        raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(LENS_READERS)}")
     name = p.name[: -len(p.suffix)]
     try:
-        if ext == ".json":
-            return lens_from_json(parse_json(text, p, "lens file"), default_name=name)
-        if ext == ".dat":
-            return lens_from_dat(text, name=name)
-        return lens_from_zmx(text, name=name)
+        return LENS_READERS.get(ext)(text, p, name)
     except InputFileError:
         raise
     except (ValueError, TypeError, KeyError, IndexError, OverflowError, ZeroDivisionError) as exc:
         raise InputFileError(p, f"not a valid lens: {exc}") from None
+
+
+@LENS_READERS.register(".json")
+def _read_json_lens(text: str, path: Path, name: str) -> Lens:
+    return lens_from_json(parse_json(text, path, "lens file"), default_name=name)
+
+
+@LENS_READERS.register(".dat")
+def _read_dat_lens(text: str, path: Path, name: str) -> Lens:
+    return lens_from_dat(text, name=name)
+
+
+@LENS_READERS.register(".zmx")
+def _read_zmx_lens(text: str, path: Path, name: str) -> Lens:
+    return lens_from_zmx(text, name=name)
 
 
 def _material(spec, where: str):
