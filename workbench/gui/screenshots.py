@@ -96,12 +96,43 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
             raise FileNotFoundError(f"no experiment results under {results}")
         _settle(app, 2.0)
         written.append(_save(experiments, out / "experiments-panel.png"))
+    written += _metrics_shots(app, out)
     win.document.undo_stack.setClean()
     win.close()
     for w in (lens, sweep, experiments):
         if w is not None:
             w.close()
     app.processEvents()
+    return written
+
+
+def _metrics_shots(app, out: Path) -> list[Path]:
+    """The Metrics panel comparing the paper camera (pinned as A) with 1.5 µm pixels (B): its
+    table and charts, and the A | B | B − A strip."""
+    from workbench.gui.live import FrameBuilder
+    from workbench.gui.panels.metrics import MetricsPanel
+    from workbench.pipeline import Pipeline
+    from workbench.project import load_project
+    panel = MetricsPanel()
+    panel.resize(1100, 1000)
+    panel.show()
+    done = []
+    panel.measured.connect(done.append)
+    a = load_project("paper_camera")
+    b = a.updated(name="paper_camera_1.5um", sensor=a.sensor.updated(pixel_pitch_um=1.5))
+    for n, project in enumerate((a, b)):
+        panel.set_project(project)
+        panel.set_frame(FrameBuilder().build(Pipeline(project), project, preview=False, submitted_at=0.0))
+        _wait(app, lambda n=n: len(done) > n and panel._worker is None, 300)
+        if n == 0:
+            panel.pin()
+    _settle(app, 2.0)
+    written = [_save(panel, out / "metrics-panel.png")]
+    panel.charts.setCurrentIndex(1)
+    _wait(app, lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull(), 60)
+    _settle(app, 1.0)
+    written.append(_save(panel.charts, out / "metrics-ab.png"))
+    panel.close()
     return written
 
 

@@ -64,10 +64,10 @@ def draw_delta_e(ax, designs: list[dict]) -> None:
 
 def draw_metrics(fig, designs: list[dict]) -> None:
     """MTF, SNR and ΔE of one or several designs on `fig` (three panels)."""
-    ax_mtf, ax_snr = fig.add_subplot(2, 2, 1), fig.add_subplot(2, 2, 2)
-    draw_mtf(ax_mtf, designs)
-    draw_snr(ax_snr, designs)
-    draw_delta_e(fig.add_subplot(2, 1, 2), designs)
+    axes = fig.subplot_mosaic([["mtf", "snr"], ["de", "de"]])
+    draw_mtf(axes["mtf"], designs)
+    draw_snr(axes["snr"], designs)
+    draw_delta_e(axes["de"], designs)
 
 
 def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True,

@@ -200,7 +200,8 @@ class MetricsPanel(QWidget):
             self._ab_queued = True
             return
         a, b = self.pinned["srgb"], np.array(self._frame.srgb)
-        self._ab_worker = create_worker(render_rgba, lambda fig: draw_ab(fig, a, b), *self.ab.size_px(),
+        page = self.ab if self.ab.isVisible() else self.chart      # a hidden tab has no size of its own yet
+        self._ab_worker = create_worker(render_rgba, lambda fig: draw_ab(fig, a, b), *page.size_px(),
                                         _start_thread=False, _ignore_errors=True)
         self._ab_worker.returned.connect(self.ab.show_rgba)
         self._ab_worker.finished.connect(self._ab_finished)
