@@ -40,7 +40,8 @@ def test_this_machine_sets_llvm_path_and_a_spectral_variant():
     select_variant()
 
 
-def test_a_variant_that_fails_to_load_falls_back(monkeypatch, caplog):
+def llvm_fails_to_load(monkeypatch) -> None:
+    """Make mitsuba.set_variant('llvm_ad_spectral') raise, as a JIT that cannot start does."""
     import mitsuba as mi
 
     select_variant("scalar_spectral")
@@ -52,6 +53,10 @@ def test_a_variant_that_fails_to_load_falls_back(monkeypatch, caplog):
         return real(name, *args)
 
     monkeypatch.setattr(mi, "set_variant", failing)
+
+
+def test_a_variant_that_fails_to_load_falls_back(monkeypatch, caplog):
+    llvm_fails_to_load(monkeypatch)
     with caplog.at_level("WARNING"):
         assert select_variant("llvm_ad_spectral") == "scalar_spectral"
     assert "simulated JIT start-up failure" in caplog.text
@@ -94,16 +99,7 @@ def test_a_pinned_variant_is_that_variant_or_a_refusal_naming_the_field(monkeypa
     with pytest.raises(ParameterError, match="not compiled"):
         choose_variant(["scalar_spectral"], {"llvm": True}, "llvm_ad_spectral", strict=True)
     assert choose_variant(ALL, {"cuda": False, "llvm": True}, "llvm_ad_spectral", strict=True)[0] == "llvm_ad_spectral"
-    import mitsuba as mi
-    select_variant("scalar_spectral")
-    real = mi.set_variant
-
-    def failing(name, *args):
-        if name == "llvm_ad_spectral":
-            raise RuntimeError("simulated JIT start-up failure")
-        return real(name, *args)
-
-    monkeypatch.setattr(mi, "set_variant", failing)
+    llvm_fails_to_load(monkeypatch)
     with pytest.raises(ParameterError, match="failed to load"):
         select_variant("llvm_ad_spectral", strict=True)
     monkeypatch.undo()
