@@ -43,6 +43,10 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     frames = win.frames_seen
     qtbot.waitUntil(lambda: win.city_view.city is not None, timeout=TIMEOUT_MS)
     qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    win.docks["3-D city"].raise_()           # the saved layout may have another tab of the column in front
+    qtbot.waitUntil(lambda: win.city_view.plotter.interactor.isVisible(), timeout=5_000)
+    win.city_view.render()
+    qtbot.wait(100)
     view = grab(win.city_view.plotter.interactor).astype(float)
     assert view.std() > 10.0, "the 3-D city view looks blank"
     assert len(np.unique(view.reshape(-1, 3), axis=0)) > 50
