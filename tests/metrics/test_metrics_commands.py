@@ -23,7 +23,13 @@ def test_metrics_command_prints_and_writes_the_measurements(small_camera, tmp_pa
     out = capsys.readouterr().out
     assert "mtf50_cy_px" in out and "delta_e_mean" in out
     doc = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    assert {r["plane"] for r in doc["mtf"]} == {"raw G", "linear G", "sRGB luminance", "optics alone"}
+    assert {r["plane"] for r in doc["mtf"]} == {"raw R", "raw G", "raw B", "linear G", "sRGB luminance", "optics alone"}
+    neutral = doc["colour"]["neutral_noise"]
+    assert {r["patch"] for r in neutral} == {"white 9.5", "neutral 8", "neutral 6.5", "neutral 5", "neutral 3.5",
+                                             "black 2"}
+    for r in neutral:                       # ~25 pixels per channel on this small chart: σ within ±50 %
+        if r["clipped"] == 0 and r["mean_e"] > 50:
+            assert r["snr"] == pytest.approx(r["snr_model"], rel=0.5), r
     s = doc["summary"]
     assert 0.05 < s["mtf50_cy_px"] < 0.6 and 0 < s["delta_e_mean"] < s["delta_e_max"] < 30
     assert s["noise_equivalent_exposure_lux_s"] > 0

@@ -44,7 +44,12 @@ def draw_snr(ax, designs: list[dict]) -> None:
             ax.loglog(e, [r["snr"] for r in rows], "o", ms=3, color=colour, alpha=0.8 if d == 0 else 0.5,
                       label=f"{ch} measured{tag}")
             ax.loglog(e, [r["snr_model"] for r in rows], DESIGN_STYLES[d % 4], color=colour, lw=0.8)
-    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (uniform field; lines: model)")
+        neutral = metrics.get("colour", {}).get("neutral_noise", [])
+        if neutral:
+            ax.loglog([r["mean_e"] for r in neutral], [r["snr"] for r in neutral], "x", ms=4, color="0.3",
+                      alpha=0.8 if d == 0 else 0.5, label="Macbeth neutrals" + (f" ({metrics['project']})"
+                                                                               if len(designs) > 1 else ""))
+    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (uniform field, ×: Macbeth neutrals; lines: model)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=6)
 

@@ -6,10 +6,10 @@ clipped pixels, and for a city frame the SNR at the road users (the noise model'
 kept box's mean signal; the median over boxes and the share below SNR 10).
 
 camera_metrics(project): the project's camera (optics, sensor, ISP) in front of charts it builds
-from the project: the slanted edge (e-SFR on the raw G sites, the demosaiced G plane, the sRGB
+from the project: the slanted edge (e-SFR on each raw channel's sites, the demosaiced G plane, the sRGB
 luminance and, for comparison, the optical image alone: MTF50 and MTF at Nyquist), the uniform
 field at a series of exposures (SNR against signal per channel, with the model's), and the Macbeth
-chart (ΔE2000 per patch). Charts are at the project's scene distance, noise as configured.
+chart (ΔE2000 per patch, and the noise of its six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
 """
 from __future__ import annotations
 
@@ -84,11 +84,14 @@ def system_mtf(project) -> list[dict]:
     rows = []
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
+    for k, name in enumerate(names):                        # every raw channel, on its own sites
+        if not np.any(tile == k):
+            continue
+        r0, c0 = map(int, np.argwhere(tile == k)[0])
+        step = 1 if np.all(tile == k) else tile.shape[0]    # a monochrome tile: every pixel
+        rows.append(_sfr_row(f"raw {name}", np.asarray(image.dn, np.float64)[r0::step, c0::step], step))
     green = next((n for n in ("G", "C", "W", "M") if n in names), names[0])
     k = names.index(green)
-    r0, c0 = map(int, np.argwhere(tile == k)[0])
-    step = 1 if np.all(tile == k) else tile.shape[0]          # a monochrome tile: every pixel
-    rows.append(_sfr_row(f"raw {green}", np.asarray(image.dn, np.float64)[r0::step, c0::step], step))
     rows.append(_sfr_row(f"linear {green}", np.asarray(isp.linear[..., k], np.float64), 1.0))
     lin = np.where(isp.srgb <= 0.04045, isp.srgb / 12.92, ((isp.srgb + 0.055) / 1.055) ** 2.4)
     rows.append(_sfr_row("sRGB luminance", lin @ np.array([0.2126, 0.7152, 0.0722]), 1.0))
@@ -160,7 +163,31 @@ def colour_error(project) -> dict:
     chart = chart.updated(sensor=chart.sensor.updated(exposure_s=None, ev_bias=0.0, auto_exposure_method="brightest",
                                                       auto_exposure_level=COLOUR_CHART_LEVEL))
     result = Pipeline(chart).run()
-    return macbeth_delta_e(result.isp.srgb, macbeth_layout(result.isp.srgb.shape[:2]))
+    layout = macbeth_layout(result.isp.srgb.shape[:2])
+    out = macbeth_delta_e(result.isp.srgb, layout)
+    out["neutral_noise"] = neutral_patch_noise(result.sensor_image, chart.sensor, layout)
+    return out
+
+
+def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
+    """region_noise of the central half of each neutral Macbeth patch (white 9.5 … black 2), per
+    channel, with the patch's name."""
+    from workbench.metrics.colour import PATCH_NAMES
+    from workbench.metrics.noise import region_noise
+    rows = []
+    for k in range(18, 24):
+        ys, xs = np.nonzero(layout == k)
+        cy, cx = 0.5 * (ys.min() + ys.max()), 0.5 * (xs.min() + xs.max())
+        hy, hx = 0.25 * (ys.max() - ys.min() + 1), 0.25 * (xs.max() - xs.min() + 1)
+        region = np.zeros(layout.shape, bool)
+        region[int(cy - hy):int(cy + hy) + 1, int(cx - hx):int(cx + hx) + 1] = True
+        if region.sum() < 16:
+            continue
+        for row in region_noise(image, sensor, region & (layout == k)):
+            row["patch"] = PATCH_NAMES[k]
+            row["snr_model"] = float(snr_model(row["mean_e"], sensor, float(np.mean(image.exposure_s))))
+            rows.append(row)
+    return rows
 
 
 def camera_metrics(project) -> dict:
