@@ -176,3 +176,14 @@ def test_values_that_broke_a_later_stage_are_refused_naming_their_field(tmp_path
     assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert field in err and "nan" not in err and "black" not in err and err.count("\n") == 1
+
+
+def test_a_long_allowed_render_says_how_long_before_it_starts(capsys):
+    """render.spp 1,048,576 is allowed; the user is told it takes hours before waiting for it."""
+    from workbench.commands.core import warn_long_render
+    p = load_project("city_detection_quick")
+    warn_long_render(p)
+    assert capsys.readouterr().err == ""                      # 144 spp: seconds, nothing to say
+    warn_long_render(p.updated(render=p.render.updated(spp=1_048_576)))
+    err = capsys.readouterr().err
+    assert "render.spp 1,048,576" in err and "min per frame" in err

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -141,6 +142,20 @@ def write_outputs(result, project, out: Path) -> dict:
     return report
 
 
+LONG_RENDER_S = 120.0
+
+
+def warn_long_render(project) -> None:
+    """Say on stderr how long a city render will take when that is minutes or more (the work is
+    allowed; the user should know before waiting)."""
+    from workbench.render.city_frame import render_estimate_s
+    est = render_estimate_s(project)
+    if est is not None and est > LONG_RENDER_S:
+        print(f"note: render.spp {project.render.spp:,} at {project.sensor.cols}×{project.sensor.rows} px: about "
+              f"{est / 60:,.0f} min per frame on one core (lower render.spp, or set render.target_rel_error)",
+              file=sys.stderr, flush=True)
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from workbench.jobs import run_job, tqdm_progress
     from workbench.pipeline import Pipeline
@@ -149,6 +164,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     from workbench.files import prepare_output_folder
     project = load_project(args.project)
     prepare_output_folder(args.out)          # refuse a bad --out before the run, not after
+    warn_long_render(project)
     with hold_folder_lock(args.out, "workbench simulate"):     # a second run here is refused, not mixed in
         bar = tqdm_progress("simulate")
         try:

@@ -359,3 +359,18 @@ def render_city_frame(project, seeds: FrameSeeds, on_progress: Callable | None =
             "sample_spacing_m": oi.sample_spacing_m, "focal_length_m": oi.focal_length_m,
             "f_number": oi.f_number}
     return FrameData(oi.irradiance_photons, oi.wavelengths_nm, render.labels, meta)
+
+
+# Seconds per path sample of the llvm variant on one core of the reference machine (city_detection_quick,
+# 320×240 at 144 spp multijitter: ~9 s a frame); the estimate scales it by pixels × spp.
+SECONDS_PER_SAMPLE = 8.1e-7
+
+
+def render_estimate_s(project) -> float | None:
+    """A rough wall time (s) of one city frame at the project's fixed sampling on one core (None
+    for a chart, or when the sampling adapts to an error target)."""
+    if project.scene.kind != "city" or project.render.target_rel_error is not None \
+            or project.render.shot_noise_ratio is not None:
+        return None
+    return project.sensor.rows * project.sensor.cols * project.render.spp * SECONDS_PER_SAMPLE
+
