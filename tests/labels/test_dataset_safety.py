@@ -27,7 +27,7 @@ def start(project, frames, out, **kw):
 
 
 def test_out_that_is_a_file_and_a_spec_that_is_not_an_object_give_one_line_errors(tmp_path, capsys):
-    save_project(Project(seed=1), tmp_path / "p.json")
+    save_project(Project(seed=1, scene={"kind": "city"}), tmp_path / "p.json")
     (tmp_path / "file").write_text("x")
     assert main(["dataset", str(tmp_path / "p.json"), "--frames", "1", "--out", str(tmp_path / "file")]) != 0
     err = capsys.readouterr().err.strip()

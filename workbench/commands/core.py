@@ -142,18 +142,12 @@ def write_outputs(result, project, out: Path) -> dict:
     return report
 
 
-LONG_RENDER_S = 120.0
-
-
 def warn_long_render(project) -> None:
-    """Say on stderr how long a city render will take when that is minutes or more (the work is
-    allowed; the user should know before waiting)."""
-    from workbench.render.city_frame import render_estimate_s
-    est = render_estimate_s(project)
-    if est is not None and est > LONG_RENDER_S:
-        print(f"note: render.spp {project.render.spp:,} at {project.sensor.cols}×{project.sensor.rows} px: about "
-              f"{est / 60:,.0f} min per frame on one core (lower render.spp, or set render.target_rel_error)",
-              file=sys.stderr, flush=True)
+    """Print render.city_frame.long_render_note on stderr when there is one."""
+    from workbench.render.city_frame import long_render_note
+    note = long_render_note(project)
+    if note:
+        print(note, file=sys.stderr, flush=True)
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

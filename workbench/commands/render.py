@@ -66,12 +66,13 @@ def cmd_render(args) -> int:
 
     from workbench.errors import ParameterError
     from workbench.files import atomic_write_text, prepare_output_folder
-    from workbench.commands.core import warn_long_render
+    from workbench.render.city_frame import long_render_note
     project = load_project(args.project)
     if args.frame < 0:
         raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
     out = prepare_output_folder(args.out)
-    warn_long_render(project)
+    if long_render_note(project):
+        print(long_render_note(project), file=sys.stderr, flush=True)
     seeds = frame_seeds(project.seed, args.frame)
     progress = tqdm_progress(f"render frame {args.frame}")
     try:

@@ -41,6 +41,7 @@ from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes, parse_json
 from workbench.jobs import CancelToken, Progress
+from workbench.render import city_frame
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
@@ -238,12 +239,12 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         raise ParameterError("frames", frames, f"an integer from 1 to {MAX_FRAMES:,}")
     if irradiance_dtype not in IRRADIANCE_DTYPES:
         raise ParameterError("irradiance_dtype", irradiance_dtype, f"one of {', '.join(IRRADIANCE_DTYPES)}")
-    if renderer is None and project.scene.kind != "city":     # refused before the folder is made
+    renderer = renderer or render_city_frame
+    if renderer is city_frame.render_city_frame and project.scene.kind != "city":   # before the folder is made
         raise ParameterError("scene.kind", project.scene.kind, "'city': a data set is rendered city frames "
                              "(choose a city project, e.g. city_detection_quick)")
     compute = compute or ComputeSpec(workers=workers,
                                      max_tasks_per_child=max_tasks_per_child if workers else None)
-    renderer = renderer or render_city_frame
     out = prepare_out_dir(out_dir)
     fingerprint = dataset_fingerprint(project, irradiance_dtype, renderer)
     with hold_folder_lock(out, "workbench dataset"):

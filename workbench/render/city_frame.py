@@ -374,3 +374,16 @@ def render_estimate_s(project) -> float | None:
         return None
     return project.sensor.rows * project.sensor.cols * project.render.spp * SECONDS_PER_SAMPLE
 
+
+LONG_RENDER_S = 120.0
+
+
+def long_render_note(project) -> str | None:
+    """A line to show before a city render that takes minutes or more (the work is allowed; the
+    user should know before waiting), else None."""
+    est = render_estimate_s(project)
+    if est is None or est <= LONG_RENDER_S:
+        return None
+    return (f"note: render.spp {project.render.spp:,} at {project.sensor.cols}×{project.sensor.rows} px: about "
+            f"{est / 60:,.0f} min per frame on one core (lower render.spp, or set render.target_rel_error)")
+
