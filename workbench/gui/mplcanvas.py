@@ -51,12 +51,9 @@ class ChartCanvas(FigureCanvasQTAgg):
 
 def render_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.ndarray:
     """draw(fig) on a fresh Agg figure of width_px×height_px → H×W×4 uint8 (safe on a worker thread:
-    no pyplot, no Qt)."""
-    fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
-    draw(fig)
-    canvas = FigureCanvasAgg(fig)
-    canvas.draw()
-    return np.asarray(canvas.buffer_rgba()).copy()
+    no pyplot, no Qt; metrics.charts.chart_rgba)."""
+    from workbench.metrics.charts import chart_rgba
+    return chart_rgba(draw, width_px, height_px, dpi)
 
 
 class ChartImage(QLabel):

@@ -106,3 +106,31 @@ def pareto_front(rows: list[dict], x: str, y: str, higher_x: bool = True, higher
     pts = [(r[x], r[y], r["design"]) for r in rows if r.get(x) is not None and r.get(y) is not None]
     return [p[2] for p in pts if not any(sx * q[0] >= sx * p[0] and sy * q[1] >= sy * p[1] and q[:2] != p[:2]
                                          for q in pts)]
+
+
+def chart_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.ndarray:
+    """draw(fig) on a fresh Agg figure of width_px×height_px → H×W×4 uint8 (no pyplot, no Qt: safe
+    on a worker thread or in a worker process)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
+    draw(fig)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba()).copy()
+
+
+def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
+    """camera_metrics of the project and the chart of it beside the pinned design's (the window's
+    Metrics panel runs this in a worker process). Returns (metrics, chart RGBA, seconds)."""
+    import time
+
+    from workbench.metrics.frame import camera_metrics
+    t0 = time.perf_counter()
+    metrics = camera_metrics(project)
+    designs = [pinned, metrics] if pinned is not None else [metrics]
+    if pinned is not None and pinned["project"] == metrics["project"]:
+        designs = [{**pinned, "project": f"A: {pinned['project']}"}, {**metrics, "project": f"B: {metrics['project']}"}]
+    rgba = chart_rgba(lambda fig: draw_metrics(fig, designs), *chart_px)
+    return metrics, rgba, time.perf_counter() - t0
+

@@ -1,7 +1,8 @@
 """Metrics panel: the current frame's read-outs (exposure, gain, electrons per channel, clipping,
 scene dynamic range, SNR at the road users) and the camera's measurements on test charts (system
-MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit on a worker
-thread, with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
+MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit in a measuring
+process (kept alive; a worker thread waits for it, so its Python never holds the window's GIL),
+with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
 current design B and the change, the charts draw both, and an A | B | B − A strip compares the
 sRGB frames on one colour scale.
 
@@ -9,7 +10,7 @@ Measurements run one at a time; an edit during a measurement queues one more run
 project (older requests are dropped), so results never arrive out of order."""
 from __future__ import annotations
 
-import time
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -48,18 +49,48 @@ def flat_readouts(readouts: dict | None) -> dict:
     return out
 
 
+_POOL = None
+
+
+def _measure_process():
+    """The panel's measuring process (one, kept alive, spawned on first use, one thread for
+    numpy): camera_metrics runs there, so its Python never holds the window's GIL."""
+    global _POOL
+    if _POOL is None:
+        import multiprocessing
+        import os
+        from concurrent.futures import ProcessPoolExecutor
+        _POOL = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                    initializer=_start_measuring_process, initargs=(os.getpid(),))
+    return _POOL
+
+
+def _start_measuring_process(parent_pid: int) -> None:
+    import os
+
+    from workbench.compute.local import apply_thread_budget, die_with_parent
+    die_with_parent(parent_pid)
+    apply_thread_budget(1)
+    os.nice(10)                  # the window's threads first when the cores are busy
+
+
+def shutdown_measuring_process() -> None:
+    """Stop the measuring process (the window is closing)."""
+    global _POOL
+    if _POOL is not None:
+        _POOL.shutdown(wait=False, cancel_futures=True)
+        _POOL = None
+
+
 def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
-    """camera_metrics of the project and the chart of it (beside the pinned design's): a worker's
-    job, no Qt. Returns (metrics, chart RGBA, seconds)."""
-    from workbench.metrics.charts import draw_metrics
-    from workbench.metrics.frame import camera_metrics
-    t0 = time.perf_counter()
-    metrics = camera_metrics(project)
-    designs = [pinned, metrics] if pinned is not None else [metrics]
-    if pinned is not None and pinned["project"] == metrics["project"]:
-        designs = [{**pinned, "project": f"A: {pinned['project']}"}, {**metrics, "project": f"B: {metrics['project']}"}]
-    rgba = render_rgba(lambda fig: draw_metrics(fig, designs), *chart_px)
-    return metrics, rgba, time.perf_counter() - t0
+    """metrics.charts.measure_and_draw in the measuring process; this (worker) thread only waits."""
+    from workbench.metrics.charts import measure_and_draw as job
+    try:
+        return _measure_process().submit(job, project, pinned, chart_px).result()
+    except BrokenProcessPool:
+        global _POOL
+        _POOL = None                          # a crashed process: start a new one next time
+        raise
 
 
 def draw_ab(fig, a: np.ndarray, b: np.ndarray) -> None:
@@ -293,7 +324,8 @@ class MetricsPanel(QWidget):
         self.table.setColumnHidden(2, self.pinned is None)
 
     def shutdown(self) -> None:
-        """The window is closing: no new measurement starts (a running one finishes on its own)."""
+        """The window is closing: no new measurement starts, the measuring process stops."""
         self._timer.stop()
         self._queued = None
         self._ab_queued = False
+        shutdown_measuring_process()
