@@ -132,6 +132,7 @@ def _metrics_shots(app, out: Path) -> list[Path]:
     _wait(app, lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull(), 60)
     _settle(app, 1.0)
     written.append(_save(panel.charts, out / "metrics-ab.png"))
+    panel.shutdown()
     panel.close()
     return written
 

@@ -8,10 +8,15 @@ import numpy as np
 from workbench.metrics.colour import PATCH_NAMES
 
 DESIGN_STYLES = ("-", "--", ":", "-.")
-PLANE_COLOURS = {"optics alone": "0.6", "raw": "tab:green", "linear": "tab:blue", "sRGB": "tab:purple"}
+PLANE_COLOURS = {"optics alone": "0.6", "linear": "tab:cyan", "sRGB": "tab:purple"}
+
+
+RAW_COLOURS = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}
 
 
 def _plane_colour(name: str) -> str:
+    if name.startswith("raw "):                      # each raw channel in its own colour
+        return RAW_COLOURS.get(name[4:], "tab:olive")
     return next((c for key, c in PLANE_COLOURS.items() if name.startswith(key)), "k")
 
 
@@ -49,7 +54,7 @@ def draw_snr(ax, designs: list[dict]) -> None:
             ax.loglog([r["mean_e"] for r in neutral], [r["snr"] for r in neutral], "x", ms=4, color="0.3",
                       alpha=0.8 if d == 0 else 0.5, label="Macbeth neutrals" + (f" ({metrics['project']})"
                                                                                if len(designs) > 1 else ""))
-    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (uniform field, ×: Macbeth neutrals; lines: model)")
+    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (•: uniform field, ×: neutrals, lines: model)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=6)
 

@@ -273,7 +273,7 @@ class MetricsPanel(QWidget):
         self.metrics = {**metrics, "seconds": seconds}
         self._measured = project
         self.chart.show_rgba(rgba)
-        self.status.setText(f"measured {project.name} in {seconds:.1f} s (worker thread)")
+        self.status.setText(f"measured {project.name} in {seconds:.1f} s (measuring process)")
         self._fill_table()
         self.measured.emit(self.metrics)
 
