@@ -2,7 +2,8 @@
 # Set up the workbench on a fresh Debian 12 / Python 3.11 machine, then run a job.
 #   bash packaging/setup.sh demo   # set up, then open the window on the paper's sample (with a
 #                                  # display) or run the headless demo (without one)
-#   bash packaging/setup.sh test   # set up, then run the full test suite
+#   bash packaging/setup.sh test   # set up, then run the full test suite (2 workers;
+#                                  # WORKBENCH_TEST_WORKERS=0 runs it in one process)
 #   bash packaging/setup.sh        # set up only
 # Idempotent: a second run reuses .venv and skips what is installed.
 set -euo pipefail
@@ -43,7 +44,9 @@ case "$job" in
     fi
     echo "setup.sh demo: no display: running the headless demo into ${1:-demo-output}/" >&2
     exec .venv/bin/workbench demo --out "${1:-demo-output}" ;;
-  test) exec .venv/bin/python -m pytest "$@" ;;
+  # the suite on 2 pytest-xdist workers, a test file per worker at a time (one Ray cluster, one Xvfb,
+  # one Qt application per file); each worker gets cores/2 threads (tests/conftest.py)
+  test) exec .venv/bin/python -m pytest -n "${WORKBENCH_TEST_WORKERS:-2}" --dist loadfile "$@" ;;
   none) ;;
   *) echo "unknown job '$job' (use: demo | test)" >&2; exit 2 ;;
 esac

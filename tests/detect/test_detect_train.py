@@ -9,6 +9,7 @@ import torch
 
 from workbench.detect.data import DetectionDataset
 from workbench.detect.checkpoint import load_checkpoint, save_checkpoint
+from workbench.detect import devices
 from workbench.detect.devices import autocast_dtype, choose_threads, pick_device
 from workbench.detect.engine import TrainConfig, curve_epochs, last_quarter_gain, learning_rate, train_detector
 from workbench.detect.job import DetectionJob, run_detection_job
@@ -139,10 +140,22 @@ def test_precision_is_bf16_only_where_the_device_supports_it(monkeypatch):
     assert autocast_dtype("cuda", "auto") is torch.bfloat16 and autocast_dtype("cuda", "fp32") is None
     monkeypatch.setattr(torch.cuda, "is_bf16_supported", lambda *a, **k: False)      # e.g. a V100 or T4
     assert autocast_dtype("cuda", "auto") is None
+    assert autocast_dtype("cuda", "bf16_native") is None
+    monkeypatch.setattr(devices, "cpu_has_native_bf16", lambda: False)               # an AVX2 CPU emulates bf16
+    assert autocast_dtype("cpu", "bf16_native") is None
+    monkeypatch.setattr(devices, "cpu_has_native_bf16", lambda: True)
+    assert autocast_dtype("cpu", "bf16_native") is torch.bfloat16 and autocast_dtype("cpu", "auto") is None
     with pytest.raises(ParameterError, match="precision"):
         autocast_dtype("cpu", "fp16")
     with pytest.raises(ParameterError, match="precision"):
         TrainConfig(**{**TINY, "precision": "half"})
+
+
+def test_native_bf16_is_read_from_the_cpu_flags():
+    avx2 = "processor\t: 0\nflags\t\t: fpu sse2 avx avx2 fma\n"
+    sapphire = "processor\t: 0\nflags\t\t: fpu avx2 avx512f avx512_bf16 amx_bf16 amx_tile\n"
+    assert not devices.cpu_has_native_bf16(avx2) and devices.cpu_has_native_bf16(sapphire)
+    assert not devices.cpu_has_native_bf16("model name : avx512_bf16 in a name, not a flag\n")
 
 
 def test_auto_device_takes_a_gpu_when_torch_sees_one(monkeypatch):
@@ -169,6 +182,7 @@ def test_bf16_mixed_precision_trains_and_tests_like_float32(synthetic_dir, tmp_p
     assert np.all(np.isfinite(bf16)) and bf16.shape == fp32.shape == (2,)
     np.testing.assert_allclose(bf16, fp32, rtol=0.05)
     assert runs["bf16"]["config"]["precision"] == "bf16" and np.isfinite(runs["bf16"]["tests"][0]["map"])
+    assert runs["bf16"]["train"]["autocast"] == "bf16" and runs["fp32"]["train"]["autocast"] == "fp32"
 
 
 @pytest.mark.slow

@@ -123,8 +123,14 @@ def test_cancel_kills_the_process_tree(qtbot, tmp_path):
     assert psutil.pid_exists(child)
     with qtbot.waitSignal(panel.run_cancelled, timeout=20_000):
         panel.cancel()
-    for pid in (child, parent):
-        assert not psutil.pid_exists(pid) or psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+    def gone(pid: int) -> bool:
+        try:
+            return psutil.Process(pid).status() == psutil.STATUS_ZOMBIE
+        except psutil.NoSuchProcess:
+            return True
+
+    # the signals are sent at once; a loaded machine may take a moment to schedule the child's death
+    qtbot.waitUntil(lambda: gone(child) and gone(parent), timeout=10_000)
     assert panel.doc is None and "cancelled" in panel.status.text()
 
 

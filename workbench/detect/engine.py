@@ -139,6 +139,7 @@ class TrainResult:
     curve: list = field(default_factory=list)
     last_quarter_gain: float | None = None
     converged: bool | None = None
+    autocast: str = "fp32"                 # what the run computed in: 'bf16' (autocast) or 'fp32'
 
 
 def train_view(dataset, config: TrainConfig):
@@ -265,4 +266,5 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                               sensor_isp_ms_per_image=sensor_ms,
                               final_loss=history[-1]["loss"] if history else float("nan"), history=history,
                               curve=curve, last_quarter_gain=gain,
-                              converged=None if gain is None else gain < CONVERGED_GAIN)
+                              converged=None if gain is None else gain < CONVERGED_GAIN,
+                              autocast="bf16" if amp_dtype is not None else "fp32")

@@ -52,7 +52,7 @@ EXPERIMENTS = ("isp", "exposure")
 @dataclass(frozen=True)
 class Profile:
     """How big an experiment is. epochs: the training budget per net (every condition of a net
-    gets the same); precision: per net, 'auto' | 'fp32' | 'bf16' (detect.devices); per_ev_biases:
+    gets the same); precision: per net, one of detect.devices.PRECISIONS; per_ev_biases:
     the EVs at which the exposure experiment trains per-EV nets; crop_hw: training windows;
     curve_points: train-mAP measurements per run."""
 
@@ -85,10 +85,10 @@ PROFILES = {
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 40}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
         per_ev_biases=(-4.0, -2.0, 2.0, 4.0), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
-        curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16"},
+        curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16_native"},
         note="standard profile: trained to convergence on a CPU: 320×240 frames (≥ 400 train, ≥ 200 test), "
-             "both nets on 160×128 windows, 5 seeds, one thread per run; resnet18 under bf16 autocast (half "
-             "the time of float32 on a CPU with AVX-512 BF16; slower on one without)"),
+             "both nets on 160×128 windows, 5 seeds, one thread per run; resnet18 under bf16 autocast where the "
+             "CPU computes bf16 (AVX-512 BF16/AMX: half the time of float32), float32 where it would emulate it"),
     "paper": Profile(
         name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 60}, batch_size=32, crop_hw=None, lr=2e-3,
@@ -161,6 +161,7 @@ def result_rows(runs: list[dict]) -> list[dict]:
                          "map": test["map"], **{f"ap_{c}": test["ap"].get(c) for c in run["classes"]},
                          "coco_ap50": test.get("coco_ap50"), "train_map": train.get("train_map"),
                          "last_quarter_gain": train.get("last_quarter_gain"), "converged": train.get("converged"),
+                         "autocast": train.get("autocast"),
                          "final_loss": train.get("final_loss"), "train_images": train["images"],
                          "train_ms_per_image": train["train_ms_per_image"],
                          "step_ms_per_image": train["step_ms_per_image"],
