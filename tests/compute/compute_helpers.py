@@ -55,10 +55,11 @@ def thread_budget(_job):
 
 
 def progress_renderer(project, seeds, on_progress=None):
-    """tiny_renderer that first reports 4 steps of progress, a little apart."""
+    """tiny_renderer that first reports 4 steps of progress, 0.6 s apart (the driver polls every
+    0.2 s; a loaded machine, e.g. two test workers, can delay Ray's progress actor by more)."""
     from workbench.jobs import Progress
     for k in range(1, 5):
-        time.sleep(0.3)
+        time.sleep(0.6)
         on_progress(Progress(k, 4))
     return tiny_renderer(project, seeds)
 

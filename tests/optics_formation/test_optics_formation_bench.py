@@ -5,8 +5,13 @@ import pytest
 
 
 @pytest.mark.slow
-def test_optics_bench_quick_writes_rows_and_plot(tmp_path):
+def test_optics_bench_quick_writes_rows_and_plot(tmp_path, monkeypatch):
+    """The quick optics bench end to end; its city frame at 32 columns and 16 spp (the full-model
+    reference's physics is test_fullmodel_bench's)."""
+    from workbench.bench import optics
     from workbench.bench.optics import bench_optics
+    city_scenes = optics._city_scenes
+    monkeypatch.setattr(optics, "_city_scenes", lambda cols, spp: city_scenes(32, 16))
     result = bench_optics(argparse.Namespace(quick=True, json=False, out=str(tmp_path)))
     levels = {r["level"].split(" (")[0] for r in result.rows}
     assert {"pinhole", "diffraction_limited", "thin_lens", "psf_grid", "raytrace"} <= levels

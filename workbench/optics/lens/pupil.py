@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from workbench.optics.lens.paraxial import sensor_z_mm, with_aperture_stop
 from workbench.optics.lens.trace import RayTrace, to_plane, trace_rays
 
 _COARSE = 64
+CHIEF_RAY_CACHE_SIZE = 4096    # aimed chief rays and field angles kept (a few floats each)
 
 
 @dataclass(frozen=True)
@@ -142,8 +144,21 @@ def chief_ray_v(bundle: Bundle, wavelength_nm: float, n_scan: int = 401) -> floa
 
 def chief_ray_on_sensor(lens: Lens, field_angle_deg: float, wavelength_nm: float,
                         object_distance_m: float = math.inf, bundle: Bundle | None = None):
-    """(x, y) in mm where the chief ray meets the sensor plane. ValueError if it cannot be traced."""
-    b = bundle or make_bundle(lens, field_angle_deg, object_distance_m, wavelength_nm)
+    """(x, y) in mm where the chief ray meets the sensor plane. ValueError if it cannot be traced.
+    Without a bundle the result is cached per (lens, field, wavelength, distance): the PSF grid,
+    the lens tables and the level selector aim the same chief rays again and again."""
+    if bundle is None:
+        return _chief_ray_on_sensor(lens, float(field_angle_deg), float(wavelength_nm), float(object_distance_m))
+    return _aim_chief_ray(lens, field_angle_deg, wavelength_nm, bundle)
+
+
+@lru_cache(maxsize=CHIEF_RAY_CACHE_SIZE)
+def _chief_ray_on_sensor(lens: Lens, field_angle_deg: float, wavelength_nm: float, object_distance_m: float):
+    return _aim_chief_ray(lens, field_angle_deg, wavelength_nm,
+                          make_bundle(lens, field_angle_deg, object_distance_m, wavelength_nm))
+
+
+def _aim_chief_ray(lens: Lens, field_angle_deg: float, wavelength_nm: float, b: Bundle) -> tuple[float, float]:
     vc = chief_ray_v(b, wavelength_nm)
     r = b.trace(np.array([0.0]), np.array([vc]), wavelength_nm)
     pts, ok = to_plane(r.points, r.dirs, r.valid, sensor_z_mm(lens))
@@ -156,7 +171,13 @@ def chief_ray_on_sensor(lens: Lens, field_angle_deg: float, wavelength_nm: float
 def field_angle_for_height(lens: Lens, image_height_mm: float, wavelength_nm: float,
                            object_distance_m: float = math.inf) -> float:
     """Field angle (deg) whose chief ray lands at `image_height_mm` on the sensor (secant search
-    from the paraxial guess). ValueError when the height is beyond what the lens images."""
+    from the paraxial guess, cached). ValueError when the height is beyond what the lens images."""
+    return _field_angle_for_height(lens, float(image_height_mm), float(wavelength_nm), float(object_distance_m))
+
+
+@lru_cache(maxsize=CHIEF_RAY_CACHE_SIZE)
+def _field_angle_for_height(lens: Lens, image_height_mm: float, wavelength_nm: float,
+                            object_distance_m: float) -> float:
     from workbench.optics.lens.paraxial import paraxial
     if image_height_mm == 0:
         return 0.0
