@@ -55,12 +55,21 @@ def thread_budget(_job):
 
 
 def progress_renderer(project, seeds, on_progress=None):
-    """tiny_renderer that first reports 4 steps of progress, 0.6 s apart (the driver polls every
-    0.2 s; a loaded machine, e.g. two test workers, can delay Ray's progress actor by more)."""
+    """tiny_renderer that reports part-way progress (1/4, 2/4, then 3/4 again every 0.2 s) until
+    the test has seen a part-way report (it creates the file named by project.description) or
+    60 s pass: a loaded machine may start Ray's progress actor late, and the actor keeps only
+    the latest report of a task, so fixed sleeps could hide every part-way report."""
     from workbench.jobs import Progress
-    for k in range(1, 5):
-        time.sleep(0.6)
-        on_progress(Progress(k, 4))
+    seen_flag = Path(project.description) if project.description else None
+    deadline = time.monotonic() + 60.0
+    step = 0
+    while True:
+        step = min(step + 1, 3)
+        on_progress(Progress(step, 4))
+        time.sleep(0.2)
+        if seen_flag is None or seen_flag.exists() or time.monotonic() > deadline:
+            break
+    on_progress(Progress(4, 4))
     return tiny_renderer(project, seeds)
 
 

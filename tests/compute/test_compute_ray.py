@@ -143,9 +143,15 @@ def test_frames_in_flight_report_their_progress(backend, tmp_path, request):
     if backend == "ray":
         request.getfixturevalue("ray_cluster")
     spec = ComputeSpec(backend=backend, workers=1)
-    seen = []
-    result = run_job(run_dataset(Project(seed=8), 2, tmp_path, compute=spec, renderer=progress_renderer),
-                     seen.append)
+    seen, seen_flag = [], tmp_path / "part-way-seen"
+
+    def on_progress(p):
+        seen.append(p)
+        if p.message.startswith("rendering frame") and 0 < p.done % 1:
+            seen_flag.touch()                  # the renderer may finish now (progress_renderer)
+    project = Project(seed=8, description=str(seen_flag))
+    result = run_job(run_dataset(project, 2, tmp_path / "set", compute=spec, renderer=progress_renderer),
+                     on_progress)
     assert sorted(result.rendered) == [0, 1]
     live = [p for p in seen if p.message.startswith("rendering frame")]
     assert live and any(0 < p.done % 1 for p in live)                # a frame part-way counts part-way
