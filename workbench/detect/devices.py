@@ -3,10 +3,10 @@
 Precision ('auto' | 'fp32' | 'bf16' | 'bf16_native'): 'auto' = bf16 autocast on a CUDA GPU that
 supports bf16 (Ampere and later), float32 elsewhere; 'bf16_native' = the same, and bf16 also on a
 CPU that computes it in hardware (AVX-512 BF16 or AMX: about half resnet18's float32 step there),
-never on one that emulates it (5x slower on an AVX2 CPU); 'bf16' asks for it on any device (on the
-CPU it runs the same mixed-precision path, which is how it is tested without a GPU); 'fp32' never.
-Losses and decoding are always float32. bf16 has float32's exponent range, so no loss scaling is
-needed; float16 (which would need it) is not used.
+never on one that emulates it (10–12x slower on an AVX2 EPYC, bench detect); 'bf16' asks for it on
+any device (on the CPU it runs the same mixed-precision path, which is how it is tested without a
+GPU); 'fp32' never. Losses and decoding are always float32. bf16 has float32's exponent range, so
+no loss scaling is needed; float16 (which would need it) is not used.
 """
 from __future__ import annotations
 
@@ -47,13 +47,14 @@ def pick_device(device: str) -> str:
 
 def cpu_has_native_bf16(cpuinfo: str | None = None) -> bool:
     """Whether this CPU computes bf16 in hardware (AVX-512 BF16 or AMX): without it torch emulates
-    bf16 and autocast makes a CPU step several times slower (5x on an AVX2 EPYC)."""
+    bf16 and autocast makes a CPU training step 10–12x slower (bench detect on an AVX2 EPYC)."""
     if cpuinfo is None:
         try:
             cpuinfo = Path("/proc/cpuinfo").read_text(errors="replace")
         except OSError:
             return False
-    flags = {f for line in cpuinfo.splitlines() if line.startswith("flags") for f in line.split(":", 1)[-1].split()}
+    flags = {flag for line in cpuinfo.splitlines() if line.startswith("flags")
+             for flag in line.split(":", 1)[-1].split()}
     return any(flag in flags for flag in NATIVE_BF16_CPU_FLAGS)
 
 
