@@ -48,7 +48,11 @@ case "$job" in
     exec .venv/bin/workbench demo --out "${1:-demo-output}" ;;
   # the suite on 2 pytest-xdist workers, a test file per worker at a time (one Ray cluster, one Xvfb,
   # one Qt application per file); each worker gets cores/2 threads (tests/conftest.py)
-  test) exec .venv/bin/python -m pytest -n "${WORKBENCH_TEST_WORKERS:-2}" --dist loadfile "$@" ;;
+  # Python may cache what it compiles: the set-up installs without byte-compiling, and where the
+  # environment sets PYTHONDONTWRITEBYTECODE every test subprocess (CLI runs, pool and Ray workers)
+  # would compile torch, Ray and the rest from source again (it doubled those tests' time)
+  test) unset PYTHONDONTWRITEBYTECODE
+        exec .venv/bin/python -m pytest -n "${WORKBENCH_TEST_WORKERS:-2}" --dist loadfile "$@" ;;
   none) ;;
   *) echo "unknown job '$job' (use: demo | test)" >&2; exit 2 ;;
 esac
