@@ -74,6 +74,20 @@ def gc_on_gui_thread(qapp):
 
 
 @pytest.fixture(autouse=True)
+def default_layout(gui_home):
+    """Every test's window opens in the first-run layout, whatever an earlier test left in front
+    (a window opened after a test had left the Metrics dock in front measured the camera for ~4 s
+    on a worker that the test then waited for)."""
+    from PySide6.QtCore import QSettings
+    from workbench.gui.main_window import LAYOUT_KEY
+    from workbench.gui.paths import settings_file
+    settings = QSettings(str(settings_file()), QSettings.Format.IniFormat)
+    for key in (LAYOUT_KEY, "window/geometry"):
+        settings.remove(key)
+    settings.sync()
+
+
+@pytest.fixture(autouse=True)
 def no_worker_outlives_its_test(qtbot):
     """Background workers of a test finish, and deliver their results, before its widgets go."""
     yield

@@ -104,3 +104,23 @@ def test_study_panel_runs_a_grid_resumes_it_and_draws_the_pareto_chart(qtbot, gr
     panel.grid.setPlainText("sensor.pixel_pitch_um")
     panel.run()
     assert "SECTION.FIELD" in panel.status.text() and panel._worker is None
+
+
+def test_the_kept_measuring_process_outlives_the_thread_that_started_it():
+    """The measuring process is started from a pool thread that Qt retires after 30 s idle; with
+    Linux's parent-death signal (which follows that thread) the process died with it and the next
+    measurement failed with BrokenProcessPool."""
+    import os
+    import threading
+    import time
+
+    from workbench.gui.panels import metrics
+
+    metrics.shutdown_measuring_process()
+    pids = []
+    starter = threading.Thread(target=lambda: pids.append(metrics._measure_process().submit(os.getpid).result()))
+    starter.start()
+    starter.join()
+    time.sleep(1.0)                                   # the starting thread has ended
+    assert metrics._measure_process().submit(os.getpid).result(timeout=30) == pids[0]
+    metrics.shutdown_measuring_process()

@@ -213,3 +213,16 @@ def test_irradiance_inspector_integrates_over_wavelength(window):
     assert integrated_irradiance_text([1.0, 2.0, 3.0], [400.0, 410.0, 420.0]) == \
         "∫E dλ (400–420 nm) = 60 photons/s/m² (3 bands × 10 nm)"
     assert integrated_irradiance_text([1.0, 3.0], [455.2, 541.7], True).startswith("mean E over 2 channels = 2 ")
+
+
+def test_the_metrics_dock_measures_only_when_its_tab_is_in_front(window, qtbot):
+    """Qt keeps hidden dock tabs 'visible' off-screen: the Metrics panel behind another tab must
+    not measure (it spent ~4 s of CPU at every window start), and starts once it is chosen."""
+    from workbench.gui.panels.metrics import DEBOUNCE_MS
+    metrics = window.editors["Metrics"]
+    qtbot.wait(2 * DEBOUNCE_MS)
+    assert window.docks["Metrics"].widget().isVisible()         # what the panel used to go by
+    assert not metrics.on_screen() and metrics._worker is None and metrics.metrics is None
+    window.docks["Metrics"].raise_()
+    qtbot.waitUntil(lambda: metrics._worker is not None, timeout=5_000)     # measuring now
+    assert metrics.on_screen()

@@ -58,6 +58,20 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
+def exit_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
+    """Exit this process once its parent process has gone (a daemon thread polls for it). For a
+    process kept beyond the life of the thread that started it, where die_with_parent's signal
+    (sent when that thread ends) would kill it early; it needs the GIL now and then to notice."""
+    import threading
+    import time
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(interval_s)
+        os._exit(1)
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 _progress_queue = None          # in a pool worker: where report_progress sends (key, done, total)
 
 

@@ -78,7 +78,9 @@ class MainWindow(QMainWindow):
             editor = editor_cls(parent=None)
             editor.edited.connect(self.apply_edit)
             self.editors[title] = editor
-            self._add_dock(title, editor, Qt.DockWidgetArea.RightDockWidgetArea)
+            dock = self._add_dock(title, editor, Qt.DockWidgetArea.RightDockWidgetArea)
+            if hasattr(editor, "set_on_screen"):      # panels that work only while they are seen
+                dock.visibilityChanged.connect(editor.set_on_screen)
         for group in DOCK_TABS:
             present = [self.docks[t] for t in group if t in self.docks]
             if present:

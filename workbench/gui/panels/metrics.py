@@ -68,8 +68,11 @@ def _measure_process():
 def _start_measuring_process(parent_pid: int) -> None:
     import os
 
-    from workbench.compute.local import apply_thread_budget, die_with_parent
-    die_with_parent(parent_pid)
+    from workbench.compute.local import apply_thread_budget, exit_with_parent
+    # not die_with_parent: Linux's parent-death signal follows the *thread* that started the
+    # process, here a pool thread of the window that Qt retires after 30 s idle — which killed the
+    # kept process and failed the next measurement with BrokenProcessPool
+    exit_with_parent(parent_pid)
     apply_thread_budget(1)
     os.nice(10)                  # the window's threads first when the cores are busy
 
@@ -186,13 +189,23 @@ class MetricsPanel(QWidget):
         is on screen (a hidden panel measures when it is shown: no CPU for numbers nobody sees)."""
         changed = project is not self._project and project != self._project
         self._project = project
-        if changed and self.live.isChecked() and self.isVisible():
+        if changed and self.live.isChecked() and self.on_screen():
             self._timer.start()
         self._update_buttons()
 
+    def on_screen(self) -> bool:
+        """Whether any of the panel can be seen: Qt keeps the widgets of a dock's hidden tabs
+        'visible', parked outside the window, so isVisible() alone is true for every tab."""
+        return self.isVisible() and not self.visibleRegion().isEmpty()
+
     def showEvent(self, event) -> None:
         super().showEvent(event)
-        if self.live.isChecked() and self._project is not None and self._measured != self._project:
+        QTimer.singleShot(0, lambda: self.set_on_screen(self.on_screen()))   # once laid out
+
+    def set_on_screen(self, shown: bool) -> None:
+        """The dock came on screen (its tab chosen, the dock shown or floated) or left it: a design
+        not yet measured is measured now."""
+        if shown and self.live.isChecked() and self._project is not None and self._measured != self._project:
             self._timer.start()
 
     def set_frame(self, frame) -> None:
