@@ -13,6 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.isp.kernels import SRGB_TABLE, srgb_encode_flat
 from workbench.spectra import illuminant_spd, macbeth_reflectances, xyz_from_photons
 from workbench.units import band_widths_nm, energy_to_photons
 
@@ -143,22 +144,13 @@ def xyz_to_srgb_linear(xyz: np.ndarray) -> np.ndarray:
     return (xyz.reshape(-1, 3) @ m).reshape(xyz.shape)
 
 
-def srgb_encode(linear: np.ndarray) -> np.ndarray:
-    """The sRGB transfer curve (IEC 61966-2-1) on float32 values, clipped to [0, 1] first.
+def srgb_encode(linear: np.ndarray, scale: float = 1.0) -> np.ndarray:
+    """The sRGB transfer curve (IEC 61966-2-1) of scale·x, clipped to [0, 1] first, as float32.
 
-    12.92·x for x ≤ 0.0031308, else 1.055·x^(1/2.4) − 0.055; agrees with
-    colour.cctf_encoding(…, 'sRGB') to float32 precision (0 ↦ 0 and 1 ↦ 1 exactly).
-    Branch-free for speed: the power branch is evaluated on max(x, t) and the linear segment
-    adds 12.92·(min(x, t) − t), which is exactly 0 above the knee t."""
-    x = np.asarray(linear, dtype=np.float32)
-    knee = np.float32(0.0031308)
-    out = np.clip(x, knee, np.float32(1.0))
-    np.power(out, np.float32(1.0 / 2.4), out=out)
-    out -= np.float32(1.0)            # 1.055·(p − 1) + 1 == 1.055·p − 0.055, and exact 1 at x = 1
-    out *= np.float32(1.055)
-    out += np.float32(1.0)
-    low = np.clip(x, np.float32(0.0), knee)
-    low *= np.float32(12.92)
-    low -= knee * np.float32(12.92)
-    out += low
-    return np.maximum(out, np.float32(0.0), out=out)
+    12.92·x for x ≤ 0.0031308, else 1.055·x^(1/2.4) − 0.055; within 1e-7 of
+    colour.cctf_encoding(…, 'sRGB'), with 0 ↦ 0 and 1 ↦ 1 exactly, NaN kept (isp.kernels: a
+    table in √x, one compiled pass)."""
+    x = np.ascontiguousarray(linear, dtype=np.float32)
+    out = np.empty_like(x)
+    srgb_encode_flat(x.reshape(-1), np.float32(scale), SRGB_TABLE, out.reshape(-1))
+    return out

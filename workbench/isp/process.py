@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.isp import kernels
 from workbench.isp.blocked import pixels_matmul
 from workbench.isp.color import (
     ColourFit,
@@ -101,38 +102,45 @@ def linear_to_xyz(linear: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     return pixels_matmul(linear.reshape(-1, k), matrix).reshape(h, w, 3)
 
 
-def neutral_highlights(rgb_linear: np.ndarray, peak: np.ndarray) -> None:
-    """In place: pixels whose brightest sensor channel (peak, H×W, full scale 1) nears saturation
-    blend towards a neutral of their brightest output channel: weight 0 below HIGHLIGHT_START, 1
-    from SATURATED_FRACTION on (smoothstep between), so a clipped white renders white, not pink,
-    and unsaturated colours are untouched. Whole-plane float32 arithmetic (no gather/scatter)."""
-    if not peak.size or float(peak.max()) <= HIGHLIGHT_START:
-        return
-    t = (peak - np.float32(HIGHLIGHT_START)) * np.float32(1.0 / (SATURATED_FRACTION - HIGHLIGHT_START))
-    np.clip(t, 0.0, 1.0, out=t)
-    w = t * t * (np.float32(3.0) - np.float32(2.0) * t)
-    planes = [rgb_linear[..., c] for c in range(rgb_linear.shape[-1])]
-    grey = np.maximum.reduce(planes)
-    for c, plane in enumerate(planes):
-        rgb_linear[..., c] = plane + w * (grey - plane)
-
-
-def _normalise(rgb_linear: np.ndarray, normalize: str, notes: list[str]) -> np.ndarray:
+def _scale(peak: float, normalize: str, notes: list[str]) -> float:
+    """The factor applied before encoding: 1 for 'swing', 1/max for 'max'."""
     if normalize == "swing":
-        return rgb_linear
+        return 1.0
     if normalize == "max":
-        peak = float(rgb_linear.max())
-        if peak <= 0:
+        if not peak > 0:
             notes.append("normalize='max': the image is black; left unscaled")
-            return rgb_linear
-        return rgb_linear * np.float32(1.0 / peak)
+            return 1.0
+        return 1.0 / peak
     raise InvalidValueError(f"normalize '{normalize}' is unknown; allowed: 'swing', 'max'")
+
+
+def colour_transform(linear: np.ndarray, to_rgb: np.ndarray, to_xyz: np.ndarray | None,
+                     neutral_highlights: bool, encode: bool = False) -> tuple[np.ndarray, np.ndarray | None, float]:
+    """H×W×K sensor channels → (linear sRGB H×W×3, XYZ H×W×3 or None, max of the linear sRGB
+    values), one compiled pass over the pixels (isp.kernels.colour_pixels); with encode the first
+    is the sRGB-encoded image (the 'swing' normalisation: nothing to scale first).
+    neutral_highlights: pixels whose brightest sensor channel nears saturation blend towards a
+    neutral of their brightest output channel — weight 0 below HIGHLIGHT_START, 1 from
+    SATURATED_FRACTION on, smoothstep between — so a clipped white renders white, not pink;
+    unsaturated colours are untouched."""
+    h, w, k = linear.shape
+    if to_rgb.shape != (k, 3) or (to_xyz is not None and to_xyz.shape != (k, 3)):
+        raise InvalidValueError(f"colour matrices must be {k}×3 for {k} channels, got {to_rgb.shape}"
+                                + ("" if to_xyz is None else f" and {to_xyz.shape}"))
+    flat = np.ascontiguousarray(linear.reshape(-1, k), dtype=np.float32)
+    rgb = np.empty((h * w, 3), dtype=np.float32)
+    xyz = np.empty((h * w, 3), dtype=np.float32) if to_xyz is not None else np.empty((1, 3), dtype=np.float32)
+    peak = kernels.colour_pixels(flat, np.ascontiguousarray(to_rgb, dtype=np.float64),
+                                 np.ascontiguousarray(to_rgb if to_xyz is None else to_xyz, dtype=np.float64),
+                                 to_xyz is not None, bool(neutral_highlights), HIGHLIGHT_START,
+                                 SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE, rgb, xyz)
+    return rgb.reshape(h, w, 3), (xyz.reshape(h, w, 3) if to_xyz is not None else None), float(peak)
 
 
 def xyz_to_srgb(xyz: np.ndarray, normalize: str = "swing") -> np.ndarray:
     """XYZ (H×W×3, Y_white = 1) → encoded sRGB in [0, 1] (float32), normalised as ISPParams says."""
     rgb = linear_to_xyz(np.asarray(xyz, dtype=np.float32), xyz_to_linear_srgb_matrix().T)
-    return srgb_encode(_normalise(rgb, normalize, []))
+    return srgb_encode(rgb, _scale(float(rgb.max()) if rgb.size else 0.0, normalize, []))
 
 
 def _grey_channel(channel_names: list[str]) -> int | None:
@@ -222,14 +230,14 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
                                              valid=peak < SATURATED_FRACTION)
         notes.extend(gain_notes)
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
-        if fit is not None:
-            xyz = linear_to_xyz(linear, to_ics)
-            rgb_linear = linear_to_xyz(linear, to_ics @ xyz_to_linear_srgb_matrix().T)
-        else:
-            rgb_linear = linear_to_xyz(linear, to_ics)
-        if params.highlights == "neutral":
-            neutral_highlights(rgb_linear, peak)
-    srgb = srgb_encode(_normalise(rgb_linear, params.normalize, notes))
+        to_rgb = to_ics @ xyz_to_linear_srgb_matrix().T if fit is not None else to_ics
+        fused = params.normalize == "swing"            # encoded in the same pass
+        rgb_linear, xyz, rgb_peak = colour_transform(linear, to_rgb, to_ics if fit is not None else None,
+                                                     params.highlights == "neutral", encode=fused)
+    if to_ics is None:
+        fused = False
+        rgb_peak = float(rgb_linear.max()) if params.normalize == "max" and rgb_linear.size else 0.0
+    srgb = rgb_linear if fused else srgb_encode(rgb_linear, _scale(rgb_peak, params.normalize, notes))
     for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
         if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum
             raise InvalidValueError(f"ISP produced non-finite values in '{name}' (input dn was finite)")

@@ -1,0 +1,68 @@
+"""The compiled per-pixel ISP kernels against plain numpy float64 references of the same formulas:
+the sRGB table against the exact curve at every float32 step near the knee and across [0, 1],
+the colour pass (K×3 products, neutral highlights, the maximum) on random K-channel images."""
+import numpy as np
+import pytest
+
+from workbench.isp.color import srgb_encode
+from workbench.isp.process import HIGHLIGHT_START, SATURATED_FRACTION, colour_transform
+
+
+def exact_srgb(x):
+    x = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+
+def test_srgb_table_is_within_float32_rounding_of_the_curve():
+    rng = np.random.default_rng(0)
+    knee = np.float32(0.0031308)
+    around_knee = np.nextafter(knee, np.float32(1), dtype=np.float32) + np.arange(-2000, 2000, dtype=np.float32) * np.float32(1e-9)
+    x = np.concatenate([rng.uniform(0, 1, 200_000), np.geomspace(1e-8, 1, 5000), around_knee]).astype(np.float32)
+    err = np.abs(srgb_encode(x).astype(np.float64) - exact_srgb(x))
+    assert err.max() < 2e-7, x[err.argmax()]
+    assert srgb_encode(np.array([0, 1, -3, 7, np.inf], np.float32)).tolist() == [0, 1, 0, 1, 1]
+    assert np.isnan(srgb_encode(np.array([np.nan], np.float32)))[0]          # left for the ISP to refuse
+
+
+def test_scale_multiplies_before_the_curve():
+    x = np.linspace(0, 3, 1001, dtype=np.float32)
+    np.testing.assert_allclose(srgb_encode(x, 0.25), exact_srgb(x * np.float32(0.25)), atol=2e-7)
+
+
+def reference_colour(linear, to_rgb, to_xyz, neutral):
+    lin = linear.astype(np.float64)
+    rgb = lin @ to_rgb
+    if neutral:
+        t = np.clip((lin.max(axis=-1) - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0, 1)
+        w = (t * t * (3 - 2 * t))[..., None]
+        rgb = rgb + w * (rgb.max(axis=-1, keepdims=True) - rgb)
+    return rgb, (None if to_xyz is None else lin @ to_xyz)
+
+
+@pytest.mark.parametrize("k", [3, 4])
+@pytest.mark.parametrize("neutral", [False, True])
+@pytest.mark.parametrize("with_xyz", [False, True])
+def test_colour_pass_matches_numpy(k, neutral, with_xyz):
+    rng = np.random.default_rng(k + 2 * neutral + 4 * with_xyz)
+    linear = rng.uniform(0, 1, (37, 53, k)).astype(np.float32)
+    linear[::5, ::3] = rng.uniform(0.85, 1.0, (k,)).astype(np.float32)      # near saturation
+    to_rgb, to_xyz = rng.normal(0, 1, (k, 3)), (rng.normal(0, 1, (k, 3)) if with_xyz else None)
+    rgb, xyz, peak = colour_transform(linear, to_rgb, to_xyz, neutral)
+    want_rgb, want_xyz = reference_colour(linear, to_rgb, to_xyz, neutral)
+    assert rgb.dtype == np.float32 and rgb.shape == (37, 53, 3)
+    np.testing.assert_allclose(rgb, want_rgb, atol=2e-6)
+    assert peak == pytest.approx(want_rgb.max(), abs=2e-6)
+    if with_xyz:
+        np.testing.assert_allclose(xyz, want_xyz, atol=2e-6)
+    else:
+        assert xyz is None
+
+
+def test_the_fused_pass_encodes_what_the_two_passes_do():
+    rng = np.random.default_rng(9)
+    linear = rng.uniform(0, 1.2, (29, 31, 3)).astype(np.float32)
+    to_rgb = rng.normal(0.4, 0.3, (3, 3))
+    rgb, _, peak = colour_transform(linear, to_rgb, None, True)
+    fused, _, fused_peak = colour_transform(linear, to_rgb, None, True, encode=True)
+    np.testing.assert_allclose(fused, srgb_encode(rgb), atol=1e-6)     # float64 sums, not rounded first
+    assert fused_peak == peak
