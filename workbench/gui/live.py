@@ -82,6 +82,8 @@ class FrameBuilder:
     def __init__(self) -> None:
         self._irr_key = None
         self._irr_rgb = None
+        self._readouts_key = None      # the sensor image the read-outs were taken from
+        self._readouts = None
 
     def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float) -> Frame:
         from workbench.previews import channels_to_rgb, irradiance_preview
@@ -94,7 +96,10 @@ class FrameBuilder:
             self._irr_key = oi
         level, reason = _optics_level(oi, project)
         from workbench.metrics.frame import frame_readouts
-        readouts = None if preview else frame_readouts(img, pipe.signal_rate(), project.sensor, pipe.labels())
+        if not preview and self._readouts_key is not img:      # an ISP edit keeps the sensor's read-outs
+            self._readouts = frame_readouts(img, pipe.signal_rate(), project.sensor, pipe.labels())
+            self._readouts_key = img
+        readouts = None if preview else self._readouts
         return Frame(project=project, irradiance_photons=oi.irradiance_photons,
                      wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=self._irr_rgb,
                      colour_wavelengths_nm=colour_wavelengths_nm(oi),
