@@ -35,7 +35,7 @@ def main(project: str, width: int, height: int) -> int:
             name, show = steps[k]
             show()
             print("visited", name, flush=True)
-            QTimer.singleShot(400, lambda: run(k + 1))
+            QTimer.singleShot(150, lambda: run(k + 1))   # the layout of the shown tab runs first
         QTimer.singleShot(1500, run)
         app.exec()
     return 0
