@@ -221,6 +221,7 @@ def _measure(app, quick: bool) -> dict:
                  ("experiment process", [start_experiment]),
                  ("render + sweep + experiment", [start_render, start_sweep, start_experiment])]
     for name, starts in scenarios:
+        _wait(app, lambda: False, 0.5)      # settle: work left from before is not this scenario's stall
         ticks.start()
         t0 = time.perf_counter()
         for s in starts:
