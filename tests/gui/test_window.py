@@ -228,3 +228,19 @@ def test_the_metrics_dock_measures_only_when_its_tab_is_in_front(window, qtbot):
     window.docks["Metrics"].raise_()
     qtbot.waitUntil(lambda: bool(started), timeout=5_000)
     assert metrics.on_screen()
+
+
+def test_progress_reports_repaint_the_bar_at_most_every_tenth_of_a_second(window, qtbot, monkeypatch):
+    """QProgressBar.setValue repaints at once (~9 ms under Xvfb); a burst of stage reports must not
+    hold the GUI thread for each one."""
+    from workbench.gui.main_window import PROGRESS_REPAINT_S
+    shown = []
+    monkeypatch.setattr(window.progress_bar, "setValue", shown.append)
+    window._busy_changed(True)
+    for i in range(50):
+        window._progress("sensor", i / 50)
+    assert shown == [0]                                   # the first report of the run, then none
+    qtbot.wait(round(1500 * PROGRESS_REPAINT_S))
+    window._progress("isp", 0.5)
+    assert shown == [0, 50] and window.progress_bar.format() == "isp %p%"
+    window._busy_changed(False)
