@@ -223,6 +223,8 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         rgb_linear = _grey(linear, names, grey_reason, notes)
         if params.illuminant_correction != "none":
             notes.append(f"illuminant correction '{params.illuminant_correction}' skipped: no colour")
+        encoded = False
+        rgb_peak = float(rgb_linear.max()) if params.normalize == "max" and rgb_linear.size else 0.0
     else:
         gains, gain_notes = illuminant_gains(linear, to_ics, params.illuminant_correction, white,
                                              white_world_fraction=params.white_world_fraction,
@@ -231,13 +233,10 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         notes.extend(gain_notes)
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
         to_rgb = to_ics @ xyz_to_linear_srgb_matrix().T if fit is not None else to_ics
-        fused = params.normalize == "swing"            # encoded in the same pass
+        encoded = params.normalize == "swing"          # nothing to scale: encoded in the same pass
         rgb_linear, xyz, rgb_peak = colour_transform(linear, to_rgb, to_ics if fit is not None else None,
-                                                     params.highlights == "neutral", encode=fused)
-    if to_ics is None:
-        fused = False
-        rgb_peak = float(rgb_linear.max()) if params.normalize == "max" and rgb_linear.size else 0.0
-    srgb = rgb_linear if fused else srgb_encode(rgb_linear, _scale(rgb_peak, params.normalize, notes))
+                                                     params.highlights == "neutral", encode=encoded)
+    srgb = rgb_linear if encoded else srgb_encode(rgb_linear, _scale(rgb_peak, params.normalize, notes))
     for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
         if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum
             raise InvalidValueError(f"ISP produced non-finite values in '{name}' (input dn was finite)")

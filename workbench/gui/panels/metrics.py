@@ -200,7 +200,8 @@ class MetricsPanel(QWidget):
 
     def showEvent(self, event) -> None:
         super().showEvent(event)
-        QTimer.singleShot(0, lambda: self.set_on_screen(self.on_screen()))   # once laid out
+        # once laid out; with self as context, a panel deleted first never gets the call
+        QTimer.singleShot(0, self, lambda: self.set_on_screen(self.on_screen()))
 
     def set_on_screen(self, shown: bool) -> None:
         """The dock came on screen (its tab chosen, the dock shown or floated) or left it: a design

@@ -171,8 +171,11 @@ def _refract(dx, dy, dz, nx, ny, nz, mu):
 @njit(cache=_CACHE, nogil=True)
 def _trace_kernel(p, d, curv, kk, asph, n_asph, zv, semi2, refracts, n_in, n_out, backward,
                   points, dirs, valid, opl, path, record):
-    """Every ray through every surface of the table (travel order); fills points, dirs, valid,
-    opl and (record) path. n_in/n_out: (S, 1) or (S, N) indices before/after each surface."""
+    """Every ray through every surface of the table (travel order); fills points (mm), dirs (unit),
+    valid, opl (mm) and, when record, path (mm). Per surface: curv (1/mm), kk = 1 + conic, asph
+    (even-asphere coefficients, mm^(1−2i)) and their count, zv (vertex z, mm), semi2 (squared
+    clear semi-aperture, mm²), refracts (not the stop). n_in/n_out: (S, 1) or (S, N) refractive
+    indices before/after each surface."""
     per_ray = n_in.shape[1] > 1
     for j in range(p.shape[0]):
         x, y, z = p[j, 0], p[j, 1], p[j, 2]
@@ -227,10 +230,11 @@ def _refract_kernel(d, normal, mu, out, ok):
 
 
 def _surface_args(surface: Surface):
-    """(c, 1 + k, aspheric coefficients, their count) of a surface, as the kernels take them."""
+    """(c in 1/mm, 1 + k, aspheric coefficients padded with one 0, their count) of a surface, as
+    the kernels take them."""
     coeffs = np.asarray(surface.asphere_coeffs if surface.is_aspheric else (), dtype=np.float64)
     return (float(surface.curvature_per_mm), 1.0 + float(surface.conic),
-            np.concatenate([coeffs, [0.0]]), int(coeffs.size))
+            np.append(coeffs, 0.0), int(coeffs.size))
 
 
 @lru_cache(maxsize=256)
@@ -245,8 +249,8 @@ def _surface_table(lens: Lens, reverse: bool, n_surfaces: int | None):
     rows = [_surface_args(lens.surfaces[i]) for i in order]
     width = max(1, max((r[3] for r in rows), default=0))
     asph = np.zeros((len(order), width))
-    for k, r in enumerate(rows):
-        asph[k, :r[3]] = r[2][:r[3]]
+    for k, (_, _, coeffs, count) in enumerate(rows):
+        asph[k, :count] = coeffs[:count]
     table = (np.array([r[0] for r in rows], dtype=np.float64), np.array([r[1] for r in rows], dtype=np.float64),
              asph, np.array([r[3] for r in rows], dtype=np.int64), lens.vertex_z_mm[order].astype(np.float64),
              np.array([lens.surfaces[i].semi_aperture_mm ** 2 for i in order], dtype=np.float64),
@@ -264,7 +268,7 @@ def _scalar_setup(lens: Lens, reverse: bool, n_surfaces: int | None, wavelength_
     table, pairs = _surface_table(lens, reverse, n_surfaces)
     n_in = np.array([float(a.index(wavelength_nm)) for a, _ in pairs], dtype=np.float64).reshape(-1, 1)
     n_out = np.array([float(b.index(wavelength_nm)) for _, b in pairs], dtype=np.float64).reshape(-1, 1)
-    return table, n_in, n_out, len(pairs)
+    return table, n_in, n_out, len(pairs)       # (writable like the per-ray ones: one compiled kernel)
 
 
 def intersect(surface: Surface, z_vertex_mm: float, p: np.ndarray, d: np.ndarray):
