@@ -76,7 +76,9 @@ def test_snr_against_signal_matches_shot_plus_read_noise_within_3_percent():
     p = p.updated(sensor=p.sensor.updated(prnu_sigma_pct=0.0, dsnu_sigma_V=0.0, column_fpn_offset_sigma_V=0.0,
                                           column_fpn_gain_sigma_pct=0.0, bit_depth=12))
     rows, lux_per_cd_m2 = noise_series(p)
-    checked = [r for r in rows if r["clipped"] == 0 and r["mean_e"] > 20]
+    # the model leaves out clipping at 0 V: below SNR 3 a few % of pixels clip and the measured
+    # noise is low by 2–10 % (at SNR 1.9: +2.5 % or +3.0 %, as the noise draws fall)
+    checked = [r for r in rows if r["clipped"] == 0 and r["snr_model"] >= 3.0]
     assert len(checked) >= 12
     for r in checked:
         assert r["snr"] == pytest.approx(r["snr_model"], rel=0.03), r

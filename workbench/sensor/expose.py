@@ -4,46 +4,27 @@ Order (noise_flag 2): dark current → photon shot noise (true Poisson on signal
 → read noise → PRNU/DSNU → column FPN → analog gain/offset → clip to [0, swing] → quantise
 DN = round(v / (swing / 2^bits)), limited to 2^bits − 1.
 The fixed patterns (PRNU, DSNU, column FPN) come from params.seed and are the same every frame;
-temporal noise comes from the `rng` passed in. The frame is split into a fixed number of row
-blocks, each with its own child generator, and the blocks run in threads (numpy releases the
-GIL), so a given rng state gives the same image on any machine.
+temporal noise comes from the `rng` passed in: it seeds a fixed number of row blocks, each read
+out by one compiled pass (sensor.kernels) with its own SFC64 streams for shot and read noise, so a
+given rng state gives the same image on any machine and with any number of threads; large frames
+run their blocks in threads.
 """
 from __future__ import annotations
 
-import os
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from functools import lru_cache
 
 import numpy as np
 
+from workbench.compute.pixel_threads import BLOCKS, map_row_blocks
 from workbench.errors import InvalidValueError
 from workbench.sensor.cfa import cfa_layout, channel_qe
 from workbench.sensor.image import SensorImage
+from workbench.sensor.kernels import read_out_block, sfc64_state
 from workbench.sensor.params import SensorParams
 
-N_BLOCKS = 2
-"""Row blocks per frame: fixed, so results do not depend on the number of threads."""
-_PARALLEL_MIN_PIXELS = 1 << 16
 SATURATION_CAP = 1000.0
 """Mean electrons are capped at this many times the level that saturates the output (keeps the
 Poisson draw finite for HDR input such as the sun; such pixels clip anyway)."""
-
-_pool: ThreadPoolExecutor | None = None
-_pool_pid = -1
-_pool_lock = threading.Lock()
-
-
-def _executor() -> ThreadPoolExecutor:
-    """The worker threads, created on first use and again in a forked child (whose copy of the
-    pool has no threads)."""
-    global _pool, _pool_pid
-    with _pool_lock:
-        if _pool is None or _pool_pid != os.getpid():
-            _pool = ThreadPoolExecutor(max_workers=min(N_BLOCKS, os.cpu_count() or 1),
-                                       thread_name_prefix="sensor")
-            _pool_pid = os.getpid()
-        return _pool
 
 
 @lru_cache(maxsize=8)
@@ -91,38 +72,27 @@ def _exposure_map(exposure_s, tile_shape: tuple[int, int], rows: int, cols: int)
     return np.tile(t.astype(np.float32), (rows // t.shape[0] + 1, cols // t.shape[1] + 1))[:rows, :cols]
 
 
-def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, gen: np.random.Generator,
-           a, b, electrons: np.ndarray, volts: np.ndarray, dn: np.ndarray | None) -> None:
-    """Simulate rows `sl` of the frame in place (runs in a worker thread)."""
+_NO_MAP = np.zeros((0, 0), dtype=np.float32)       # a kernel's per-pixel map argument when a scalar is used
+
+
+def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, seed: int, a, b,
+           electrons: np.ndarray, volts: np.ndarray, dn: np.ndarray | None) -> None:
+    """Simulate rows `sl` of the frame in place (runs in a worker thread; the kernel releases the
+    GIL). Shot noise and read noise each draw from their own SFC64 stream of the block's seed."""
     flag = params.noise_flag
-    g = np.float32(params.conversion_gain_V_per_e)
-    t_blk = t[sl] if isinstance(t, np.ndarray) else np.float32(t)
-    e = electrons[sl]
-    np.multiply(rate[sl], t_blk, out=e)
-    if flag == 2 and params.dark_current_e_per_s > 0:
-        e += np.float32(params.dark_current_e_per_s) * t_blk
-    a_blk = a[sl] if isinstance(a, np.ndarray) else np.float32(a)
-    b_blk = b[sl] if isinstance(b, np.ndarray) else np.float32(b)
     cap = SATURATION_CAP * (params.voltage_swing_V + abs(params.analog_offset_V)) / (
         params.conversion_gain_V_per_e * params.analog_gain)
-    np.minimum(e, np.float32(min(cap, 1e15)), out=e)
-    if flag >= 1:
-        e[...] = gen.poisson(e)
-    v = volts[sl]
-    np.multiply(e, g, out=v)
-    if flag == 2 and params.read_noise_V > 0:
-        z = gen.standard_normal(v.shape, dtype=np.float32)
-        z *= np.float32(params.read_noise_V)
-        v += z
-    if flag >= 0:
-        v *= a_blk
-        v += b_blk
-        np.clip(v, 0.0, np.float32(params.voltage_swing_V), out=v)
-    if dn is not None:
-        d = dn[sl]
-        np.multiply(v, np.float32(1.0 / params.lsb_V), out=d)
-        np.rint(d, out=d)
-        np.clip(d, 0.0, np.float32(params.max_dn), out=d)
+    t_map = t[sl] if isinstance(t, np.ndarray) else _NO_MAP
+    a_map = a[sl] if isinstance(a, np.ndarray) else _NO_MAP
+    b_map = b[sl] if isinstance(b, np.ndarray) else _NO_MAP
+    read_out_block(rate[sl], t_map, 0.0 if isinstance(t, np.ndarray) else float(t),
+                   params.dark_current_e_per_s if flag == 2 else 0.0, min(cap, 1e15), flag >= 1,
+                   params.conversion_gain_V_per_e, params.read_noise_V if flag == 2 else 0.0,
+                   a_map, b_map, 0.0 if isinstance(a, np.ndarray) else float(a),
+                   0.0 if isinstance(b, np.ndarray) else float(b), flag >= 0, params.voltage_swing_V,
+                   1.0 / params.lsb_V, float(params.max_dn), dn is not None,
+                   sfc64_state([seed, 0]), sfc64_state([seed, 1]),
+                   electrons[sl], volts[sl], _NO_MAP if dn is None else dn[sl])
 
 
 def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
@@ -149,17 +119,9 @@ def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorP
     electrons = np.empty(rate.shape, dtype=np.float32)
     volts = np.empty(rate.shape, dtype=np.float32)
     dn = np.empty(rate.shape, dtype=np.float32) if params.bit_depth else None
-    rows = params.rows
-    if rate.size >= _PARALLEL_MIN_PIXELS and params.noise_flag >= 1:
-        edges = np.linspace(0, rows, N_BLOCKS + 1).astype(int)
-        seeds = rng.integers(0, 2 ** 63, size=N_BLOCKS)
-        jobs = [_executor().submit(_block, slice(edges[i], edges[i + 1]), rate, t, params,
-                                   np.random.default_rng(seeds[i]), a, b, electrons, volts, dn)
-                for i in range(N_BLOCKS)]
-        for job in jobs:
-            job.result()
-    else:
-        _block(slice(0, rows), rate, t, params, rng, a, b, electrons, volts, dn)
+    seeds = [int(s) for s in rng.integers(0, 2 ** 63, size=BLOCKS)]
+    map_row_blocks(lambda i, rows: _block(rows, rate, t, params, seeds[i], a, b, electrons, volts, dn),
+                   params.rows, rate.size)
     qe = (channel_qe(params, wavelengths_nm) if wavelengths_nm is not None
           else np.zeros((0, len(names))))
     exposure = float(t) if not isinstance(t, np.ndarray) else np.asarray(exposure_s, dtype=np.float64)

@@ -1,0 +1,65 @@
+"""Row blocks of a frame run in threads, for compiled per-pixel kernels that release the GIL.
+
+A frame is always cut into the same BLOCKS row blocks, so a result never depends on how many
+threads ran them (the sensor seeds its noise per block); large frames run their blocks in a few
+threads of this process, at most the thread budget (WORKBENCH_THREADS, see compute.local) or the
+cores this process may use.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from typing import Callable, TypeVar
+
+import numpy as np
+
+from workbench.compute.local import THREAD_BUDGET_ENV
+
+R = TypeVar("R")
+
+BLOCKS = 2
+"""Row blocks per frame: fixed, so results do not depend on the number of threads."""
+PARALLEL_MIN_PIXELS = 1 << 16
+"""Frames smaller than this run their blocks one after the other on the calling thread."""
+
+_pool: ThreadPoolExecutor | None = None
+_pool_pid = -1
+_pool_lock = threading.Lock()
+
+
+def thread_count() -> int:
+    """Threads a frame may use: BLOCKS, or fewer where the budget or the CPU affinity is smaller."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        budget = int(os.environ.get(THREAD_BUDGET_ENV, "0"))
+    except ValueError:
+        budget = 0
+    return max(1, min(BLOCKS, cores, budget or cores))
+
+
+def _executor() -> ThreadPoolExecutor:
+    """The worker threads, created on first use and again in a forked child (whose copy of the
+    pool has no threads)."""
+    global _pool, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_pid != os.getpid():
+            _pool = ThreadPoolExecutor(max_workers=BLOCKS, thread_name_prefix="pixels")
+            _pool_pid = os.getpid()
+        return _pool
+
+
+def row_blocks(rows: int) -> list[slice]:
+    """The BLOCKS row ranges of a frame of `rows` rows (some empty when rows < BLOCKS)."""
+    edges = np.linspace(0, rows, BLOCKS + 1).astype(int)
+    return [slice(int(edges[i]), int(edges[i + 1])) for i in range(BLOCKS)]
+
+
+def map_row_blocks(fn: Callable[[int, slice], R], rows: int, pixels: int) -> list[R]:
+    """[fn(i, block i) for each row block], in threads when the frame has `pixels` ≥
+    PARALLEL_MIN_PIXELS and more than one thread is allowed. fn must release the GIL to gain."""
+    blocks = row_blocks(rows)
+    if pixels < PARALLEL_MIN_PIXELS or thread_count() == 1:
+        return [fn(i, block) for i, block in enumerate(blocks)]
+    jobs = [_executor().submit(fn, i, block) for i, block in enumerate(blocks)]
+    return [job.result() for job in jobs]
