@@ -5,8 +5,10 @@ from hypothesis import given, settings, strategies as st
 
 import colour_demosaicing
 from isp_synthetic import BAYER_TILES, mosaic
+from workbench.compute import pixel_threads
+from workbench.compute.local import THREAD_BUDGET_ENV
 from workbench.isp.demosaic import (
-    DEMOSAIC_METHODS, bayer_pattern, bilinear_phase_planes, bilinear_tent_convolution, demosaic,
+    DEMOSAIC_METHODS, bayer_pattern, bilinear_2x2_tile, bilinear_tent_convolution, demosaic,
     demosaic_bilinear,
 )
 
@@ -110,10 +112,18 @@ def test_bad_inputs_are_refused():
 @given(h=st.integers(2, 15), w=st.integers(2, 15), seed=st.integers(0, 2**31 - 1),
        tile=st.sampled_from([[[0, 1], [1, 2]], [[0, 1], [1, 1]], [[0, 1], [3, 2]], [[0, 0], [1, 2]],
                              [[2, 0], [1, 1]]]))
-def test_phase_plane_route_equals_tent_convolution(h, w, seed, tile):
-    """The fast 2×2 route and the any-tile convolution are the same algorithm, borders included."""
+def test_compiled_2x2_route_equals_tent_convolution(h, w, seed, tile):
+    """The compiled 2×2 route and the any-tile convolution are the same algorithm, borders included."""
     tile = np.array(tile)
     k = int(tile.max()) + 1
     cfa = np.random.default_rng(seed).random((h, w)).astype(np.float32)
-    np.testing.assert_allclose(bilinear_phase_planes(cfa, tile, k), bilinear_tent_convolution(cfa, tile, k),
-                               atol=2e-6)
+    np.testing.assert_allclose(bilinear_2x2_tile(cfa, tile, k), bilinear_tent_convolution(cfa, tile, k), atol=2e-6)
+
+
+def test_a_large_frame_in_threads_equals_tent_convolution(monkeypatch):
+    """Row blocks in threads join up: a frame above the threading threshold, odd-sized."""
+    monkeypatch.setenv(THREAD_BUDGET_ENV, "2")
+    tile = np.array(BAYER_TILES["GRBG"])
+    cfa = np.random.default_rng(2).random((301, 257)).astype(np.float32)
+    assert cfa.size >= pixel_threads.PARALLEL_MIN_PIXELS
+    np.testing.assert_allclose(bilinear_2x2_tile(cfa, tile, 3), bilinear_tent_convolution(cfa, tile, 3), atol=2e-6)

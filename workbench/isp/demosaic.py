@@ -19,7 +19,9 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.compute.pixel_threads import map_row_blocks
 from workbench.errors import InvalidValueError
+from workbench.isp import kernels
 from workbench.registry import Registry
 
 BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
@@ -87,13 +89,13 @@ def demosaic_bilinear(mosaic: np.ndarray, cfa_tile: np.ndarray, n_channels: int,
     """Bilinear demosaic of any CFA by normalised convolution; measured samples are kept.
 
     Each missing value is a positively weighted mean of nearby samples of its channel, so the
-    output stays within the data range. 2×2 tiles take the fast phase-plane route, larger tiles
+    output stays within the data range. 2×2 tiles take the compiled route, larger tiles
     the full-resolution convolution (same result). Returns (H×W×K float32, notes)."""
     mosaic, tile = _check_inputs(mosaic, cfa_tile, n_channels)
     if n_channels == 1:
         return mosaic[..., None].copy(), []
     if tile.shape == (2, 2):
-        return bilinear_phase_planes(mosaic, tile, n_channels), []
+        return bilinear_2x2_tile(mosaic, tile, n_channels), []
     return bilinear_tent_convolution(mosaic, tile, n_channels), []
 
 
@@ -117,46 +119,44 @@ def bilinear_tent_convolution(mosaic: np.ndarray, tile: np.ndarray, n_channels: 
     return out
 
 
-def bilinear_phase_planes(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> np.ndarray:
-    """The same normalised tent convolution for a 2×2 tile, computed on quarter-size phase planes.
+@lru_cache(maxsize=32)
+def _bilinear_taps(tile_bytes: bytes, n_channels: int) -> tuple[np.ndarray, ...]:
+    """(dy, dx, weight, n_taps) of kernels.bilinear_2x2 for a 2×2 tile: for each phase and channel,
+    the channel's samples among the 8 neighbours with the tent weights (2 for edge, 1 for diagonal
+    neighbours) normalised to sum 1, or the pixel itself where it measured the channel."""
+    tile = np.frombuffer(tile_bytes, dtype=np.int64).reshape(2, 2)
+    dy = np.zeros((4, n_channels, 8), dtype=np.int64)
+    dx = np.zeros((4, n_channels, 8), dtype=np.int64)
+    weight = np.zeros((4, n_channels, 8), dtype=np.float32)
+    n_taps = np.zeros((4, n_channels), dtype=np.int64)
+    for ty in (0, 1):
+        for tx in (0, 1):
+            for k in range(n_channels):
+                if tile[ty, tx] == k:
+                    found = [(0, 0, 1.0)]
+                else:
+                    found = [(oy, ox, float((2 - abs(oy)) * (2 - abs(ox))))
+                             for oy in (-1, 0, 1) for ox in (-1, 0, 1)
+                             if (oy, ox) != (0, 0) and tile[(ty + oy) % 2, (tx + ox) % 2] == k]
+                total = sum(wt for _, _, wt in found)
+                p = 2 * ty + tx
+                n_taps[p, k] = len(found)
+                for j, (oy, ox, wt) in enumerate(found):
+                    dy[p, k, j], dx[p, k, j], weight[p, k, j] = oy, ox, wt / total
+    for a in (dy, dx, weight, n_taps):
+        a.setflags(write=False)
+    return dy, dx, weight, n_taps
 
-    Mirror borders keep the CFA phase, so every missing value is the tent-weighted mean (2 for
-    edge, 1 for diagonal neighbours) of the same-channel samples among its 8 neighbours; on the
-    phase planes mirror padding of the mosaic is edge padding. Odd sizes are mirror-padded to
-    even and cropped."""
+
+def bilinear_2x2_tile(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> np.ndarray:
+    """The same normalised tent convolution for a 2×2 tile (H×W×K), one compiled pass per row
+    block (in threads for large frames)."""
     h, w = mosaic.shape
-    if h % 2 or w % 2:
-        even = np.pad(mosaic, ((0, h % 2), (0, w % 2)), mode="reflect")
-        return np.ascontiguousarray(bilinear_phase_planes(even, tile, n_channels)[:h, :w])
-    hq, wq = h // 2, w // 2
-    phases = {(r, c): np.pad(mosaic[r::2, c::2], 1, mode="edge") for r in (0, 1) for c in (0, 1)}
+    mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
+    dy, dx, weight, n_taps = _bilinear_taps(np.ascontiguousarray(tile, dtype=np.int64).tobytes(), n_channels)
     out = np.empty((h, w, n_channels), dtype=np.float32)
-    for k in range(n_channels):
-        for tr in (0, 1):
-            for tc in (0, 1):
-                if tile[tr, tc] == k:
-                    out[tr::2, tc::2, k] = mosaic[tr::2, tc::2]
-                    continue
-                sums: dict[int, np.ndarray] = {}      # tent weight (1 or 2) → sum of those neighbours
-                total = 0
-                for dy in (-1, 0, 1):
-                    for dx in (-1, 0, 1):
-                        sr, sc = (tr + dy) % 2, (tc + dx) % 2
-                        if (dy, dx) == (0, 0) or tile[sr, sc] != k:
-                            continue
-                        oy, ox = (tr + dy - sr) // 2, (tc + dx - sc) // 2
-                        view = phases[sr, sc][1 + oy:1 + oy + hq, 1 + ox:1 + ox + wq]
-                        weight = (2 - abs(dy)) * (2 - abs(dx))
-                        total += weight
-                        if weight in sums:
-                            sums[weight] += view
-                        else:
-                            sums[weight] = view.copy()
-                value = None
-                for weight, part in sums.items():
-                    part *= np.float32(weight / total)
-                    value = part if value is None else np.add(value, part, out=value)
-                out[tr::2, tc::2, k] = value
+    map_row_blocks(lambda _, rows: kernels.bilinear_2x2(mosaic, dy, dx, weight, n_taps, rows.start, rows.stop, out),
+                   h, h * w)
     return out
 
 

@@ -98,7 +98,7 @@ def _manual(flat, to_ics, white, white_world_fraction, manual_gains):
 
 def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white: np.ndarray, *,
                      white_world_fraction: float = 0.7, manual_gains: tuple[float, ...] = (1.0, 1.0, 1.0),
-                     valid: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+                     saturated: float | None = None) -> tuple[np.ndarray, list[str]]:
     """Gains (3,) for the internal colour space ics = linear @ to_ics that correct the illuminant.
 
     linear: H×W×K sensor channels; to_ics: K×3 matrix into the internal colour space (XYZ, or
@@ -106,8 +106,8 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
     (the image mean gets the chromaticity of `white`), 'white_world' (the mean of the pixels ≥
     white_world_fraction × max of the brightest ics channel gets it), 'manual' (manual_gains).
     white: the output white in the internal space (3,), e.g. the XYZ of sRGB's D65 white.
-    valid: H×W bool, the pixels the statistics may use (e.g. not saturated: their colour is the
-    clipping's, not the scene's); when none is, all are used, with a note.
+    saturated: pixels whose brightest channel is at or above this are left out of the statistics
+    (their colour is the clipping's, not the scene's); when every pixel is, all are used, with a note.
     Returns (gains, notes); a zero statistic leaves the image unchanged, with a note."""
     correct = ILLUMINANT_CORRECTIONS[method]
     k = linear.shape[-1]
@@ -117,11 +117,9 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
     flat = linear.reshape(-1, k)
     notes: list[str] = []
     if method == "gray_pixels":                    # its statistic reads an even subsample anyway
-        step = max(1, len(flat) // GREY_PIXEL_SAMPLES)
-        flat = flat[::step]
-        valid = None if valid is None else np.asarray(valid).reshape(-1)[::step]
-    if valid is not None and method in ("gray_world", "gray_pixels", "white_world"):
-        valid = np.asarray(valid, dtype=bool).reshape(-1)
+        flat = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)]
+    if saturated is not None and method in ("gray_world", "gray_pixels", "white_world"):
+        valid = np.maximum.reduce([flat[:, c] for c in range(k)]) < saturated
         if not valid.any():
             notes.append(f"{method}: every pixel is saturated; the statistic uses them all")
         elif method == "gray_world":              # a masked mean needs no copy of the pixels

@@ -97,3 +97,43 @@ def colour_pixels(linear, to_rgb, to_xyz, want_xyz, highlights, highlight_start,
         rgb[i, 1] = g
         rgb[i, 2] = b
     return peak_out
+
+
+@njit(cache=_CACHE, nogil=True, inline="always")
+def _mirror(i, n):
+    """Index i of an axis of length n, mirrored without repeating the edge (−1 → 1, n → n − 2)."""
+    if i < 0:
+        return -i
+    if i >= n:
+        return 2 * n - 2 - i
+    return i
+
+
+@njit(cache=_CACHE, nogil=True)
+def bilinear_2x2(mosaic, tap_dy, tap_dx, tap_weight, n_taps, first_row, stop_row, out):
+    """Rows first_row…stop_row − 1 of a 2×2-tile bilinear demosaic (H×W float32 mosaic → out
+    H×W×K).
+
+    For CFA phase p = 2·(y mod 2) + (x mod 2) and channel k, the value is Σ_j weight[p, k, j] ·
+    mosaic[y + dy[p, k, j], x + dx[p, k, j]] over the n_taps[p, k] same-channel samples (a measured
+    sample is the one tap (0, 0, 1)). Neighbours beyond the border are mirrored without repeating
+    the edge (index −1 → 1), which keeps the CFA phase; interior pixels skip the mirroring."""
+    h, w = mosaic.shape
+    k_channels = out.shape[2]
+    for y in range(first_row, stop_row):
+        edge_row = y == 0 or y == h - 1
+        for x in range(w):
+            p = 2 * (y & 1) + (x & 1)
+            if edge_row or x == 0 or x == w - 1:
+                for k in range(k_channels):
+                    acc = np.float32(0.0)
+                    for j in range(n_taps[p, k]):
+                        acc += (mosaic[_mirror(y + tap_dy[p, k, j], h), _mirror(x + tap_dx[p, k, j], w)]
+                                * tap_weight[p, k, j])
+                    out[y, x, k] = acc
+            else:
+                for k in range(k_channels):
+                    acc = np.float32(0.0)
+                    for j in range(n_taps[p, k]):
+                        acc += mosaic[y + tap_dy[p, k, j], x + tap_dx[p, k, j]] * tap_weight[p, k, j]
+                    out[y, x, k] = acc

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from workbench.compute.pixel_threads import map_row_blocks
 from workbench.errors import InvalidValueError
 from workbench.isp import kernels
 from workbench.isp.blocked import pixels_matmul
@@ -129,12 +130,17 @@ def colour_transform(linear: np.ndarray, to_rgb: np.ndarray, to_xyz: np.ndarray 
                                 + ("" if to_xyz is None else f" and {to_xyz.shape}"))
     flat = np.ascontiguousarray(linear.reshape(-1, k), dtype=np.float32)
     rgb = np.empty((h * w, 3), dtype=np.float32)
-    xyz = np.empty((h * w, 3), dtype=np.float32) if to_xyz is not None else np.empty((1, 3), dtype=np.float32)
-    peak = kernels.colour_pixels(flat, np.ascontiguousarray(to_rgb, dtype=np.float64),
-                                 np.ascontiguousarray(to_rgb if to_xyz is None else to_xyz, dtype=np.float64),
-                                 to_xyz is not None, bool(neutral_highlights), HIGHLIGHT_START,
-                                 SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE, rgb, xyz)
-    return rgb.reshape(h, w, 3), (xyz.reshape(h, w, 3) if to_xyz is not None else None), float(peak)
+    xyz = np.empty((h * w, 3), dtype=np.float32) if to_xyz is not None else None
+    m_rgb = np.ascontiguousarray(to_rgb, dtype=np.float64)
+    m_xyz = np.ascontiguousarray(to_rgb if to_xyz is None else to_xyz, dtype=np.float64)
+    no_xyz = np.empty((1, 3), dtype=np.float32)
+
+    def block(_, rows: slice) -> float:          # rows of the flat pixel array; the kernel releases the GIL
+        return kernels.colour_pixels(flat[rows], m_rgb, m_xyz, xyz is not None, bool(neutral_highlights),
+                                     HIGHLIGHT_START, SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE,
+                                     rgb[rows], no_xyz if xyz is None else xyz[rows])
+    peak = max(map_row_blocks(block, h * w, h * w))
+    return rgb.reshape(h, w, 3), (xyz.reshape(h, w, 3) if xyz is not None else None), float(peak)
 
 
 def xyz_to_srgb(xyz: np.ndarray, normalize: str = "swing") -> np.ndarray:
@@ -215,7 +221,6 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     linear, notes = _tiny_safe_raw_to_linear(raw, image.cfa_tile, names, params.demosaic,
                                              black_dn / image.max_dn)
     to_ics, white, fit, grey_reason = _colour_path(image, params, notes)
-    peak = np.maximum.reduce([linear[..., k] for k in range(linear.shape[-1])])   # brightest channel per pixel
 
     gains = None
     xyz = None
@@ -229,7 +234,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         gains, gain_notes = illuminant_gains(linear, to_ics, params.illuminant_correction, white,
                                              white_world_fraction=params.white_world_fraction,
                                              manual_gains=params.manual_gains,
-                                             valid=peak < SATURATED_FRACTION)
+                                             saturated=SATURATED_FRACTION)
         notes.extend(gain_notes)
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
         to_rgb = to_ics @ xyz_to_linear_srgb_matrix().T if fit is not None else to_ics
