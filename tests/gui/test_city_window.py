@@ -38,11 +38,18 @@ def full_frame_of(win, project):
     return f is not None and not f.preview and f.project == project and not win.live.busy
 
 
+def full_frame_seen(win, frames):
+    """The full frame of the document's project is on screen and has reached `frames` too: the
+    window's slot and a test's list each get their own queued call, so one can run before the other."""
+    return (full_frame_of(win, win.document.project)
+            and any(not f.preview and f.project == win.document.project for f in frames))
+
+
 def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_window, qtbot, grab):
     win = city_window
     frames = win.frames_seen
     qtbot.waitUntil(lambda: win.city_view.city is not None, timeout=TIMEOUT_MS)
-    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
     win.docks["3-D city"].raise_()           # the saved layout may have another tab of the column in front
     qtbot.waitUntil(lambda: win.city_view.plotter.interactor.isVisible(), timeout=5_000)
     win.city_view.render()
@@ -67,12 +74,12 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     frames.clear()
     win.city_view.apply_typed_pose()
     assert win.document.project.pose.mode == "manual"
-    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
     assert frames[0].preview and frames[-1].recomputed[0] == "scene"
     frames.clear()
     win.document.undo_stack.undo()
     assert win.document.project == small_city_project()
-    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
     assert [f.recomputed for f in frames] == [[]]          # Undo of the move: every stage from the cache
 
 
@@ -98,7 +105,7 @@ def test_sensor_edits_on_a_city_run_only_the_sensor_stages(qtbot, representation
         frames = []
         win.live.frameReady.connect(frames.append)
         assert win.apply_edit(section, change)
-        qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+        qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
         win.live.frameReady.disconnect(frames.append)
         assert [f.preview for f in frames] == [False], "no preview render: the scene is not rendered again"
         assert frames[-1].recomputed == recomputed
