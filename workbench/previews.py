@@ -34,8 +34,11 @@ def irradiance_preview(photons: np.ndarray, wavelengths_nm: np.ndarray, meta: di
 
 
 def channels_to_rgb(channels: np.ndarray, names: list[str]) -> np.ndarray:
-    """H×W×K linear channels → displayable H×W×3: R,G,B as named; other channels shown grey."""
+    """H×W×K linear channels → displayable H×W×3: R,G,B as named; other channels shown grey.
+    Channels that already are R, G, B in that order are returned as they are (not copied)."""
     names_u = [n.upper() for n in names]
+    if names_u == ["R", "G", "B"]:
+        return channels
     if all(c in names_u for c in "RGB"):
         return np.stack([channels[..., names_u.index(c)] for c in "RGB"], axis=-1)
     if channels.shape[-1] == 1:

@@ -118,6 +118,14 @@ def illuminant_spd(name: str, wavelengths_nm: np.ndarray) -> np.ndarray:
                      "'daylight:<CCT K>' (4000–25000) or 'blackbody:<T K>' (1000–100000)")
 
 
+@lru_cache(maxsize=256)
+def checked_illuminant_name(name: str) -> str:
+    """`name` when illuminant_spd knows it (raises with the allowed names otherwise); remembered,
+    because every project validation asks and colour-science's lookup slugifies its whole table."""
+    illuminant_spd(name, DEFAULT_WAVELENGTHS_NM)
+    return name
+
+
 @lru_cache(maxsize=None)
 def _macbeth_table() -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     import colour

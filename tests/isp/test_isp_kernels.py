@@ -66,3 +66,49 @@ def test_the_fused_pass_encodes_what_the_two_passes_do():
     fused, _, fused_peak = colour_transform(linear, to_rgb, None, True, encode=True)
     np.testing.assert_allclose(fused, srgb_encode(rgb), atol=1e-6)     # float64 sums, not rounded first
     assert fused_peak == peak
+
+
+def reference_white_world(flat, to_ics, saturated, fraction):
+    """The white-world statistic by its definition, in float64 numpy with masked copies."""
+    flat = flat.astype(np.float64)
+    valid = np.all(flat < saturated, axis=1)
+    if not valid.any():
+        valid = np.ones(len(flat), bool)
+    ics = flat[valid] @ to_ics
+    plane = ics[:, np.argmax(ics.max(axis=0))]
+    return ics[plane >= fraction * plane.max()].mean(axis=0)
+
+
+@pytest.mark.parametrize("k", [1, 3, 4])
+@pytest.mark.parametrize("rows", [1, 7, 480])
+def test_white_world_statistic_matches_its_definition(k, rows, monkeypatch):
+    """Both passes (over row blocks, threaded on a large frame) against the masked numpy mean,
+    with saturated and NaN pixels left out; the same gains on one thread as on two."""
+    from workbench.compute import pixel_threads
+    from workbench.isp.illuminant import illuminant_gains
+    rng = np.random.default_rng(k * 1000 + rows)
+    linear = rng.uniform(0, 1, (rows, 640, k)).astype(np.float32)
+    linear[rng.random((rows, 640)) < 0.05] = 1.0                        # clipped pixels
+    linear[rng.random((rows, 640)) < 0.001, 0] = np.nan                 # e.g. a dead pixel's NaN
+    to_ics = rng.uniform(0.1, 1.0, (k, 3))
+    white = np.array([0.95, 1.0, 1.09])
+    for fraction in (0.3, 0.7, 0.95):
+        means = reference_white_world(linear.reshape(-1, k), to_ics, SATURATED_FRACTION, fraction)
+        expected = (white / white[1]) * (means[1] / means)
+        gains, notes = illuminant_gains(linear, to_ics, "white_world", white, white_world_fraction=fraction,
+                                        saturated=SATURATED_FRACTION)
+        np.testing.assert_allclose(gains, expected, rtol=1e-12)
+        assert notes == []
+        monkeypatch.setenv("WORKBENCH_THREADS", "1")
+        assert np.array_equal(illuminant_gains(linear, to_ics, "white_world", white, white_world_fraction=fraction,
+                                               saturated=SATURATED_FRACTION)[0], gains)
+        monkeypatch.delenv("WORKBENCH_THREADS")
+
+
+def test_white_world_on_an_all_saturated_frame_uses_every_pixel_and_says_so():
+    from workbench.isp.illuminant import illuminant_gains
+    linear = np.full((4, 6, 3), 1.0, np.float32)
+    linear[..., 0] = 1.5
+    gains, notes = illuminant_gains(linear, np.eye(3), "white_world", np.ones(3), saturated=SATURATED_FRACTION)
+    np.testing.assert_allclose(gains, [1 / 1.5, 1.0, 1.0])
+    assert any("every pixel is saturated" in n for n in notes)

@@ -42,7 +42,8 @@ class Frame:
 
     irradiance_photons: H×W×Nλ photons/s/m²/nm; irradiance_rgb: its H×W×3 sRGB preview in [0,1].
     raw_dn: H×W digital numbers; max_dn: the clip code; cfa_tile/channel_names: the mosaic.
-    linear: H×W×K demosaiced channels in [0,1]; linear_rgb: H×W×3 of them for display.
+    linear: H×W×K demosaiced channels in [0,1]; linear_rgb: H×W×3 of them for display (linear
+    itself for an R, G, B sensor).
     srgb: H×W×3 in [0,1]. signal_rate_e_per_s: H×W noise-free pixel signal (for the sweep)."""
 
     project: Project
@@ -105,7 +106,7 @@ class FrameBuilder:
                      colour_wavelengths_nm=colour_wavelengths_nm(oi),
                      raw_dn=img.dn, max_dn=float(img.max_dn), cfa_tile=np.asarray(img.cfa_tile),
                      channel_names=list(img.channel_names), linear=isp.linear,
-                     linear_rgb=np.clip(channels_to_rgb(isp.linear, list(isp.channel_names)), 0, 1).astype(np.float32),
+                     linear_rgb=np.asarray(channels_to_rgb(isp.linear, list(isp.channel_names)), dtype=np.float32),
                      srgb=np.asarray(isp.srgb, dtype=np.float32), signal_rate_e_per_s=pipe.signal_rate(),
                      optics_level=level, optics_reason=reason, stage_times_s=dict(pipe.stage_times_s),
                      recomputed=list(pipe.recomputed), preview=preview, submitted_at=submitted_at,

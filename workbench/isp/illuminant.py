@@ -4,17 +4,33 @@ takes the chromaticity of the output white. The middle channel (Y, or G) keeps g
 correction does not change exposure."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.isp import kernels
+from workbench.compute.pixel_threads import map_row_blocks
 from workbench.isp.blocked import pixels_matmul, pixels_sum
 from workbench.registry import Registry
 
 REFERENCE_CHANNEL = 1
 
 ILLUMINANT_CORRECTIONS: Registry = Registry("isp.illuminant_correction", "illuminant correction")
-"""name → fn(flat, to_ics, white, white_world_fraction, manual_gains) -> (gains (3,), notes):
-flat the N×K sensor pixels, to_ics the K×3 map into the internal colour space, white (3,)."""
+"""name → fn(flat, to_ics, white, white_world_fraction, manual_gains, saturated) -> (gains (3,), notes):
+flat the N×K sensor pixels, to_ics the K×3 map into the internal colour space, white (3,);
+pixels with a channel ≥ saturated (math.inf: none) are left out of the statistic."""
+
+
+def _unsaturated(method: str, flat: np.ndarray, saturated: float) -> tuple[np.ndarray | None, list[str]]:
+    """The mask of pixels whose every channel is below `saturated` (None: all are); when no
+    pixel is, None and a note that the statistic uses them all."""
+    if saturated == math.inf:
+        return None, []
+    valid = np.maximum.reduce([flat[:, c] for c in range(flat.shape[1])]) < saturated
+    if not valid.any():
+        return None, [f"{method}: every pixel is saturated; the statistic uses them all"]
+    return (None if valid.all() else valid), []
 
 
 def _channel_means(pixels: np.ndarray) -> np.ndarray:
@@ -34,15 +50,21 @@ def _gains_to_white(method: str, means: np.ndarray, white: np.ndarray) -> tuple[
 
 
 @ILLUMINANT_CORRECTIONS.register("none")
-def _none(flat, to_ics, white, white_world_fraction, manual_gains):
+def _none(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
     """No correction: unit gains."""
     return np.ones(3), []
 
 
 @ILLUMINANT_CORRECTIONS.register("gray_world")
-def _gray_world(flat, to_ics, white, white_world_fraction, manual_gains):
+def _gray_world(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
     """The image mean gets the chromaticity of `white`."""
-    return _gains_to_white("gray_world", _channel_means(flat) @ to_ics, white)  # the mean commutes with the map
+    valid, notes = _unsaturated("gray_world", flat, saturated)
+    if valid is None:
+        means = _channel_means(flat)
+    else:                                          # a masked mean needs no copy of the pixels
+        means = (valid.astype(np.float32) @ flat).astype(np.float64) / np.count_nonzero(valid)
+    gains, more = _gains_to_white("gray_world", means @ to_ics, white)   # the mean commutes with the map
+    return gains, notes + more
 
 
 GREY_PIXEL_TOLERANCES = (0.12, 0.06, 0.03, 0.03)   # chromatic distance from white, per round
@@ -51,13 +73,15 @@ GREY_PIXEL_SAMPLES = 8192       # the statistic looks at about this many pixels,
 
 
 @ILLUMINANT_CORRECTIONS.register("gray_pixels")
-def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains):
+def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
     """Gray world over the pixels that are nearly grey once corrected (r, g, b chromaticity within
     a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
-    step = max(1, len(flat) // GREY_PIXEL_SAMPLES)          # an even subsample is statistic enough
-    ics = pixels_matmul(np.ascontiguousarray(flat[::step]), to_ics)      # (illuminant_gains subsamples first)
+    sample = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)]     # an even subsample is statistic enough
+    valid, saturation_notes = _unsaturated("gray_pixels", sample, saturated)
+    ics = pixels_matmul(np.ascontiguousarray(sample if valid is None else sample[valid]), to_ics)
     gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
+    notes = saturation_notes + notes
     target = white / white.sum()
     columns = [np.ascontiguousarray(ics[:, c]) for c in range(3)]      # column-wise: numpy's small-axis
     lit = None                                                         # reductions are slow
@@ -80,15 +104,31 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains):
 
 
 @ILLUMINANT_CORRECTIONS.register("white_world")
-def _white_world(flat, to_ics, white, white_world_fraction, manual_gains):
-    """The mean of the pixels ≥ white_world_fraction × max of the brightest ics channel gets it."""
-    ics = pixels_matmul(flat, to_ics)
-    plane = ics[:, int(np.argmax(ics.max(axis=0)))]
-    return _gains_to_white("white_world", _channel_means(ics[plane >= white_world_fraction * plane.max()]), white)
+def _white_world(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
+    """The mean of the pixels ≥ white_world_fraction × max of the brightest ics channel gets it
+    (compiled passes over row blocks: the maxima, then the sums; no masked copies of the frame)."""
+    to_ics = np.ascontiguousarray(to_ics, dtype=np.float64)
+    ics = np.empty((len(flat), 3))                 # NaN rows: saturated pixels
+
+    def maxima(limit):
+        return map_row_blocks(lambda _i, rows: kernels.ics_maxima(flat[rows], to_ics, limit, ics[rows]),
+                              len(flat), len(flat))
+    notes = []
+    parts = maxima(saturated)
+    if sum(valid for _top, valid in parts) == 0 and len(flat) and saturated != math.inf:
+        notes.append("white_world: every pixel is saturated; the statistic uses them all")
+        parts = maxima(math.inf)
+    top = np.max([top for top, _valid in parts], axis=0)
+    channel = int(np.argmax(top))
+    threshold = white_world_fraction * top[channel]
+    parts = map_row_blocks(lambda _i, rows: kernels.bright_sums(ics[rows], channel, threshold), len(flat), len(flat))
+    sums = np.sum([part for part, _n in parts], axis=0)      # fixed blocks, fixed order: thread-independent
+    gains, more = _gains_to_white("white_world", sums / max(sum(n for _part, n in parts), 1), white)
+    return gains, notes + more
 
 
 @ILLUMINANT_CORRECTIONS.register("manual")
-def _manual(flat, to_ics, white, white_world_fraction, manual_gains):
+def _manual(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
     """The user's gains."""
     gains = np.asarray(manual_gains, dtype=np.float64)
     if gains.shape != (3,) or not np.all(np.isfinite(gains)) or np.any(gains <= 0):
@@ -115,18 +155,5 @@ def illuminant_gains(linear: np.ndarray, to_ics: np.ndarray, method: str, white:
         raise InvalidValueError(f"illuminant correction needs an H×W×K image and a K×3 matrix, got "
                          f"shapes {linear.shape} and {to_ics.shape}")
     flat = linear.reshape(-1, k)
-    notes: list[str] = []
-    if method == "gray_pixels":                    # its statistic reads an even subsample anyway
-        flat = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)]
-    if saturated is not None and method in ("gray_world", "gray_pixels", "white_world"):
-        valid = np.maximum.reduce([flat[:, c] for c in range(k)]) < saturated
-        if not valid.any():
-            notes.append(f"{method}: every pixel is saturated; the statistic uses them all")
-        elif method == "gray_world":              # a masked mean needs no copy of the pixels
-            count = int(np.count_nonzero(valid))
-            means = (valid.astype(np.float32) @ flat).astype(np.float64) / count
-            return _gains_to_white("gray_world", means @ to_ics, np.asarray(white, dtype=np.float64))
-        elif not valid.all():
-            flat = flat[valid]
-    gains, more = correct(flat, to_ics, np.asarray(white, dtype=np.float64), white_world_fraction, manual_gains)
-    return gains, notes + more
+    return correct(flat, to_ics, np.asarray(white, dtype=np.float64), white_world_fraction, manual_gains,
+                   math.inf if saturated is None else float(saturated))

@@ -137,3 +137,58 @@ def bilinear_2x2(mosaic, tap_dy, tap_dx, tap_weight, n_taps, first_row, stop_row
                     for j in range(n_taps[p, k]):
                         acc += mosaic[y + tap_dy[p, k, j], x + tap_dx[p, k, j]] * tap_weight[p, k, j]
                     out[y, x, k] = acc
+
+
+@njit(cache=_CACHE, nogil=True, inline="always")
+def _below(flat, i, limit):
+    """Every channel of pixel i is below limit (a NaN channel is not)."""
+    for k in range(flat.shape[1]):
+        if not flat[i, k] < limit:
+            return False
+    return True
+
+
+@njit(cache=_CACHE, nogil=True, inline="always")
+def _ics(flat, i, to_ics, c):
+    """Channel c of pixel i in the internal colour space (float64)."""
+    acc = 0.0
+    for k in range(flat.shape[1]):
+        acc += np.float64(flat[i, k]) * to_ics[k, c]
+    return acc
+
+
+@njit(cache=_CACHE, nogil=True)
+def ics_maxima(flat, to_ics, saturated, ics):
+    """ics = pixel·to_ics (K×3, float64) for each pixel of flat (N×K) whose every sensor channel is
+    below saturated, NaN for the others (out: ics, N×3 float64). Returns the largest value (3,) of
+    each ics channel over those pixels (−inf when none) and how many they are."""
+    t0 = t1 = t2 = -math.inf
+    valid = 0
+    for i in range(flat.shape[0]):
+        if _below(flat, i, saturated):
+            valid += 1
+            a, b, c = _ics(flat, i, to_ics, 0), _ics(flat, i, to_ics, 1), _ics(flat, i, to_ics, 2)
+            ics[i, 0] = a
+            ics[i, 1] = b
+            ics[i, 2] = c
+            t0 = a if a > t0 else t0
+            t1 = b if b > t1 else t1
+            t2 = c if c > t2 else t2
+        else:
+            ics[i, 0] = ics[i, 1] = ics[i, 2] = np.nan
+    top = np.array([t0, t1, t2])
+    return top, valid
+
+
+@njit(cache=_CACHE, nogil=True)
+def bright_sums(ics, channel, threshold):
+    """The sums (3,) of the rows of ics (N×3; NaN rows: left out) whose ics[channel] ≥ threshold,
+    and how many rows those are: the white-world statistic's second pass."""
+    sums = np.zeros(3)
+    selected = 0
+    for i in range(ics.shape[0]):
+        if ics[i, channel] >= threshold:
+            selected += 1
+            for c in range(3):
+                sums[c] += ics[i, c]
+    return sums, selected

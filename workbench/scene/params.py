@@ -65,5 +65,4 @@ class SceneParams(Params):
     @field_validator("illuminant")
     @classmethod
     def _known_illuminant(cls, value: str) -> str:
-        spectra.illuminant_spd(value, spectra.DEFAULT_WAVELENGTHS_NM)   # raises with the allowed names
-        return value
+        return spectra.checked_illuminant_name(value)      # raises with the allowed names
