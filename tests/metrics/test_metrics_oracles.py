@@ -163,3 +163,21 @@ def test_frame_readouts_of_a_known_frame():
     assert r["road_users"] == 1
     assert r["road_user_snr_median"] == pytest.approx(float(snr_model(2000.0, sensor, t)))
     assert r["scene_dynamic_range_dB"] == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("tile,shape", [([[0, 1], [1, 2]], (7, 9)), ([[0, 1, 2], [1, 2, 0], [2, 0, 1]], (10, 11)),
+                                        ([[0]], (3, 4)), ([[0, 1], [1, 1]], (1, 1))])
+def test_per_channel_means_equal_the_masked_means(tile, shape):
+    """The read-outs' strided per-channel means against index planes and boolean masks (odd sizes,
+    a 3×3 tile, a channel with no site in a 1×1 frame)."""
+    from workbench.metrics.frame import _channel_means
+    tile = np.asarray(tile)
+    values = np.random.default_rng(len(tile)).random(shape).astype(np.float32)
+    names = ["R", "G", "B"][:tile.max() + 1]
+    rr, cc = np.indices(shape)
+    channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
+    expected = {n: float(values[channel == k].astype(np.float64).mean()) for k, n in enumerate(names)
+                if np.any(channel == k)}
+    got = _channel_means(values, tile, names)
+    assert got.keys() == expected.keys()
+    assert all(got[n] == pytest.approx(expected[n], rel=1e-12) for n in expected)

@@ -5,10 +5,12 @@ Generating the city (seed, arrangement) and merging it into one mesh run on a su
 thread; the mesh comes back to the GUI thread, which alone adds it to VTK (and alone drops the
 last reference to this widget). A camera move only moves the frustum's points and the gizmo, and
 "Colour by class" switches the mesh's colour array, so neither rebuilds the city on the GUI
-thread. Pose edits go through the document (one undoable edit)."""
+thread. Pose edits go through the document (one undoable edit). The GL view itself is made for
+the first city project: a chart project's window has none (see _ensure_plotter)."""
 from __future__ import annotations
 
 import numpy as np
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
@@ -53,10 +55,10 @@ class CityView(QWidget):
 
     def __init__(self, document, parent=None):
         super().__init__(parent)
-        from pyvistaqt import QtInteractor
         self.document = document
-        self.plotter = QtInteractor(self, off_screen=False, auto_update=False)
-        self.plotter.set_background("#dfe8f0", top="#7fa7cf")
+        self.plotter = None                      # the GL view, made for the first city (_ensure_plotter)
+        self.placeholder = QLabel("No city in this project: its scene is a test chart.")
+        self.placeholder.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.project: Project | None = None
         self.city = None
         self.pose = None
@@ -103,10 +105,23 @@ class CityView(QWidget):
         row3.addWidget(regen)
         lay = QVBoxLayout(self)
         lay.setContentsMargins(2, 2, 2, 2)
-        lay.addWidget(self.plotter.interactor, 1)
+        lay.addWidget(self.placeholder, 1)
         lay.addLayout(row3)
         lay.addLayout(form)
         lay.addWidget(self.status)
+
+    def _ensure_plotter(self) -> None:
+        """Make the GL view (pyvistaqt's QOpenGLWidget) in place of the placeholder. Only a city
+        needs it, and while a window holds a GL widget Qt composites the whole window through
+        OpenGL on every repaint (~10 ms a repaint at 1600×1000 on a software renderer), so a
+        chart project's window never has one."""
+        if self.plotter is not None:
+            return
+        from pyvistaqt import QtInteractor
+        self.plotter = QtInteractor(self, off_screen=False, auto_update=False)
+        self.plotter.set_background("#dfe8f0", top="#7fa7cf")
+        self.layout().replaceWidget(self.placeholder, self.plotter.interactor)
+        self.placeholder.hide()
 
     # -- project → view --------------------------------------------------------------------
     def set_project(self, project: Project) -> None:
@@ -118,6 +133,7 @@ class CityView(QWidget):
                 self.city, self._city_key, self._city_actor, self._frustum = None, None, None, None
                 self.plotter.render()
             return
+        self._ensure_plotter()
         self.seed_box.setValue(min((project.city.seed if project.city else 0), 2**31 - 1))
         key = (_city_key(project), project.pose)
         if key == self._city_key:
@@ -232,7 +248,8 @@ class CityView(QWidget):
             self._gizmo = None
 
     def render(self) -> None:
-        self.plotter.render()
+        if self.plotter is not None:
+            self.plotter.render()
 
     # -- view → document -------------------------------------------------------------------
     def _gizmo_moved(self, center) -> None:
@@ -278,4 +295,5 @@ class CityView(QWidget):
 
     def close_view(self) -> None:
         self._job_id += 1
-        self.plotter.close()
+        if self.plotter is not None:
+            self.plotter.close()

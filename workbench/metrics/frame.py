@@ -27,20 +27,29 @@ LOW_LIGHT_SNR_KEY = "snr_at_10cd_m2_10ms_dB"
 COLOUR_CHART_LEVEL = 0.9               # the Macbeth shot's brightest pixels, as a fraction of the swing
 
 
+def _channel_means(values: np.ndarray, tile: np.ndarray, names) -> dict[str, float]:
+    """The mean of `values` (H×W) over the sites of each CFA channel: a strided view per tile
+    position, summed in float64 (no index planes, no masked copies)."""
+    th, tw = tile.shape
+    sums, counts = np.zeros(len(names)), np.zeros(len(names), dtype=np.int64)
+    for i in range(th):
+        for j in range(tw):
+            sites = values[i::th, j::tw]
+            sums[tile[i, j]] += sites.sum(dtype=np.float64)
+            counts[tile[i, j]] += sites.size
+    return {name: float(sums[k] / counts[k]) for k, name in enumerate(names) if counts[k]}
+
+
 def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) -> dict:
     """Read-outs of one frame (a SensorImage, its noise-free signal e⁻/s and, for a city frame,
     its labels): module docstring, plus the scene's dynamic range as the sensor sees it (the
     99.9th over the 0.1th percentile of the pixel signal, in dB)."""
-    tile = np.asarray(image.cfa_tile)
-    rr, cc = np.indices(image.dn.shape)
-    channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
     exposure = float(np.mean(image.exposure_s))
     rate = np.asarray(signal_rate_e_per_s, np.float64)
     lo, hi = np.percentile(rate, [0.1, 99.9])
     out = {"exposure_s": exposure, "analog_gain": sensor.analog_gain,
-           "clipped_pct": float(100 * np.mean(image.dn >= image.max_dn)),
-           "mean_electrons": {name: float(np.mean(image.electrons[channel == k]))
-                              for k, name in enumerate(image.channel_names) if np.any(channel == k)},
+           "clipped_pct": float(100 * np.count_nonzero(image.dn >= image.max_dn) / max(image.dn.size, 1)),
+           "mean_electrons": _channel_means(image.electrons, np.asarray(image.cfa_tile), image.channel_names),
            "scene_dynamic_range_dB": float(20 * np.log10(hi / lo)) if lo > 0 else None}
     if labels is not None:
         snrs = []
