@@ -75,3 +75,17 @@ def test_emva_runs_in_background_and_plots(qtbot, grab):
     qtbot.waitUntil(lambda: editor.emva_button.isEnabled())
     qtbot.wait(50)
     assert len(np.unique(grab(editor.emva_chart).reshape(-1, 3), axis=0)) > 20
+
+
+def test_a_hidden_qe_chart_is_built_when_it_is_seen(qtbot, grab):
+    """A CFA edit behind the 'Parameters' tab builds no chart on the GUI thread; the QE tab then
+    shows the new pattern's curves."""
+    editor = make_editor(qtbot)
+    editor.set_project(Project())
+    assert not editor.qe_chart.isVisible()
+    editor.set_project(Project(sensor=SENSOR_PRESETS["auto_rccc"]))
+    assert editor.qe_chart._pending_draw is not None          # deferred, not drawn
+    editor.tabs.setCurrentIndex(1)
+    qtbot.waitUntil(lambda: editor.qe_chart._pending_draw is None, timeout=5_000)
+    assert editor.qe_chart.figure.axes[0].get_title() == "RCCC: effective channel QE"
+    assert len(np.unique(grab(editor.qe_chart).reshape(-1, 3), axis=0)) > 20

@@ -230,17 +230,67 @@ def test_the_metrics_dock_measures_only_when_its_tab_is_in_front(window, qtbot):
     assert metrics.on_screen()
 
 
-def test_progress_reports_repaint_the_bar_at_most_every_tenth_of_a_second(window, qtbot, monkeypatch):
-    """QProgressBar.setValue repaints at once (~9 ms under Xvfb); a burst of stage reports must not
-    hold the GUI thread for each one."""
-    from workbench.gui.main_window import PROGRESS_REPAINT_S
+def test_progress_bar_shows_only_for_long_runs_and_repaints_at_most_every_tenth_of_a_second(window, qtbot,
+                                                                                            monkeypatch):
+    """A quick run shows no progress (each status-bar repaint flushes the window); a long one shows
+    its bar and Cancel after PROGRESS_DELAY_MS with its latest report, then repaints the bar at
+    most every PROGRESS_REPAINT_S (QProgressBar.setValue repaints at once, ~9 ms under Xvfb)."""
+    from workbench.gui.live import LiveRunner
+    from workbench.gui.main_window import PROGRESS_DELAY_MS, PROGRESS_REPAINT_S
     shown = []
     monkeypatch.setattr(window.progress_bar, "setValue", shown.append)
     window._busy_changed(True)
+    window._progress("sensor", 0.2)
+    window._busy_changed(False)                            # done in time: nothing was shown
+    qtbot.wait(2 * PROGRESS_DELAY_MS)
+    assert shown == [] and not window.progress_bar.isVisibleTo(window)
+    monkeypatch.setattr(LiveRunner, "busy", property(lambda self: True))
+    window._busy_changed(True)
+    window._progress("sensor", 0.2)
+    assert shown == [] and not window.cancel_button.isVisibleTo(window)
+    qtbot.waitUntil(lambda: window.progress_bar.isVisibleTo(window), timeout=10 * PROGRESS_DELAY_MS)
+    assert shown == [0, 20] and window.cancel_button.isVisibleTo(window)
     for i in range(50):
         window._progress("sensor", i / 50)
-    assert shown == [0]                                   # the first report of the run, then none
+    assert shown == [0, 20]                               # within PROGRESS_REPAINT_S of the last
     qtbot.wait(round(1500 * PROGRESS_REPAINT_S))
     window._progress("isp", 0.5)
-    assert shown == [0, 50] and window.progress_bar.format() == "isp %p%"
+    assert shown == [0, 20, 50] and window.progress_bar.format() == "isp %p%"
     window._busy_changed(False)
+    assert not window.progress_bar.isVisibleTo(window) and not window.cancel_button.isVisibleTo(window)
+
+
+def test_a_frame_repaints_the_window_once_and_only_its_changed_panes(window, qtbot, grab):
+    """QGraphicsView flushes the window after each scene's update; the panes of one frame are
+    painted together (one UpdateRequest of the window; a window holding the GL view is composited
+    on every flush), and a pane whose image did not change is not painted again."""
+    import dataclasses
+
+    from PySide6.QtCore import QEvent, QObject
+    qtbot.wait(300)                                   # the first frame's paints and histograms are done
+
+    class Count(QObject):
+        def __init__(self):
+            super().__init__()
+            self.seen = []
+
+        def eventFilter(self, obj, event):
+            if event.type() in (QEvent.Type.UpdateRequest, QEvent.Type.Paint):
+                self.seen.append((obj, event.type()))
+            return False
+    counter = Count()
+    panes = window.previews.panes
+    watched = [window] + [pane.view_widget.viewport() for pane in panes.values()]
+    for w in watched:
+        w.installEventFilter(counter)
+    frame = window.previews.frame
+    new = dataclasses.replace(frame, srgb=1.0 - frame.srgb, linear_rgb=frame.linear_rgb[::-1].copy())
+    window.previews.show_frame(new)
+    qtbot.wait(30)                                    # before the histogram timer
+    for w in watched:
+        w.removeEventFilter(counter)
+    updates = [obj for obj, kind in counter.seen if kind == QEvent.Type.UpdateRequest]
+    painted = {name for name, pane in panes.items()
+               if (pane.view_widget.viewport(), QEvent.Type.Paint) in counter.seen}
+    assert len(updates) == 1 and painted == {"linear", "srgb"}
+    assert grab(panes["srgb"].view_widget).astype(float).std() > 5.0

@@ -35,6 +35,7 @@ EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
 DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Metrics", "Design study", "Exposure sweep", "Experiments"),)
 DOCK_FRACTION = 0.36          # of the window's width, on first run
 PROGRESS_REPAINT_S = 0.1          # the status bar's progress is shown at most this often
+PROGRESS_DELAY_MS = 300           # a run shows its progress bar and Cancel once it has run this long
 LAYOUT_KEY = "window/state-v2"     # v1 was the older two-group layout; it is not restored
 
 
@@ -173,6 +174,11 @@ class MainWindow(QMainWindow):
         self.progress_bar.setMaximumWidth(160)
         self.progress_bar.setRange(0, 100)
         self.progress_bar.setVisible(False)
+        self._progress_delay = QTimer(self)
+        self._progress_delay.setSingleShot(True)
+        self._progress_delay.setInterval(PROGRESS_DELAY_MS)
+        self._progress_delay.timeout.connect(self._show_progress)
+        self._last_progress: tuple[str, float] | None = None
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.setToolTip("stop the running simulation")
         self.cancel_button.clicked.connect(self.cancel_run)
@@ -268,9 +274,11 @@ class MainWindow(QMainWindow):
 
     def _progress(self, stage: str, fraction: float) -> None:
         """Show a stage's progress, at most every PROGRESS_REPAINT_S: QProgressBar.setValue repaints
-        at once (~9 ms each under Xvfb: 183 calls held the GUI thread 1.7 s in `bench gui`)."""
+        at once (~9 ms each under Xvfb: 183 calls held the GUI thread 1.7 s in `bench gui`). Until
+        the bar is shown (a run longer than PROGRESS_DELAY_MS) the report is only kept."""
+        self._last_progress = (stage, fraction)
         now = time.monotonic()
-        if now - self._progress_shown_at < PROGRESS_REPAINT_S:
+        if not self.progress_bar.isVisibleTo(self) or now - self._progress_shown_at < PROGRESS_REPAINT_S:
             return
         self._progress_shown_at = now
         self.progress_bar.setFormat(f"{stage} %p%")
@@ -284,9 +292,26 @@ class MainWindow(QMainWindow):
                                      if was_busy else "nothing to cancel: no simulation is running", 8000)
 
     def _busy_changed(self, busy: bool) -> None:
-        self._progress_shown_at = -PROGRESS_REPAINT_S       # a new run shows its first report
-        self.progress_bar.setVisible(busy)
-        self.cancel_button.setVisible(busy)
+        """A run started or ended. Its progress bar and Cancel appear only once it has run for
+        PROGRESS_DELAY_MS: an edit that takes tens of ms would otherwise repaint the status bar
+        twice, and a window holding the GL view flushes (~15 ms) for each repaint."""
+        if busy:
+            self._last_progress = None
+            self._progress_delay.start()
+        else:
+            self._progress_delay.stop()
+            self.progress_bar.setVisible(False)
+            self.cancel_button.setVisible(False)
+
+    def _show_progress(self) -> None:
+        if not self.live.busy:
+            return
+        self._progress_shown_at = -PROGRESS_REPAINT_S       # the run's last report, at once
+        self.progress_bar.setValue(0)
+        self.progress_bar.setVisible(True)
+        self.cancel_button.setVisible(True)
+        if self._last_progress is not None:
+            self._progress(*self._last_progress)
 
     def _run_failed(self, message: str) -> None:
         self.statusBar().showMessage(f"simulation failed: {message}", 15000)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtCore import QMetaObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout,
                                QWidget)
 
@@ -236,16 +236,28 @@ class PreviewPanes(QWidget):
 
     # -- images ----------------------------------------------------------------------------
     def show_frame(self, frame) -> None:
-        """Show a live.Frame (numpy arrays) in the four panes."""
+        """Show a live.Frame (numpy arrays) in the four panes. The panes whose image changed are
+        painted in one repaint of the window: left alone, each pane's scene repaints and flushes
+        the whole window on its own (QGraphicsView dispatches its update at once), and a window
+        holding the 3-D view's GL widget is composited through OpenGL on every flush (~15 ms)."""
         new_bands = self.frame is None or not np.array_equal(self.frame.wavelengths_nm, frame.wavelengths_nm)
         self.frame = frame
         p = self.panes
-        resized = [p["irradiance"].set_image(frame.irradiance_rgb, (0.0, 1.0)),
-                   p["raw"].set_image(frame.raw_dn, (0.0, frame.max_dn)),
-                   p["linear"].set_image(frame.linear_rgb, (0.0, 1.0)),
-                   p["srgb"].set_image(frame.srgb, (0.0, 1.0))]
+        images = {"irradiance": (frame.irradiance_rgb, (0.0, 1.0)), "raw": (frame.raw_dn, (0.0, frame.max_dn)),
+                  "linear": (frame.linear_rgb, (0.0, 1.0)), "srgb": (frame.srgb, (0.0, 1.0))}
+        changed = [p[name] for name, (array, _levels) in images.items()
+                   if array is not p[name]._shown or (name != "irradiance" and self.highlight_clipped.isChecked())]
+        for pane in changed:
+            pane.view_widget.setUpdatesEnabled(False)
+        resized = [p[name].set_image(array, levels) for name, (array, levels) in images.items()]
+        self._update_clip()
         if any(resized):                        # a new image size: show it whole
             self.fit()
+        for pane in changed:                    # the scenes' queued updates, now, while they cannot paint
+            QMetaObject.invokeMethod(pane.view_widget.scene(), "_q_processDirtyItems",
+                                     Qt.ConnectionType.DirectConnection)
+        for pane in changed:                    # one repaint of them all, by the next event loop pass
+            pane.view_widget.setUpdatesEnabled(True)
         if new_bands:
             combo = p["irradiance"].band
             combo.blockSignals(True)
@@ -254,7 +266,6 @@ class PreviewPanes(QWidget):
             for wl in frame.wavelengths_nm:
                 combo.addItem(f"{wl:g} nm")
             combo.blockSignals(False)
-        self._update_clip()
         self._refresh_inspectors()
         self._histogram_timer.start()
         self.frames_shown += 1

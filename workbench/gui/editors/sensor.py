@@ -180,7 +180,7 @@ class SensorEditor(QWidget):
                              f"{' bit' if p.bit_depth else ''}")
         if qe_inputs(p) != self._qe_key:
             self._qe_key = qe_inputs(p)
-            self.qe_chart.redraw(lambda fig: draw_qe(fig, p))
+            self.qe_chart.redraw_when_seen(lambda fig: draw_qe(fig, p))
 
     def _form_edited(self, changes: dict) -> None:
         self._params = self.form.params()
