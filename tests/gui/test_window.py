@@ -84,6 +84,23 @@ def test_histograms_follow_the_image_shortly_after_a_frame(window, qtbot):
         assert np.array_equal(pane.histogram.plot.yData, y), f"pane {name} shows a stale histogram"
 
 
+def test_histograms_wait_while_a_simulation_runs(window, qtbot):
+    """While the live worker is busy the histogram timer leaves the GUI thread to the next frame;
+    the histograms catch up once the worker is idle."""
+    import dataclasses
+
+    from workbench.gui.previews import HISTOGRAM_DELAY_MS
+    previews = window.previews
+    previews.hold_histograms(True)
+    previews.show_frame(dataclasses.replace(previews.frame, srgb=1.0 - previews.frame.srgb))
+    qtbot.wait(3 * HISTOGRAM_DELAY_MS)
+    pane = previews.panes["srgb"]
+    assert pane._histogram_stale
+    previews.hold_histograms(False)
+    qtbot.waitUntil(lambda: not pane._histogram_stale, timeout=10 * HISTOGRAM_DELAY_MS)
+    assert np.array_equal(pane.histogram.plot.yData, pane.image.getHistogram()[1])
+
+
 def test_undo_returns_the_exact_previous_image(window, qtbot, grab):
     first = window.previews.frame
     first_pixels = grab(window.previews.panes["srgb"].view_widget)

@@ -295,6 +295,7 @@ class MainWindow(QMainWindow):
         """A run started or ended. Its progress bar and Cancel appear only once it has run for
         PROGRESS_DELAY_MS: an edit that takes tens of ms would otherwise repaint the status bar
         twice, and a window holding the GL view flushes (~15 ms) for each repaint."""
+        self.previews.hold_histograms(busy)
         if busy:
             self._last_progress = None
             self._progress_delay.start()

@@ -12,6 +12,8 @@ as soon as a frame arrives; the histograms follow HISTOGRAM_DELAY_MS after the l
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QMetaObject, Qt, QTimer, Signal
@@ -40,6 +42,24 @@ CLIP_RGBA = (255, 0, 0, 200)
 # The histograms follow the images this long after the newest frame (restarted by each frame), so
 # the new pixels are painted first and a burst of edits recomputes each histogram once.
 HISTOGRAM_DELAY_MS = 60
+
+
+@contextmanager
+def painted_together(panes):
+    """Changes made to these panes' scenes inside the block are painted in one repaint of the
+    window. Left alone, each scene repaints and flushes the whole window on its own (QGraphicsView
+    dispatches its update at once), and a window holding the 3-D view's GL widget is composited
+    through OpenGL on every flush (~15 ms)."""
+    for pane in panes:
+        pane.view_widget.setUpdatesEnabled(False)
+    try:
+        yield
+        for pane in panes:                      # the scenes' queued updates, now, while they cannot paint
+            QMetaObject.invokeMethod(pane.view_widget.scene(), "_q_processDirtyItems",
+                                     Qt.ConnectionType.DirectConnection)
+    finally:
+        for pane in panes:                      # one repaint of them all, by the next event loop pass
+            pane.view_widget.setUpdatesEnabled(True)
 
 
 class PreviewPane(QWidget):
@@ -183,7 +203,8 @@ class PreviewPanes(QWidget):
         self._histogram_timer = QTimer(self)
         self._histogram_timer.setSingleShot(True)
         self._histogram_timer.setInterval(HISTOGRAM_DELAY_MS)
-        self._histogram_timer.timeout.connect(self.refresh_histograms)
+        self._histogram_timer.timeout.connect(self._histogram_timer_fired)
+        self._histograms_held = False
 
     # -- zoom ------------------------------------------------------------------------------
     def _user_moved_view(self, *_args) -> None:
@@ -236,10 +257,8 @@ class PreviewPanes(QWidget):
 
     # -- images ----------------------------------------------------------------------------
     def show_frame(self, frame) -> None:
-        """Show a live.Frame (numpy arrays) in the four panes. The panes whose image changed are
-        painted in one repaint of the window: left alone, each pane's scene repaints and flushes
-        the whole window on its own (QGraphicsView dispatches its update at once), and a window
-        holding the 3-D view's GL widget is composited through OpenGL on every flush (~15 ms)."""
+        """Show a live.Frame (numpy arrays) in the four panes; the panes whose image changed are
+        painted in one repaint of the window (painted_together)."""
         new_bands = self.frame is None or not np.array_equal(self.frame.wavelengths_nm, frame.wavelengths_nm)
         self.frame = frame
         p = self.panes
@@ -247,17 +266,11 @@ class PreviewPanes(QWidget):
                   "linear": (frame.linear_rgb, (0.0, 1.0)), "srgb": (frame.srgb, (0.0, 1.0))}
         changed = [p[name] for name, (array, _levels) in images.items()
                    if array is not p[name]._shown or (name != "irradiance" and self.highlight_clipped.isChecked())]
-        for pane in changed:
-            pane.view_widget.setUpdatesEnabled(False)
-        resized = [p[name].set_image(array, levels) for name, (array, levels) in images.items()]
-        self._update_clip()
-        if any(resized):                        # a new image size: show it whole
-            self.fit()
-        for pane in changed:                    # the scenes' queued updates, now, while they cannot paint
-            QMetaObject.invokeMethod(pane.view_widget.scene(), "_q_processDirtyItems",
-                                     Qt.ConnectionType.DirectConnection)
-        for pane in changed:                    # one repaint of them all, by the next event loop pass
-            pane.view_widget.setUpdatesEnabled(True)
+        with painted_together(changed):
+            resized = [p[name].set_image(array, levels) for name, (array, levels) in images.items()]
+            self._update_clip()
+            if any(resized):                    # a new image size: show it whole
+                self.fit()
         if new_bands:
             combo = p["irradiance"].band
             combo.blockSignals(True)
@@ -271,9 +284,23 @@ class PreviewPanes(QWidget):
         self.frames_shown += 1
 
     def refresh_histograms(self) -> None:
-        """Bring every pane's histogram up to the image it shows (normally run by a timer after a frame)."""
-        for pane in self.panes.values():
-            pane.refresh_histogram()
+        """Bring every pane's histogram up to the image it shows (normally run by a timer after a
+        frame), repainting the window once."""
+        stale = [pane for pane in self.panes.values() if pane._histogram_stale]
+        with painted_together(stale):
+            for pane in stale:
+                pane.refresh_histogram()
+
+    def hold_histograms(self, hold: bool) -> None:
+        """While held (a simulation runs), the histograms wait: their timer would otherwise take
+        the GUI thread and repaint the window while the next frame is on its way."""
+        self._histograms_held = hold
+        if not hold and any(pane._histogram_stale for pane in self.panes.values()):
+            self._histogram_timer.start()
+
+    def _histogram_timer_fired(self) -> None:
+        if not self._histograms_held:
+            self.refresh_histograms()
 
     def clipped_mask(self) -> np.ndarray | None:
         if self.frame is None:
