@@ -187,6 +187,7 @@ class Pipeline:
         self.city_renderer = city_renderer
         self.stage_times_s: dict[str, float] = {}
         self.recomputed: list[str] = []
+        self._run_snapshot: Snapshot | None = None     # the last run's, reused by the accessors
 
     @property
     def project(self) -> Project:
@@ -210,6 +211,17 @@ class Pipeline:
         camera = project_geometry(project)
         inputs = stage_inputs(project, camera, fixed)
         return Snapshot(project, fixed, camera, inputs, stage_keys(inputs))
+
+    def _accessor_snapshot(self) -> Snapshot:
+        """The last run's snapshot while the project and fixed scene are the very objects it was
+        taken of (an accessor after a run: optical_image(), isp_result() … each took ~2 ms of
+        key hashing on a city), else a new one. A run always takes a new one, so a spectrum file
+        edited on disk is seen by the next run."""
+        with self._lock:
+            snap = self._run_snapshot
+            if snap is not None and snap.project is self._project and snap.fixed is self._fixed:
+                return snap
+        return self.snapshot()
 
     def cached(self, stage: str, key: str):
         """The cached result of `stage` if it was computed for `key`, else None (a hit becomes the
@@ -267,7 +279,10 @@ class Pipeline:
         a render's own progress and preview inside the scene stage); returns {stage: result}."""
         if upto not in STAGES:
             raise InvalidValueError(f"upto must be one of {STAGES}, got {upto!r}")
-        snap = self.snapshot()
+        snap = self.snapshot() if new_run else self._accessor_snapshot()
+        if new_run:
+            with self._lock:
+                self._run_snapshot = snap
         stages = STAGES[:STAGES.index(upto) + 1]
         with self._lock:                       # recomputed stages, as they finish
             if new_run:

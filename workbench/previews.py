@@ -1,6 +1,7 @@
 """PNG previews of every stage: spectral images shown as sRGB, mosaics as grey, channels as RGB."""
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -8,15 +9,32 @@ import numpy as np
 from workbench import spectra
 
 
-def spectral_to_srgb(photons: np.ndarray, wavelengths_nm: np.ndarray, percentile: float = 99.0) -> np.ndarray:
-    """H×W×Nλ photon image → H×W×3 sRGB in [0,1]; the given luminance percentile maps to white."""
+@lru_cache(maxsize=16)
+def _photon_weights(wavelengths_nm: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per band: the weight of a photon rate in Y, and in linear sRGB (Nλ×3) — the photon energy,
+    band width, CIE 1931 CMFs and 683 lm/W (spectra.xyz_from_photons) times colour-science's
+    XYZ → sRGB matrix, folded into one matrix so a frame takes two matrix products."""
     import colour
-    xyz = spectra.xyz_from_photons(photons.reshape(-1, photons.shape[-1]), wavelengths_nm)
-    y_ref = np.percentile(xyz[:, 1], percentile) if xyz.size else 0.0
-    xyz = xyz / y_ref if y_ref > 0 else np.zeros_like(xyz)
-    rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
-    rgb = np.clip(rgb, 0.0, 1.0)
-    return colour.cctf_encoding(rgb, function="sRGB").reshape(*photons.shape[:2], 3)
+    wl = np.asarray(wavelengths_nm, dtype=np.float64)
+    to_xyz = spectra.xyz_from_photons(np.eye(wl.size), wl)                      # Nλ×3
+    to_rgb = to_xyz @ np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB).T
+    return to_xyz[:, 1].copy(), to_rgb
+
+
+def spectral_to_srgb(photons: np.ndarray, wavelengths_nm: np.ndarray, percentile: float = 99.0) -> np.ndarray:
+    """H×W×Nλ photon image → H×W×3 sRGB in [0,1] (float32); the given luminance percentile maps
+    to white. Equal (within float32 rounding) to XYZ, then colour-science's XYZ_to_RGB (sRGB) and
+    sRGB encoding."""
+    from workbench.isp.color import srgb_encode
+    y_weights, rgb_weights = _photon_weights(tuple(float(w) for w in np.asarray(wavelengths_nm).ravel()))
+    flat = photons.reshape(-1, photons.shape[-1])
+    if flat.dtype == np.float32:                # no float64 copy of the frame: float32 products
+        y_weights, rgb_weights = y_weights.astype(np.float32), rgb_weights.astype(np.float32)
+    luminance = flat @ y_weights
+    y_ref = float(np.percentile(luminance, percentile)) if luminance.size else 0.0
+    if not y_ref > 0:
+        return np.zeros((*photons.shape[:2], 3), dtype=np.float32)
+    return srgb_encode(flat @ rgb_weights, 1.0 / y_ref).reshape(*photons.shape[:2], 3)
 
 
 def irradiance_preview(photons: np.ndarray, wavelengths_nm: np.ndarray, meta: dict | None = None) -> np.ndarray:
