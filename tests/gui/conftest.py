@@ -1,6 +1,6 @@
-"""GUI tests run on a real X server (Xvfb + Mesa via Qt's xcb platform), never Qt's offscreen
-platform (no OpenGL there, so the 3-D view would be blank) and never PYVISTA_OFF_SCREEN (the
-embedded interactor would grab black). See shared research note gui.md §1.
+"""GUI tests run on a real X server (Xvfb via Qt's xcb platform), so windows, docks and mouse
+events behave as on a desktop. (The 3-D view draws off screen on its own and also works on Qt's
+offscreen platform: test_vtk_view checks that in a subprocess.)
 
 When there is no DISPLAY, one Xvfb (1280×1024, 24-bit colour so pixel checks see real colours) is
 started for the session and stopped at the end. If Xvfb is not installed the tests are skipped

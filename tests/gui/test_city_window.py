@@ -51,10 +51,9 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     qtbot.waitUntil(lambda: win.city_view.city is not None, timeout=TIMEOUT_MS)
     qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
     win.docks["3-D city"].raise_()           # the saved layout may have another tab of the column in front
-    qtbot.waitUntil(lambda: win.city_view.plotter.interactor.isVisible(), timeout=5_000)
-    win.city_view.render()
-    qtbot.wait(100)
-    view = grab(win.city_view.plotter.interactor).astype(float)
+    qtbot.waitUntil(lambda: win.city_view.view.isVisible(), timeout=5_000)
+    qtbot.waitUntil(win.city_view.view.is_current, timeout=TIMEOUT_MS)
+    view = grab(win.city_view.view).astype(float)
     assert view.std() > 10.0, "the 3-D city view looks blank"
     assert len(np.unique(view.reshape(-1, 3), axis=0)) > 50
     for name, pane in win.previews.panes.items():
@@ -62,7 +61,8 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     assert [f.preview for f in frames][:1] == [True]             # a quick preview came first
     assert frames[-1].recomputed[0] == "scene"
     win.city_view.look_through.setChecked(True)
-    through = grab(win.city_view.plotter.interactor)
+    qtbot.waitUntil(win.city_view.view.is_current, timeout=TIMEOUT_MS)
+    through = grab(win.city_view.view)
     assert through.astype(float).std() > 10.0 and not np.array_equal(through, view.astype(np.uint8))
     # "Set pose" with nothing typed changes nothing (the boxes show the pose rounded).
     steps = win.document.undo_stack.count()
@@ -81,6 +81,36 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     assert win.document.project == small_city_project()
     qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
     assert [f.recomputed for f in frames] == [[]]          # Undo of the move: every stage from the cache
+    # Drag the camera's gizmo (the magenta sphere) with the mouse: the camera moves there.
+    win.city_view.look_through.setChecked(False)
+    drag_gizmo(qtbot, win.city_view, dx_px=40)
+    dropped = win.document.project.pose
+    assert dropped.mode == "manual"
+    assert np.hypot(*np.subtract(dropped.manual_position_xy_m, win.city_view.pose.position_m[:2])) > 1.0
+
+
+def drag_gizmo(qtbot, city_view, dx_px: int) -> None:
+    """Press on the gizmo where the 3-D view draws it, drag it sideways and drop it."""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+    view, got = city_view.view, {}
+
+    def locate(pl, centre=tuple(float(v) for v in city_view.pose.position_m)):
+        pl.renderer.SetWorldPoint(*centre, 1.0)
+        pl.renderer.WorldToDisplay()
+        got["xy"] = pl.renderer.GetDisplayPoint()[:2]
+    view.call(locate)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    dpr = view.devicePixelRatioF()
+    x, y = got["xy"]
+    at = QPoint(round(x / dpr), round((view._physical_size()[1] - 1 - y) / dpr))
+    assert view.rect().contains(at), f"the gizmo is not in the view: {at}"
+    steps = city_view.document.undo_stack.index()
+    QTest.mousePress(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, at)
+    for step in range(1, 5):
+        QTest.mouseMove(view, at + QPoint(step * dx_px // 4, 0))
+    QTest.mouseRelease(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, at + QPoint(dx_px, 0))
+    qtbot.waitUntil(lambda: city_view.document.undo_stack.index() > steps, timeout=TIMEOUT_MS)
 
 
 @pytest.mark.parametrize("representation", ["bands", "sensor"])
@@ -110,3 +140,19 @@ def test_sensor_edits_on_a_city_run_only_the_sensor_stages(qtbot, representation
         assert [f.preview for f in frames] == [False], "no preview render: the scene is not rendered again"
         assert frames[-1].recomputed == recomputed
     assert win.previews.frame.irradiance_photons is first.irradiance_photons        # the same render, reused
+
+
+def test_a_pose_edit_reuses_the_shown_city_and_gets_the_same_pose():
+    """A camera move only samples the pose on the city already shown: the same pose as generating
+    the city again, for a sampled (target) and a typed (manual) pose."""
+    from workbench.gui.city_view import city_and_pose
+    project = small_city_project()
+    city, pose = city_and_pose(project)
+    for edited in (project.updated(seed=project.seed),
+                   project.updated(pose=project.pose.updated(mode="manual", manual_position_xy_m=(3.0, 40.0),
+                                                             manual_pan_deg=15.0))):
+        again_city, again = city_and_pose(edited)
+        reused_city, reused = city_and_pose(edited, city)
+        assert reused_city is city
+        assert np.array_equal(again.position_m, reused.position_m)
+        assert (again.pan_deg, again.tilt_deg, again.roll_deg) == (reused.pan_deg, reused.tilt_deg, reused.roll_deg)

@@ -1,40 +1,43 @@
-"""The 3-D city view (pyvistaqt): the project's city, the camera with its view frustum, a gizmo
-to drag the camera, typed pose values, colour by class, and "look through camera".
+"""The 3-D city view: the project's city, the camera with its view frustum, a gizmo to drag the
+camera, typed pose values, colour by class, and "look through camera".
 
 Generating the city (seed, arrangement) and merging it into one mesh run on a superqt worker
-thread; the mesh comes back to the GUI thread, which alone adds it to VTK (and alone drops the
-last reference to this widget). A camera move only moves the frustum's points and the gizmo, and
-"Colour by class" switches the mesh's colour array, so neither rebuilds the city on the GUI
-thread. Pose edits go through the document (one undoable edit). The GL view itself is made for
-the first city project: a chart project's window has none (see _ensure_plotter)."""
+thread. The view is an OffscreenPlotterView: its plotter lives on a render thread of its own, so
+adding the city, moving the frustum, switching "Colour by class" and every redraw run there, not
+on the GUI thread; the actors it keeps (the `_gl` dict) are touched only in its `call`s. A camera
+move only moves the frustum's points and the gizmo. Pose edits go through the document (one
+undoable edit). The view is made for the first city project: a chart project's window has none."""
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (QCheckBox, QDoubleSpinBox, QFormLayout, QHBoxLayout, QLabel,
                                QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
 from workbench.project import Project
 
 
-def city_and_pose(project: Project):
-    """The city and camera pose of the project's frame 0, as the pipeline's scene stage renders it."""
+def city_and_pose(project: Project, city=None):
+    """The city and camera pose of the project's frame 0, as the pipeline's scene stage renders it;
+    with `city` (the one this project's recipe and seed generate), only the pose is computed."""
     from workbench.render.city_frame import frame_seeds
     from workbench.scene.city import generate_city, sample_camera_poses
     from workbench.scene.city.recipe import CityRecipe, PoseParams
     seeds = frame_seeds(project.seed, 0)
-    recipe = (project.city or CityRecipe()).model_copy(update={"arrangement": seeds.arrangement})
-    city = generate_city(recipe)
+    if city is None:
+        recipe = (project.city or CityRecipe()).model_copy(update={"arrangement": seeds.arrangement})
+        city = generate_city(recipe)
     pose = sample_camera_poses(city, project.pose or PoseParams(), 1, seeds.pose)[0]
     return city, pose
 
 
-def _city_job(project: Project, job: int, key, same_city):
-    """The worker's result: the request it answers, the city, its pose and its merged mesh
-    (None when the city is the one already shown: only the pose changed)."""
+def _city_job(project: Project, job: int, key, shown_city):
+    """The worker's result: the request it answers, the city, its pose and its merged mesh. With
+    the city already shown (only the pose changed) the city is not generated again (~90 ms of
+    Python holding the GIL on a full city) and the mesh is None."""
     from workbench.scene.city.view import city_polydata
-    city, pose = city_and_pose(project)
-    return job, key, city, pose, (None if same_city else city_polydata(city))
+    city, pose = city_and_pose(project, shown_city)
+    return job, key, city, pose, (None if shown_city is not None else city_polydata(city))
 
 
 def _city_key(project: Project):
@@ -53,20 +56,21 @@ def _spin(lo: float, hi: float, decimals: int, suffix: str) -> QDoubleSpinBox:
 class CityView(QWidget):
     """The city, the camera and its frustum, with pose and seed controls."""
 
+    gizmoDropped = Signal(object)                # the gizmo's centre (emitted on the render thread)
+
     def __init__(self, document, parent=None):
         super().__init__(parent)
         self.document = document
-        self.plotter = None                      # the GL view, made for the first city (_ensure_plotter)
+        self.view = None                         # the 3-D view, made for the first city (_ensure_view)
+        self._gl: dict = {}                      # the view's actors: touched only in view.call()
         self.placeholder = QLabel("No city in this project: its scene is a test chart.")
         self.placeholder.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.project: Project | None = None
         self.city = None
         self.pose = None
         self._city_key = None
-        self._city_actor = None
-        self._frustum = None
         self._job_id = 0
-        self._gizmo = None
+        self.gizmoDropped.connect(self._gizmo_moved)
 
         self.by_class = QCheckBox("Colour by class")
         self.by_class.toggled.connect(lambda _v: self._recolour())
@@ -110,17 +114,13 @@ class CityView(QWidget):
         lay.addLayout(form)
         lay.addWidget(self.status)
 
-    def _ensure_plotter(self) -> None:
-        """Make the GL view (pyvistaqt's QOpenGLWidget) in place of the placeholder. Only a city
-        needs it, and while a window holds a GL widget Qt composites the whole window through
-        OpenGL on every repaint (~10 ms a repaint at 1600×1000 on a software renderer), so a
-        chart project's window never has one."""
-        if self.plotter is not None:
+    def _ensure_view(self) -> None:
+        """Make the 3-D view in place of the placeholder, for the first city project."""
+        if self.view is not None:
             return
-        from pyvistaqt import QtInteractor
-        self.plotter = QtInteractor(self, off_screen=False, auto_update=False)
-        self.plotter.set_background("#dfe8f0", top="#7fa7cf")
-        self.layout().replaceWidget(self.placeholder, self.plotter.interactor)
+        from workbench.gui.vtk_view import OffscreenPlotterView
+        self.view = OffscreenPlotterView(parent=self)
+        self.layout().replaceWidget(self.placeholder, self.view)
         self.placeholder.hide()
 
     # -- project → view --------------------------------------------------------------------
@@ -129,11 +129,10 @@ class CityView(QWidget):
         if project.scene.kind != "city":
             self.status.setText("This project's scene is a test chart; pick a city sample to see a city.")
             if self.city is not None:
-                self.plotter.clear()
-                self.city, self._city_key, self._city_actor, self._frustum = None, None, None, None
-                self.plotter.render()
+                self.city, self._city_key = None, None
+                self.view.call(self._clear)
             return
-        self._ensure_plotter()
+        self._ensure_view()
         self.seed_box.setValue(min((project.city.seed if project.city else 0), 2**31 - 1))
         key = (_city_key(project), project.pose)
         if key == self._city_key:
@@ -147,9 +146,9 @@ class CityView(QWidget):
         from superqt.utils import create_worker
         self._job_id += 1
         self.status.setText("generating the city…")
-        same_city = self._city_key is not None and self._city_key[0] == key[0]
-        worker = create_worker(_city_job, project, self._job_id, key, same_city, _start_thread=False,
-                               _ignore_errors=True)
+        same_city = self.city is not None and self._city_key is not None and self._city_key[0] == key[0]
+        worker = create_worker(_city_job, project, self._job_id, key, self.city if same_city else None,
+                               _start_thread=False, _ignore_errors=True)
         worker.returned.connect(self._city_ready)
         worker.errored.connect(self._city_failed)
         worker.start()
@@ -188,68 +187,62 @@ class CityView(QWidget):
 
     def _show_city(self, mesh) -> None:
         """Replace the shown city by a prebuilt mesh (city_polydata) and frame the camera."""
-        from workbench.scene.city.view import add_city_to_plotter
-        self._remove_gizmo()
-        self.plotter.clear()
-        self._frustum = None
-        self._city_actor = add_city_to_plotter(self.plotter, mesh=mesh, color_by=self._colouring())["city"]
+        def show(pl, colouring=self._colouring()):
+            from workbench.scene.city.view import add_city_to_plotter
+            self._clear(pl)
+            self._gl["city"] = add_city_to_plotter(pl, mesh=mesh, color_by=colouring)["city"]
+        self.view.call(show)
         self._redraw_camera(reset_view=True)
 
+    def _clear(self, pl) -> None:
+        """(render thread) Remove the city, the frustum and the gizmo."""
+        pl.clear_sphere_widgets()
+        pl.clear()
+        self._gl.clear()
+
     def _recolour(self) -> None:
-        from workbench.scene.city.view import set_city_colouring
-        if self._city_actor is not None:
-            set_city_colouring(self._city_actor, self._colouring())
-            self.render()
+        def recolour(_pl, colouring=self._colouring()):
+            from workbench.scene.city.view import set_city_colouring
+            if "city" in self._gl:
+                set_city_colouring(self._gl["city"], colouring)
+        if self.view is not None:
+            self.view.call(recolour)
 
     def _redraw_camera(self, reset_view: bool = False) -> None:
         """Show the camera: its frustum and gizmo moved to the pose (created once), or the view
         through it."""
         if self.city is None or self.pose is None:
             return
+        self.view.call(lambda pl, pose=self.pose, hfov=self._hfov_deg(), through=self.look_through.isChecked():
+                       self._draw_camera(pl, pose, hfov, through, reset_view))
+
+    def _draw_camera(self, pl, pose, hfov: float, through: bool, reset_view: bool) -> None:
+        """(render thread) The frustum and gizmo at `pose`, or the view through it."""
         from workbench.scene.city.view import add_camera_frustum, look_through, move_camera_frustum
-        hfov = self._hfov_deg()
-        if self.look_through.isChecked():
-            self.plotter.remove_actor("city_camera")
-            self._frustum = None
-            self._remove_gizmo()
-            look_through(self.plotter, self.pose, hfov)
-        else:
-            if self._frustum is None:
-                self._frustum = add_camera_frustum(self.plotter, self.pose, hfov, frustum_length_m=12.0)
-            else:
-                move_camera_frustum(self._frustum, self.pose, hfov, frustum_length_m=12.0)
-            self._place_gizmo()
-            if reset_view:
-                self._overview()
-        self.render()
-
-    def _overview(self) -> None:
-        """An oblique view from behind and above the camera, showing the city around it."""
-        from workbench.scene.city.poses import pose_basis
-        f, _r, _u = pose_basis(self.pose)
-        p = np.asarray(self.pose.position_m, dtype=float)
-        self.plotter.camera.focal_point = tuple(p + 25 * f)
-        self.plotter.camera.position = tuple(p - 45 * f + np.array([0.0, 0.0, 35.0]))
-        self.plotter.camera.up = (0.0, 0.0, 1.0)
-        self.plotter.camera.view_angle = 45.0
-        self.plotter.reset_camera_clipping_range()
-
-    def _place_gizmo(self) -> None:
-        if self._gizmo is not None:                # move the one there is
-            self._gizmo.SetCenter(*(float(v) for v in self.pose.position_m))
+        if through:
+            pl.remove_actor("city_camera")
+            self._gl.pop("frustum", None)
+            if self._gl.pop("gizmo", None) is not None:
+                pl.clear_sphere_widgets()
+            look_through(pl, pose, hfov)
             return
-        self._gizmo = self.plotter.add_sphere_widget(
-            self._gizmo_moved, center=tuple(self.pose.position_m), radius=1.2, color="magenta",
-            style="surface", interaction_event="end")
-
-    def _remove_gizmo(self) -> None:
-        if self._gizmo is not None:
-            self.plotter.clear_sphere_widgets()
-            self._gizmo = None
+        if "frustum" not in self._gl:
+            self._gl["frustum"] = add_camera_frustum(pl, pose, hfov, frustum_length_m=12.0)
+        else:
+            move_camera_frustum(self._gl["frustum"], pose, hfov, frustum_length_m=12.0)
+        centre = tuple(float(v) for v in pose.position_m)
+        if "gizmo" in self._gl:
+            self._gl["gizmo"].SetCenter(*centre)
+        else:                                 # pyvista calls back once as it adds the widget: not a drop
+            self._gl["gizmo"] = pl.add_sphere_widget(
+                lambda c: "gizmo" in self._gl and self.gizmoDropped.emit(tuple(float(v) for v in c)),
+                center=centre, radius=1.2, color="magenta", style="surface", interaction_event="end")
+        if reset_view:
+            _overview(pl, pose)
 
     def render(self) -> None:
-        if self.plotter is not None:
-            self.plotter.render()
+        if self.view is not None:
+            self.view.render()
 
     # -- view → document -------------------------------------------------------------------
     def _gizmo_moved(self, center) -> None:
@@ -295,5 +288,17 @@ class CityView(QWidget):
 
     def close_view(self) -> None:
         self._job_id += 1
-        if self.plotter is not None:
-            self.plotter.close()
+        if self.view is not None:
+            self.view.close_view()
+
+
+def _overview(pl, pose) -> None:
+    """(render thread) An oblique view from behind and above the camera, showing the city around it."""
+    from workbench.scene.city.poses import pose_basis
+    f, _r, _u = pose_basis(pose)
+    p = np.asarray(pose.position_m, dtype=float)
+    pl.camera.focal_point = tuple(p + 25 * f)
+    pl.camera.position = tuple(p - 45 * f + np.array([0.0, 0.0, 35.0]))
+    pl.camera.up = (0.0, 0.0, 1.0)
+    pl.camera.view_angle = 45.0
+    pl.reset_camera_clipping_range()

@@ -294,7 +294,7 @@ class MainWindow(QMainWindow):
     def _busy_changed(self, busy: bool) -> None:
         """A run started or ended. Its progress bar and Cancel appear only once it has run for
         PROGRESS_DELAY_MS: an edit that takes tens of ms would otherwise repaint the status bar
-        twice, and a window holding the GL view flushes (~15 ms) for each repaint."""
+        twice."""
         self.previews.hold_histograms(busy)
         if busy:
             self._last_progress = None

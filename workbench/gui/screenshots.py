@@ -58,7 +58,7 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
           and not win.previews.frame.preview and not win.live.busy, 900)
     win.docks["Sensor"].raise_()
     _settle(app, 1.0)
-    win.city_view.render()            # redraw the GL view at its final size
+    _wait(app, win.city_view.view.is_current, 60)       # the 3-D view drawn at its final size
     _settle(app, 1.0)
     written.append(_save(win, out / "window-city.png"))
 

@@ -186,12 +186,13 @@ class RenderWorker:
                                   "starts a new one")
 
     def _end(self) -> None:
-        if self._proc is not None:
-            self._proc.terminate()
-            self._proc.join(2.0)
-            if self._proc.is_alive():
-                self._proc.kill()
-                self._proc.join(2.0)
+        proc = self._proc              # close() runs on another thread than _died(), which clears it
+        if proc is not None:
+            proc.terminate()
+            proc.join(2.0)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(2.0)
         self._proc, self._conn = None, None
 
     def close(self) -> None:

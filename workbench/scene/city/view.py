@@ -1,4 +1,4 @@
-"""Draw a city on any pyvista plotter (the GUI's QtInteractor or an off-screen Plotter).
+"""Draw a city on any pyvista plotter (the window's off-screen 3-D view, or any Plotter).
 
 All meshes are merged into one PolyData (city_polydata, which needs no plotter, so it can be
 built on a worker thread) carrying two per-cell colourings: 'material_rgb' (the sRGB of each

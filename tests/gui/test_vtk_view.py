@@ -1,0 +1,133 @@
+"""The off-screen 3-D view: drawn on its own thread, shown as an image, driven by forwarded mouse
+events."""
+import threading
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.gui
+TIMEOUT_MS = 30_000
+
+
+@pytest.fixture
+def view(qtbot):
+    import pyvista as pv
+
+    from workbench.gui.vtk_view import OffscreenPlotterView
+    v = OffscreenPlotterView()
+    qtbot.addWidget(v)
+    v.resize(320, 240)
+    v.show()
+    v.call(lambda pl: pl.add_mesh(pv.Sphere(radius=1.0), color="orange"))
+    v.call(lambda pl: pl.reset_camera())
+    qtbot.waitUntil(v.is_current, timeout=TIMEOUT_MS)
+    yield v
+    v.close_view()
+
+
+def _camera(qtbot, v) -> tuple:
+    got = {}
+    v.call(lambda pl: got.update(position=tuple(pl.camera.position)))
+    qtbot.waitUntil(v.is_current, timeout=TIMEOUT_MS)
+    return got["position"]
+
+
+def test_the_view_shows_what_its_thread_rendered_at_the_widgets_size(view, qtbot, grab):
+    image = grab(view).astype(float)
+    assert image.std() > 10.0, "the view looks blank"
+    centre = image[100:140, 140:180].reshape(-1, 3).mean(axis=0)
+    assert centre[0] > 150 and centre[2] < 100, f"the orange sphere is not in the middle: {centre}"
+    assert (view.image.width(), view.image.height()) == view._physical_size()
+    threads = []
+    view.call(lambda pl: threads.append(threading.current_thread()))
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert threads and threads[0] is not threading.main_thread()
+    view.resize(400, 200)
+    qtbot.waitUntil(lambda: view.is_current() and view.image.width() == view._physical_size()[0],
+                    timeout=TIMEOUT_MS)
+
+
+def test_a_mouse_drag_rotates_and_the_wheel_zooms(view, qtbot):
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+    before = np.array(_camera(qtbot, view))
+    QTest.mousePress(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, QPoint(160, 120))
+    for x in range(165, 260, 10):
+        QTest.mouseMove(view, QPoint(x, 120))
+    QTest.mouseRelease(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, QPoint(260, 120))
+    rotated = np.array(_camera(qtbot, view))
+    assert np.linalg.norm(rotated - before) > 0.5, "the drag did not rotate the camera"
+    assert np.linalg.norm(rotated) == pytest.approx(np.linalg.norm(before), rel=1e-6)   # an orbit
+    from PySide6.QtCore import QPointF
+    from PySide6.QtGui import QWheelEvent
+    from PySide6.QtWidgets import QApplication
+    wheel = QWheelEvent(QPointF(160, 120), QPointF(view.mapToGlobal(QPoint(160, 120))), QPoint(0, 0),
+                        QPoint(0, 120), Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier,
+                        Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(view, wheel)
+    zoomed = np.array(_camera(qtbot, view))
+    assert np.linalg.norm(zoomed) < np.linalg.norm(rotated) - 1e-3, "the wheel did not zoom in"
+
+
+def test_mouse_moves_queued_while_the_thread_is_busy_are_merged(view, qtbot):
+    """A render thread behind the mouse runs only the newest move, not every one it missed."""
+    from PySide6.QtCore import QPoint
+    from PySide6.QtTest import QTest
+    busy, gate, moves = threading.Event(), threading.Event(), []
+    view.call(lambda pl: pl.iren.interactor.AddObserver("MouseMoveEvent",
+                                                        lambda o, _e: moves.append(o.GetEventPosition())))
+    view.call(lambda pl: (busy.set(), gate.wait(10)))
+    assert busy.wait(10)
+    for x in range(100, 200, 10):
+        QTest.mouseMove(view, QPoint(x, 100))
+    qtbot.wait(100)                                  # every move delivered to the widget
+    gate.set()
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert moves == [(190, 239 - 100)]              # the newest only (VTK counts y from the bottom)
+
+
+def test_a_failing_command_is_reported_and_the_view_goes_on(view, qtbot):
+    frames = view.frames_rendered
+    view.call(lambda pl: 1 / 0)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert "ZeroDivisionError" in view.last_error and view.frames_rendered > frames
+    view.render()
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+
+
+def test_close_view_ends_its_thread(view):
+    view.close_view()
+    assert not view._thread.is_alive()
+
+
+def test_the_view_draws_without_an_x_server_on_qts_offscreen_platform(tmp_path):
+    """No GL widget and no native window: with Qt's offscreen platform and no DISPLAY the view
+    still draws (VTK falls back from X to EGL on its own)."""
+    import os
+    import subprocess
+    import sys
+    script = """
+import time
+from PySide6.QtWidgets import QApplication
+app = QApplication([])
+import pyvista as pv
+from workbench.gui.vtk_view import OffscreenPlotterView
+v = OffscreenPlotterView()
+v.resize(200, 150)
+v.show()
+v.call(lambda pl: pl.add_mesh(pv.Sphere(), color="orange"))
+v.call(lambda pl: pl.reset_camera())
+end = time.time() + 60
+while not v.is_current() and time.time() < end:
+    app.processEvents()
+c = v.grab().toImage().pixelColor(100, 75)
+print("centre", c.red(), c.green(), c.blue())
+v.close_view()
+"""
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["QT_QPA_PLATFORM"] = "offscreen"
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=120)
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("centre")]
+    assert line, out.stdout + out.stderr
+    r, g, b = map(int, line[0].split()[1:])
+    assert r > 150 and b < 100, f"the sphere is not drawn: {r, g, b}"
