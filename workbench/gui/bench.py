@@ -3,8 +3,8 @@
 * GUI-thread stalls: a 5 ms QTimer on the GUI thread records the gaps between its ticks while
   background work runs — a city render in the live worker, an exposure sweep in the sweep panel,
   an experiment-like process started by the experiments panel, and all three at once.
-* Edit-to-pane latency at 640×480 (paper camera): from the edit to the four panes having painted
-  the new frame, for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with
+* Edit-to-pane latency at 640×480 (paper camera): from the edit to the sRGB pane having painted
+  the new frame (the window's repaint, which paints every changed pane in one pass), for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with
   the longest GUI-thread tick gap during it; on the city: a CFA edit (a sensor-stage run on the
   cached render) and Undo of a camera move (from the stage cache).
 * A camera move on the city: the 2-spp preview on screen, the refined frame, and the longest GUI
@@ -89,25 +89,51 @@ def _full_frame(win):
     return f is not None and not f.preview and f.project == win.document.project and not win.live.busy
 
 
+class PaintWatcher:
+    """Counts the paint events of a widget (an event filter), so a measurement can end when the
+    new pixels have been painted rather than when the frame was handed to the panes."""
+
+    def __init__(self, widget):
+        from PySide6.QtCore import QEvent, QObject
+
+        class _Filter(QObject):
+            def eventFilter(inner, obj, event):
+                if event.type() == QEvent.Type.Paint:
+                    self.paints += 1
+                return False
+        self.paints = 0
+        self._filter = _Filter()
+        self.widget = widget
+        widget.installEventFilter(self._filter)
+
+    def remove(self) -> None:
+        self.widget.removeEventFilter(self._filter)
+
+
 def edit_latency_ms(app, win, section: str, values: list[dict], timeout_s: float = 60,
                     stalls: list | None = None) -> list[float]:
-    """Edit → the panes have shown the resulting frame (ms), once per value; with `stalls`, the
-    longest GUI tick gap of each edit is appended to it."""
+    """Edit → the sRGB pane has painted the resulting frame and the window is flushed (ms), once
+    per value; with `stalls`, the longest GUI tick gap of each edit is appended to it."""
     out = []
     ticks = TickRecorder()
-    for changes in values:
-        shown = win.previews.frames_shown
-        ticks.start()
-        t0 = time.perf_counter()
-        win.apply_edit(section, changes)
-        if not _wait(app, lambda: win.previews.frames_shown > shown and _full_frame(win), timeout_s):
-            raise TimeoutError(f"no frame after the {section} edit {changes}")
-        for pane in win.previews.panes.values():      # until the new pixels are painted
-            pane.view_widget.viewport().repaint()
-        out.append(1e3 * (time.perf_counter() - t0))
-        gap = ticks.stop()["max_gap_ms"]
-        if stalls is not None:
-            stalls.append(gap)
+    watcher = PaintWatcher(win.previews.panes["srgb"].view_widget.viewport())
+    try:
+        for changes in values:
+            shown, paints = win.previews.frames_shown, watcher.paints
+            ticks.start()
+            t0 = time.perf_counter()
+            win.apply_edit(section, changes)
+            if not _wait(app, lambda: win.previews.frames_shown > shown and _full_frame(win), timeout_s):
+                raise TimeoutError(f"no frame after the {section} edit {changes}")
+            app.processEvents()                        # the window's pending repaint, if not done yet
+            if watcher.paints == paints:               # not painted since the edit: paint it now
+                win.previews.panes["srgb"].view_widget.viewport().repaint()
+            out.append(1e3 * (time.perf_counter() - t0))
+            gap = ticks.stop()["max_gap_ms"]
+            if stalls is not None:
+                stalls.append(gap)
+    finally:
+        watcher.remove()
     return out
 
 
