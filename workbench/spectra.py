@@ -7,12 +7,10 @@ extrapolated as constant; tables that end before the grid ends are flagged in th
 from __future__ import annotations
 
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 
 from workbench.errors import InvalidValueError
-from workbench.resource_dir import RESOURCES
 from workbench.units import (
     MAX_LUMINOUS_EFFICACY_LM_W,
     band_widths_nm,

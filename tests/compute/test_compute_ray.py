@@ -19,7 +19,6 @@ from workbench.compute import ComputeSpec, JobFailed, run_jobs
 from workbench.errors import ParameterError
 from workbench.jobs import run_job
 from workbench.project import Project
-from workbench.render.city_frame import render_city_frame
 from workbench.datasets.dataset import FRAMES_DIR, frame_path, run_dataset
 
 N = 3

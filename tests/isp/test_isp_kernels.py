@@ -84,7 +84,6 @@ def reference_white_world(flat, to_ics, saturated, fraction):
 def test_white_world_statistic_matches_its_definition(k, rows, monkeypatch):
     """Both passes (over row blocks, threaded on a large frame) against the masked numpy mean,
     with saturated and NaN pixels left out; the same gains on one thread as on two."""
-    from workbench.compute import pixel_threads
     from workbench.isp.illuminant import illuminant_gains
     rng = np.random.default_rng(k * 1000 + rows)
     linear = rng.uniform(0, 1, (rows, 640, k)).astype(np.float32)

@@ -11,7 +11,6 @@ horizon instead of ending in the black below-horizon half of the perez sky.
 - Off (0, the default) the city is the one it was, array for array; on, its extent grows by it.
 """
 import numpy as np
-import pytest
 
 from workbench.jobs import run_job
 from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM, sky_radiance, sun_irradiance

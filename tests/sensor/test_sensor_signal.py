@@ -7,10 +7,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from workbench.optics.types import OpticalImage
+from workbench.resource_dir import RESOURCES
 from workbench.sensor import (channel_qe, irradiance_to_sensor_image, irradiance_to_signal_rate,
                               signal_rate_to_sensor_image)
 from workbench.sensor.signal import resample_matrix
-from workbench.spectra import RESOURCES
 
 from sensor_helpers import WL16, make_params, uniform_oi
 

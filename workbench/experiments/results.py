@@ -38,7 +38,6 @@ panels a thick bar is the seed interval and a thin one the test-set interval.
 """
 from __future__ import annotations
 
-import json
 import zipfile
 from pathlib import Path
 

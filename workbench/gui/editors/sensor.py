@@ -11,10 +11,11 @@ from superqt.utils import create_worker
 
 from workbench.gui.forms import ParamsForm
 from workbench.gui.mplcanvas import ChartCanvas
+from workbench.resource_dir import RESOURCES
 from workbench.sensor.cfa import cfa_layout, channel_qe
 from workbench.sensor.emva import characterize, draw_photon_transfer
 from workbench.sensor.params import SENSOR_PRESETS, SensorParams
-from workbench.spectra import RESOURCES, load_spectrum_csv
+from workbench.spectra import load_spectrum_csv
 
 CHANNEL_COLOURS = {"R": "#d62728", "G": "#2ca02c", "B": "#1f77b4", "C": "#b0b0b0", "W": "#f2f2f2",
                    "M": "#808080"}

@@ -20,7 +20,7 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     focus distance; focal length, image distance and sample spacing from `camera`
     (geometry.scene_geometry: the scene's own field of view when None)."""
     g = geometry.scene_geometry(scene, params, camera)
-    f_m, s_m, d_img, m = g.focal_length_m, g.focus_distance_m, g.image_distance_m, g.magnification
+    f_m, d_img, m = g.focal_length_m, g.image_distance_m, g.magnification
     rows, cols = scene.shape
     dx = g.sample_spacing_m
     gain = geometry.camera_equation_factor(params.f_number, m, params.transmittance)

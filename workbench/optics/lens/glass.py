@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from workbench.errors import InvalidValueError
-from workbench.spectra import RESOURCES
+from workbench.resource_dir import RESOURCES
 
 LINE_D_NM = 587.5618
 LINE_F_NM = 486.1327

@@ -20,7 +20,7 @@ from workbench.optics.lens.glass import AIR, material
 from workbench.optics.lens.model import Lens, Surface
 from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
 from workbench.registry import Registry
-from workbench.spectra import RESOURCES
+from workbench.resource_dir import RESOURCES
 
 LENS_DIR = RESOURCES / "lenses"
 # lens file readers by extension: reader(text, path, name) -> Lens; a new format registers here
