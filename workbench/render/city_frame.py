@@ -185,6 +185,20 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     return (yield from CitySceneSession().job(inputs, seeds, cancel))
 
 
+# Render settings used only when the loaded scene is rendered (sample counts, error targets,
+# chunking, the noise seed): a change of these alone keeps the loaded scene. Everything else in
+# RenderParams (bands, sampler type, depth, daylight, world) is built into the scene.
+RENDER_TIME_FIELDS = frozenset({"spp", "target_rel_error", "shot_noise_ratio", "error_metric", "pilot_spp",
+                                "max_spp", "chunk_spp", "preview_spp", "seed"})
+
+
+def scene_reuse_key(inputs: CitySceneInputs, seeds: FrameSeeds) -> tuple:
+    """What a loaded scene depends on: the inputs without the pose and the render-time settings
+    (so the window's 2-spp preview and its full render of a camera move share one loaded scene)."""
+    scene_render = inputs.render.model_dump(exclude=set(RENDER_TIME_FIELDS))
+    return replace(inputs, pose=None, render=None), scene_render, seeds.arrangement
+
+
 class CitySceneSession:
     """Renders city frames (city_scene_job) keeping the last loaded Mitsuba scene: a frame that
     differs from the previous one only in its camera pose moves the scene's sensor instead of
@@ -215,7 +229,7 @@ class CitySceneSession:
         recipe = inputs.city.updated(arrangement=seeds.arrangement)
         night = inputs.render.world.lighting == "night"
         full_model = inputs.optics is not None and uses_full_lens_model(inputs.optics)
-        reuse_key = None if night or full_model else (replace(inputs, pose=None), seeds.arrangement)
+        reuse_key = None if night or full_model else scene_reuse_key(inputs, seeds)
         loaded = self._loaded if reuse_key is not None and self._loaded is not None \
             and self._loaded[0] == reuse_key else None
         try:                  # counts that do not fit the streets, poses with nothing to aim at: say which
