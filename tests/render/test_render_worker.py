@@ -95,3 +95,20 @@ def test_a_job_left_half_way_frees_the_worker_for_the_next():
         _same(run_job(worker.job(quick, seeds)), run_job(city_scene_job(quick, seeds)))
     finally:
         worker.close()
+
+
+def test_a_niced_worker_yields_the_cores_to_the_window():
+    """The window's render worker runs niced (its render threads inherit it), so it can use every
+    core while the GUI's threads still take one whenever they need it."""
+    import time
+    worker = RenderWorker(threads=1, nice=10)
+    try:
+        worker.start()
+        mine = os.getpriority(os.PRIO_PROCESS, 0)
+        deadline = time.monotonic() + 30
+        while os.getpriority(os.PRIO_PROCESS, worker.pid) == mine and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert os.getpriority(os.PRIO_PROCESS, worker.pid) == min(mine + 10, 19)
+    finally:
+        worker.close()
+

@@ -33,7 +33,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-welcome", action="store_true",
                         help=f"skip the welcome page and open {DEFAULT_PROJECT}")
     args = parser.parse_args(argv)
-    os.environ.pop("PYVISTA_OFF_SCREEN", None)    # the embedded 3-D view must draw on screen
     from PySide6.QtWidgets import QApplication
     app = QApplication.instance() or QApplication([sys.argv[0]])
     app.setApplicationName("Camera Workbench")

@@ -23,6 +23,19 @@ from workbench.project import Project
 
 PREVIEW_SPP = 2          # samples per pixel of the first, quick city render after a camera move
 WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so the GUI keeps a core
+# The city render worker is a process of its own: it uses every core of the thread budget, niced so
+# that the window's threads (GUI, live worker, 3-D view) take a core whenever they need one.
+RENDER_NICE = 10
+
+
+def render_threads() -> int:
+    """The render worker's threads: the cores this process may use, at most the thread budget."""
+    import os
+
+    from workbench.compute.local import THREAD_BUDGET_ENV
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    budget = os.environ.get(THREAD_BUDGET_ENV, "")
+    return max(1, min(cores, int(budget))) if budget.isdigit() and int(budget) > 0 else cores
 
 
 def limit_worker_threads(n: int = WORKER_THREADS) -> None:
@@ -237,7 +250,7 @@ class LiveRunner(QObject):
         project = window_project(document_project)
         if project.scene.kind == "city" and self.render_worker is None:
             from workbench.render.render_worker import RenderWorker
-            self.render_worker = RenderWorker(threads=WORKER_THREADS)
+            self.render_worker = RenderWorker(threads=render_threads(), nice=RENDER_NICE)
         renderer = self.render_worker.job if self.render_worker is not None else None
         if self.pipeline is None:
             self.pipeline = Pipeline(project)

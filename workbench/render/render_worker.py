@@ -43,8 +43,12 @@ class _PipeCancel:
         return self.cancelled
 
 
-def serve(conn, threads: int | None) -> None:
-    """The worker process: answer ('render', inputs, seeds) requests until ('stop',) or EOF."""
+def serve(conn, threads: int | None, nice: int = 0) -> None:
+    """The worker process: answer ('render', inputs, seeds) requests until ('stop',) or EOF.
+    With `nice`, the process (and the render threads it starts later) yields the cores to others."""
+    if nice:
+        import os
+        os.nice(nice)
     from workbench.render.city_frame import CitySceneSession
     from workbench.render.variants import import_mitsuba
     import_mitsuba()                     # load Mitsuba (and its LLVM) before the first request
@@ -84,8 +88,9 @@ def serve(conn, threads: int | None) -> None:
 class RenderWorker:
     """The asking side: one worker process (started on first use), one request at a time."""
 
-    def __init__(self, threads: int | None = 1):
+    def __init__(self, threads: int | None = 1, nice: int = 0):
         self.threads = threads
+        self.nice = nice
         self._proc = None
         self._conn = None
         self._lock = threading.Lock()
@@ -100,7 +105,7 @@ class RenderWorker:
             return
         ctx = multiprocessing.get_context("spawn")      # never fork a process that runs Qt or threads
         here, there = ctx.Pipe()
-        self._proc = ctx.Process(target=serve, args=(there, self.threads), name="workbench-render", daemon=True)
+        self._proc = ctx.Process(target=serve, args=(there, self.threads, self.nice), name="workbench-render", daemon=True)
         self._proc.start()
         there.close()
         self._conn = here
