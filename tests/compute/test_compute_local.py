@@ -39,3 +39,17 @@ def test_a_pool_worker_killed_mid_frame_is_retried_in_a_fresh_pool(tmp_path, mar
     assert len(list(markers.glob("crash-31-1.*"))) == 2
     with pytest.raises(JobFailed, match=r"job 7 failed after 1 retries; last error: its worker process died"):
         list(run_jobs(die, [7], ComputeSpec(workers=1, max_retries=1)))
+
+
+def test_budget_cores_are_the_cores_within_the_thread_budget(monkeypatch):
+    """The window's render worker and the pixel threads size themselves by it."""
+    import os
+
+    from workbench.compute.pixel_threads import BLOCKS, budget_cores, thread_count
+    cores = len(os.sched_getaffinity(0))
+    monkeypatch.delenv("WORKBENCH_THREADS", raising=False)
+    assert budget_cores() == cores and thread_count() == min(BLOCKS, cores)
+    monkeypatch.setenv("WORKBENCH_THREADS", "1")
+    assert budget_cores() == 1 and thread_count() == 1
+    monkeypatch.setenv("WORKBENCH_THREADS", "64")
+    assert budget_cores() == cores

@@ -157,13 +157,3 @@ def test_a_pose_edit_reuses_the_shown_city_and_gets_the_same_pose():
         assert np.array_equal(again.position_m, reused.position_m)
         assert (again.pan_deg, again.tilt_deg, again.roll_deg) == (reused.pan_deg, reused.tilt_deg, reused.roll_deg)
 
-
-def test_the_windows_render_worker_gets_the_cores_within_the_thread_budget(monkeypatch):
-    import os
-
-    from workbench.gui.live import render_threads
-    cores = len(os.sched_getaffinity(0))
-    monkeypatch.delenv("WORKBENCH_THREADS", raising=False)
-    assert render_threads() == cores
-    monkeypatch.setenv("WORKBENCH_THREADS", "1")
-    assert render_threads() == 1

@@ -87,10 +87,12 @@ def test_mouse_moves_queued_while_the_thread_is_busy_are_merged(view, qtbot):
 
 
 def test_a_failing_command_is_reported_and_the_view_goes_on(view, qtbot):
-    frames = view.frames_rendered
+    frames, reported = view.frames_rendered, []
+    view.failed.connect(reported.append)
     view.call(lambda pl: 1 / 0)
     qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
     assert "ZeroDivisionError" in view.last_error and view.frames_rendered > frames
+    assert reported == [view.last_error]                 # the city view shows it in its status line
     view.render()
     qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
 

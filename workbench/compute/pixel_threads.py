@@ -28,14 +28,19 @@ _pool_pid = -1
 _pool_lock = threading.Lock()
 
 
-def thread_count() -> int:
-    """Threads a frame may use: BLOCKS, or fewer where the budget or the CPU affinity is smaller."""
+def budget_cores() -> int:
+    """The cores this process may use (CPU affinity), at most the thread budget where one is set."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     try:
         budget = int(os.environ.get(THREAD_BUDGET_ENV, "0"))
     except ValueError:
         budget = 0
-    return max(1, min(BLOCKS, cores, budget or cores))
+    return max(1, min(cores, budget) if budget > 0 else cores)
+
+
+def thread_count() -> int:
+    """Threads a frame may use: BLOCKS, or fewer where the budget or the CPU affinity is smaller."""
+    return min(BLOCKS, budget_cores())
 
 
 def _executor() -> ThreadPoolExecutor:

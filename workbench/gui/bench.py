@@ -4,9 +4,10 @@
   background work runs — a city render in the live worker, an exposure sweep in the sweep panel,
   an experiment-like process started by the experiments panel, and all three at once.
 * Edit-to-pane latency at 640×480 (paper camera): from the edit to the sRGB pane having painted
-  the new frame (the window's repaint, which paints every changed pane in one pass), for an ISP edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with
-  the longest GUI-thread tick gap during it; on the city: a CFA edit (a sensor-stage run on the
-  cached render) and Undo of a camera move (from the stage cache).
+  the new frame (the window's repaint, which paints every changed pane in one pass), for an ISP
+  edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with the longest GUI-thread
+  tick gap during it; on the city: a CFA edit (a sensor-stage run on the cached render) and Undo
+  of a camera move (from the stage cache).
 * A camera move on the city: the 2-spp preview on screen, the refined frame, and the longest GUI
   stall while both render (in the render worker process); "Colour by class" switched on and off.
 * 3-D view frames per second with the full city of the city sample while orbiting the view.

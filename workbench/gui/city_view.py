@@ -120,6 +120,7 @@ class CityView(QWidget):
             return
         from workbench.gui.vtk_view import OffscreenPlotterView
         self.view = OffscreenPlotterView(parent=self)
+        self.view.failed.connect(lambda message: self.status.setText(f"3-D view: {message}"))
         self.layout().replaceWidget(self.placeholder, self.view)
         self.placeholder.hide()
 
@@ -233,12 +234,18 @@ class CityView(QWidget):
         centre = tuple(float(v) for v in pose.position_m)
         if "gizmo" in self._gl:
             self._gl["gizmo"].SetCenter(*centre)
-        else:                                 # pyvista calls back once as it adds the widget: not a drop
+        else:
             self._gl["gizmo"] = pl.add_sphere_widget(
-                lambda c: "gizmo" in self._gl and self.gizmoDropped.emit(tuple(float(v) for v in c)),
-                center=centre, radius=1.2, color="magenta", style="surface", interaction_event="end")
+                self._gizmo_released, center=centre, radius=1.2, color="magenta", style="surface",
+                interaction_event="end")
         if reset_view:
             _overview(pl, pose)
+
+    def _gizmo_released(self, centre) -> None:
+        """(render thread) pyvista calls this once while adding the gizmo too: only a gizmo that
+        is already in place was dropped."""
+        if "gizmo" in self._gl:
+            self.gizmoDropped.emit(tuple(float(v) for v in centre))
 
     def render(self) -> None:
         if self.view is not None:

@@ -28,16 +28,6 @@ WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so th
 RENDER_NICE = 10
 
 
-def render_threads() -> int:
-    """The render worker's threads: the cores this process may use, at most the thread budget."""
-    import os
-
-    from workbench.compute.local import THREAD_BUDGET_ENV
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    budget = os.environ.get(THREAD_BUDGET_ENV, "")
-    return max(1, min(cores, int(budget))) if budget.isdigit() and int(budget) > 0 else cores
-
-
 def limit_worker_threads(n: int = WORKER_THREADS) -> None:
     """Cap the compute libraries the worker uses (process-wide) so the GUI thread is not starved;
     called before every run, as torch and Dr.Jit load lazily. OpenMP/BLAS pools are capped by
@@ -249,8 +239,9 @@ class LiveRunner(QObject):
     def _run(self, document_project: Project, submitted_at: float, token: CancelToken) -> None:
         project = window_project(document_project)
         if project.scene.kind == "city" and self.render_worker is None:
+            from workbench.compute.pixel_threads import budget_cores
             from workbench.render.render_worker import RenderWorker
-            self.render_worker = RenderWorker(threads=render_threads(), nice=RENDER_NICE)
+            self.render_worker = RenderWorker(threads=budget_cores(), nice=RENDER_NICE)
         renderer = self.render_worker.job if self.render_worker is not None else None
         if self.pipeline is None:
             self.pipeline = Pipeline(project)

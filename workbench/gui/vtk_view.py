@@ -88,7 +88,10 @@ class _RenderLoop:
 
 
 class OffscreenPlotterView(QWidget):
-    """A 3-D view: `call(fn)` runs fn(plotter) on the render thread and redraws."""
+    """A 3-D view: `call(fn)` runs fn(plotter) on the render thread and redraws. `background` is
+    the gradient's (bottom, top) colours; a command that raises is reported by `failed`."""
+
+    failed = Signal(str)
 
     def __init__(self, background: tuple[str, str] = ("#dfe8f0", "#7fa7cf"), parent=None):
         super().__init__(parent)
@@ -139,6 +142,7 @@ class OffscreenPlotterView(QWidget):
 
     def _failed(self, message: str) -> None:
         self.last_error = message
+        self.failed.emit(message)
 
     def paintEvent(self, _event) -> None:
         painter = QPainter(self)
