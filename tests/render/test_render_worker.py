@@ -112,3 +112,50 @@ def test_a_niced_worker_yields_the_cores_to_the_window():
     finally:
         worker.close()
 
+
+
+def _binned(image, f=2):
+    h, w = image.shape[:2]
+    return image.reshape(h // f, f, w // f, f, -1).mean(axis=(1, 3))
+
+
+def test_a_quick_look_samples_a_coarser_film_of_the_same_view_and_casts_visible_labels():
+    import mitsuba as mi
+
+    from workbench.render.city_frame import QUICK_LOOK_FACTOR as f
+    session = CitySceneSession()
+    seeds = frame_seeds(0, 0)
+    full = run_job(session.job(city_scene_inputs(tiny_city(spp=32)), seeds))
+    quick = run_job(session.job(city_scene_inputs(tiny_city(spp=32)), seeds, quick_look=True))
+    assert session.loads == 1 and quick.meta["render"]["coarse_factor"] == f
+    q = quick.scene.radiance_photons
+    assert q.shape == full.scene.radiance_photons.shape
+    assert np.array_equal(q, np.repeat(np.repeat(_binned(q, f), f, axis=0), f, axis=1))   # f×f blocks
+    # The same view: a point of the film (as a fraction of its size) gives the same camera ray
+    # through the coarse pinhole as through the scene's own.
+    fine, coarse = session._loaded[2].sensors()[0], session._coarse[1]
+    uv = mi.Point2f(mi.Float([0.0, 0.25, 0.5, 1.0, 0.9]), mi.Float([0.0, 0.6, 0.5, 1.0, 0.1]))
+    rays = [s.sample_ray(0.0, 0.5, uv, mi.Point2f(0.5, 0.5))[0] for s in (fine, coarse)]
+    assert np.allclose(np.asarray(rays[0].d), np.asarray(rays[1].d), atol=1e-6)
+    assert np.allclose(np.asarray(rays[0].o), np.asarray(rays[1].o), atol=1e-6)
+    assert abs(_binned(q, f).mean() / full.scene.radiance_photons.mean() - 1) < 0.03     # no bias
+    # Labels: the first surface along each ray only, so the visible maps are the full pass's.
+    assert quick.labels.meta["max_layers"] == 1
+    for name in ("depth_m", "class_id", "instance_id"):
+        assert np.array_equal(getattr(quick.labels, name), getattr(full.labels, name)), name
+    assert {o.instance_id: o.bbox_xywh for o in quick.labels.objects if o.visible_px} == \
+           {o.instance_id: o.bbox_xywh for o in full.labels.objects if o.visible_px}
+    # A move points the coarse pinhole along the new pose, as it does the scene's.
+    moved = run_job(session.job(city_scene_inputs(tiny_city(spp=2, manual_position_xy_m=(10.0, 2.0),
+                                                            manual_pan_deg=30.0)), seeds, quick_look=True))
+    assert session.loads == 1 and moved.meta["render"]["coarse_factor"] == f
+    fine, coarse = session._loaded[2].sensors()[0], session._coarse[1]
+    assert np.allclose(np.asarray(fine.world_transform().matrix), np.asarray(coarse.world_transform().matrix))
+    # The worker passes the request on.
+    worker = RenderWorker(threads=1)
+    try:
+        inputs = city_scene_inputs(tiny_city(spp=2))
+        _same(run_job(worker.job(inputs, seeds, quick_look=True)),
+              run_job(CitySceneSession().job(inputs, seeds, quick_look=True)))
+    finally:
+        worker.close()

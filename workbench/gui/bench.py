@@ -143,6 +143,33 @@ def _latency_row(name: str, values: list[float], stalls: list[float], goal_ms: f
             "goal_ms": goal_ms, "max_stall_ms": round(max(stalls), 1), "goal_stall_ms": 100, "runs": len(values)}
 
 
+def camera_moves(app, win, n: int) -> list[dict]:
+    """n camera moves (the pan box +15°, Set pose): time to the preview on screen and to the
+    refined frame, and the longest GUI stall, one row each."""
+    ticks = TickRecorder()
+    rows = []
+    rows_px, cols_px = win.document.project.sensor.rows, win.document.project.sensor.cols
+    for i in range(n):
+        frames = []
+        win.live.frameReady.connect(frames.append)
+        box = win.city_view.pose_boxes["pan"]
+        box.setValue(box.value() + 15.0)
+        ticks.start()
+        t0 = time.perf_counter()
+        win.city_view.apply_typed_pose()
+        _wait(app, lambda: any(f.preview for f in frames) and win.previews.frame is not None
+              and win.previews.frame.preview, 120)
+        t_preview = time.perf_counter() - t0
+        _wait(app, lambda: _full_frame(win), 600)
+        stall = ticks.stop()["max_gap_ms"]
+        win.live.frameReady.disconnect(frames.append)
+        rows.append({"measure": f"camera move {i + 1} ({cols_px}×{rows_px}): preview on screen, then refined",
+                     "preview_s": round(t_preview, 2), "refined_s": round(time.perf_counter() - t0, 2),
+                     "max_stall_ms": stall, "goal_preview_s": 1.0, "goal_stall_ms": 100,
+                     "preview_spp": win.live.preview_spp, "refined_spp": win.document.project.render.spp})
+    return rows
+
+
 def cpu_hogs(n: int) -> list:
     """n busy processes (one core each): the load the window must stay responsive under."""
     import subprocess
@@ -264,25 +291,7 @@ def _measure(app, quick: bool) -> dict:
         notes.append("sweep or experiments panel missing: their scenarios ran without them")
 
     # -- a camera move: the low-sample preview, then the refined frame -------------------------
-    for i in range(2 if quick else 3):
-        frames = []
-        win.live.frameReady.connect(frames.append)
-        box = win.city_view.pose_boxes["pan"]
-        box.setValue(box.value() + 15.0)
-        ticks.start()
-        t0 = time.perf_counter()
-        win.city_view.apply_typed_pose()
-        _wait(app, lambda: any(f.preview for f in frames) and win.previews.frame is not None
-              and win.previews.frame.preview, 120)
-        t_preview = time.perf_counter() - t0
-        _wait(app, lambda: _full_frame(win), 600)
-        stall = ticks.stop()["max_gap_ms"]
-        win.live.frameReady.disconnect(frames.append)
-        rows.append({"measure": f"camera move {i + 1}: preview on screen, then refined",
-                     "preview_s": round(t_preview, 2), "refined_s": round(time.perf_counter() - t0, 2),
-                     "max_stall_ms": stall, "goal_preview_s": 1.0, "goal_stall_ms": 100,
-                     "size": f"{size[1]}×{size[0]}", "preview_spp": win.live.preview_spp,
-                     "refined_spp": win.document.project.render.spp})
+    rows.extend(camera_moves(app, win, 2 if quick else 3))
 
     # -- Undo of the last move: every stage from the cache --------------------------------------
     undo_stalls = []
@@ -320,6 +329,17 @@ def _measure(app, quick: bool) -> dict:
     rows.append({"measure": "3-D view orbit, full city", "fps": round(fps, 1),
                  "objects": len(win.city_view.city.objects),
                  "view_px": f"{win.city_view.view.width()}×{win.city_view.view.height()}"})
+    win.document.undo_stack.setClean()
+    win.close()
+    app.processEvents()
+
+    # -- camera moves on a 640×480 city (the issue's size), refined at a few spp ----------------
+    big = load_project("city_paper_camera")
+    big = big.updated(sensor=big.sensor.updated(rows=480, cols=640), render=big.render.updated(spp=4))
+    win = _window(big)
+    if not _wait(app, lambda: win.city_view.city is not None and _full_frame(win), 600):
+        raise TimeoutError("the 640×480 city's first frame did not arrive")
+    rows.extend(camera_moves(app, win, 3 if quick else 5))
     win.document.undo_stack.setClean()
     win.close()
     app.processEvents()

@@ -10,6 +10,7 @@ numpy arrays (Frame) through a queued signal; the GUI thread never waits on the 
 """
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from dataclasses import dataclass, field
@@ -21,7 +22,8 @@ from workbench.jobs import CancelToken, JobCancelled
 from workbench.pipeline import Pipeline
 from workbench.project import Project
 
-PREVIEW_SPP = 2          # samples per pixel of the first, quick city render after a camera move
+PREVIEW_SPP = 1          # samples per pixel of the first, quick city render after a camera move: a
+# quick look (render.city_frame.CitySceneSession.job): sampled on a 2× coarser film, visible labels only
 WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so the GUI keeps a core
 # The city render worker is a process of its own: it uses every core of the thread budget, niced so
 # that the window's threads (GUI, live worker, 3-D view) take a core whenever they need one.
@@ -254,7 +256,8 @@ class LiveRunner(QObject):
                                                                   preview_spp=self.preview_spp))
             if self._preview_pipeline is None:
                 self._preview_pipeline = Pipeline(quick)
-            self._preview_pipeline.city_renderer = renderer
+            self._preview_pipeline.city_renderer = (None if renderer is None else
+                                                    functools.partial(renderer, quick_look=True))
             self._preview_pipeline.set_project(quick)
             self._drive(self._preview_pipeline, token)
             token.check()

@@ -185,6 +185,9 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     return (yield from CitySceneSession().job(inputs, seeds, cancel))
 
 
+QUICK_LOOK_FACTOR = 2
+"""A quick look (CitySceneSession.job) samples a film this many times coarser per side."""
+
 # Render settings used only when the loaded scene is rendered (sample counts, error targets,
 # chunking, the noise seed): a change of these alone keeps the loaded scene. Everything else in
 # RenderParams (bands, sampler type, depth, daylight, world) is built into the scene.
@@ -207,10 +210,20 @@ class CitySceneSession:
 
     def __init__(self):
         self._loaded = None          # (reuse key, city, mi_scene, id_table, film)
+        self._coarse = None          # (key, the quick look's coarse pinhole)
         self.loads = 0               # Mitsuba scenes loaded so far
 
-    def job(self, inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> Job[CityRender]:
-        """city_scene_job, reusing the loaded scene where only the pose changed."""
+    def job(self, inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None,
+            quick_look: bool = False) -> Job[CityRender]:
+        """city_scene_job, reusing the loaded scene where only the pose changed.
+
+        quick_look: a preview at about a quarter of the cost — the label pass records the first
+        surface along each ray only (render_labels with max_layers=1: the depth, class and
+        instance maps and the visible boxes are exact, the amodal boxes are the visible ones;
+        labels.meta['max_layers'] says so), and a pinhole render draws its samples on a film
+        QUICK_LOOK_FACTOR times coarser per side (each coarse pixel shown over the pixels it
+        covers; meta['render']['coarse_factor']; not through the full lens model or a volumetric
+        fog, nor when a side is not a multiple of the factor)."""
         from workbench.jobs import JobCancelled, Progress
         from workbench.render.labels import render_labels
         from workbench.render.scene_builder import build_scene, move_pinhole, pinhole_sensor
@@ -261,9 +274,15 @@ class CitySceneSession:
                                              lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world,
                                              sampler=inputs.render.sampler)
             self.loads += 1
+            self._coarse = None
         self._loaded = (reuse_key, city, mi_scene, id_table, film) if reuse_key is not None else None
+        fog = inputs.render.world.fog
+        coarse = None             # not through a lens or a fog medium (the camera carries both)
+        if (quick_look and lens_camera is None and (fog is None or fog.model != "volumetric")
+                and width % QUICK_LOOK_FACTOR == 0 and height % QUICK_LOOK_FACTOR == 0):
+            coarse = self._coarse_pinhole(pose, fov, film, width, height, inputs.render.sampler)
         yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
-        labels = render_labels(mi_scene, id_table, width, height)
+        labels = render_labels(mi_scene, id_table, width, height, **({"max_layers": 1} if quick_look else {}))
         params = inputs.render.updated(seed=seeds.render)
         meta = {"variant": variant, "fov_deg": fov, "city_seed": recipe.seed, "arrangement": recipe.arrangement,
                 "pose": {"position_m": np.asarray(pose.position_m).tolist(), "pan_deg": pose.pan_deg,
@@ -278,7 +297,6 @@ class CitySceneSession:
             meta["sun_disc"] = {"status": "not composited: " + ("night" if night else
                                                                  "the full lens model bends the camera rays")}
 
-        fog = inputs.render.world.fog
         if fog is not None and fog.model == "koschmieder":
             from workbench.render.koschmieder import koschmieder_fog
             yield Progress(0.07, 1.0, f"frame {seeds.index}: fog airlight")
@@ -312,7 +330,8 @@ class CitySceneSession:
         if params.shot_noise_ratio is not None:
             pilot = with_sun((yield from rendered(
                 render_loaded(mi_scene, film, params.updated(spp=params.pilot_spp, shot_noise_ratio=None),
-                              fov_deg=fov, cancel=cancel, name=f"frame {seeds.index} pilot"), 0.1, 0.1)))
+                              fov_deg=fov, cancel=cancel, name=f"frame {seeds.index} pilot",
+                              depth_m=labels.depth_m), 0.1, 0.1)))
             pilot.depth_m = labels.depth_m
             target = sensor_matched_error(inputs, CityRender(pilot, labels, lens_camera, meta, camera),
                                           params.shot_noise_ratio)
@@ -320,12 +339,24 @@ class CitySceneSession:
             params = params.updated(shot_noise_ratio=None, target_rel_error=target)
         start = 0.2 if inputs.render.shot_noise_ratio is not None else 0.1
         scene = with_sun((yield from rendered(
-            render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}"),
+            render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}",
+                          depth_m=labels.depth_m, coarse_sensor=coarse, coarse_factor=QUICK_LOOK_FACTOR),
             start, 1.0 - start)))
         scene.depth_m = labels.depth_m
         meta["spp"] = scene.meta.get("spp")
         meta["render"] = scene.meta
         return CityRender(scene, labels, lens_camera, meta, camera)
+
+    def _coarse_pinhole(self, pose, fov: float, film, width: int, height: int, sampler: str):
+        """The quick look's coarse pinhole for the loaded scene, made once per loaded scene and
+        pointed along `pose`."""
+        from workbench.render.scene_builder import coarse_pinhole, move_pinhole
+        key = (fov, width, height, sampler)            # reset when a scene is loaded
+        if self._coarse is None or self._coarse[0] != key:
+            self._coarse = (key, coarse_pinhole(pose, fov, film, width, height, QUICK_LOOK_FACTOR, sampler))
+        else:
+            move_pinhole(None, pose, fov, sensor=self._coarse[1])
+        return self._coarse[1]
 
 
 def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> CityRender:

@@ -44,7 +44,8 @@ class _PipeCancel:
 
 
 def serve(conn, threads: int | None, nice: int = 0) -> None:
-    """The worker process: answer ('render', inputs, seeds) requests until ('stop',) or EOF.
+    """The worker process: answer ('render', inputs, seeds, quick_look) requests until
+    ('stop',) or EOF.
     With `nice`, the process (and the render threads it starts later) yields the cores to others."""
     if nice:
         import os
@@ -66,10 +67,10 @@ def serve(conn, threads: int | None, nice: int = 0) -> None:
             return
         if msg[0] != "render":
             continue                     # a late cancel of a finished request
-        _, inputs, seeds = msg
+        _, inputs, seeds, quick_look = msg
         cancel = _PipeCancel(conn)
         try:
-            job = session.job(inputs, seeds, cancel)
+            job = session.job(inputs, seeds, cancel, quick_look)
             while True:
                 try:
                     step = next(job)
@@ -115,14 +116,15 @@ class RenderWorker:
         with self._lock:
             self._ensure()
 
-    def job(self, inputs, seeds, cancel=None):
-        """Render one city frame in the worker (a long job: yields Progress, returns CityRender).
-        Closing the job before its end (the caller stopped iterating) cancels the worker's render
-        and waits for it to stop, so the worker is free for the next job."""
+    def job(self, inputs, seeds, cancel=None, quick_look: bool = False):
+        """Render one city frame in the worker (a long job: yields Progress, returns CityRender;
+        quick_look: see CitySceneSession.job). Closing the job before its end (the
+        caller stopped iterating) cancels the worker's render and waits for it to stop, so the
+        worker is free for the next job."""
         with self._lock:
             self._ensure()
             conn, proc = self._conn, self._proc
-            conn.send(("render", inputs, seeds))
+            conn.send(("render", inputs, seeds, bool(quick_look)))
             self._in_flight = True
             try:
                 return (yield from self._answers(conn, proc, seeds, cancel))

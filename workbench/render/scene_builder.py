@@ -58,12 +58,29 @@ def pinhole_sensor(pose: CameraPose, fov_deg: float) -> dict:
                                                         up=up.tolist())}
 
 
-def move_pinhole(mi_scene, pose: CameraPose, fov_deg: float) -> None:
-    """Point a loaded scene's pinhole sensor (pinhole_sensor) along another pose, in place."""
+def move_pinhole(mi_scene, pose: CameraPose, fov_deg: float, sensor=None) -> None:
+    """Point a loaded scene's pinhole sensor (pinhole_sensor), or the given pinhole `sensor`,
+    along another pose, in place."""
     import mitsuba as mi
-    params = mi.traverse(mi_scene.sensors()[0])
+    params = mi.traverse(mi_scene.sensors()[0] if sensor is None else sensor)
     params["to_world"] = mi.Transform4f(pinhole_sensor(pose, fov_deg)["to_world"].matrix)
     params.update()
+
+
+def coarse_pinhole(pose: CameraPose, fov_deg: float, film_srfs: FilmSRFs, width: int, height: int,
+                   factor: int, sampler: str = "independent"):
+    """A pinhole sensor (outside any scene; mi.render takes it) with the same view and film
+    channels as a width × height one, on a film `factor` times coarser per side: each of its
+    box-filtered pixels covers factor × factor pixels of the full film. width and height must be
+    multiples of factor."""
+    import mitsuba as mi
+    if factor < 1 or width % factor or height % factor:
+        raise InvalidValueError(f"a {factor}× coarser film needs width and height divisible by {factor}, "
+                                f"got {width}×{height}")
+    cam = pinhole_sensor(pose, fov_deg)
+    cam["film"] = film_srfs.mitsuba_film(width // factor, height // factor)
+    cam["sampler"] = {"type": sampler, "sample_count": 1}
+    return mi.load_dict(cam)
 
 
 def _mesh(mi, name: str, vertices: np.ndarray, faces: np.ndarray, bsdf, exterior=None,

@@ -50,11 +50,22 @@ def chunk_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(index)]).generate_state(1)[0])
 
 
-def _render_chunk(mi_scene, spp: int, seed: int, index: int) -> np.ndarray:
+def _render_chunk(mi_scene, spp: int, seed: int, index: int, sensor=0) -> np.ndarray:
     import mitsuba as mi
 
     # always pass spp: mi.render(spp=…) changes the sampler's count for later calls (gotcha 2)
-    return np.array(mi.render(mi_scene, spp=int(spp), seed=chunk_seed(seed, index)), dtype=np.float64)
+    return np.array(mi.render(mi_scene, sensor=sensor, spp=int(spp), seed=chunk_seed(seed, index)),
+                    dtype=np.float64)
+
+
+def upsample_nearest(image: np.ndarray, factor: int) -> np.ndarray:
+    """H×W×… → (factor·H)×(factor·W)×…, each pixel repeated over factor × factor pixels."""
+    if factor == 1:
+        return image
+    h, w = image.shape[:2]
+    out = np.empty((h, factor, w, factor) + image.shape[2:], dtype=image.dtype)
+    out[...] = image[:, None, :, None]
+    return out.reshape((h * factor, w * factor) + image.shape[2:])
 
 
 def depth_map_m(mi_scene) -> np.ndarray | None:
@@ -86,13 +97,19 @@ def depth_map_m(mi_scene) -> np.ndarray | None:
 
 
 def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: float,
-                  cancel=None, name: str = "render") -> Generator[Progress, None, Scene]:
+                  cancel=None, name: str = "render", depth_m: np.ndarray | None = None,
+                  coarse_sensor=None, coarse_factor: int = 1) -> Generator[Progress, None, Scene]:
     """Render an already loaded scene (build_scene) progressively; return its spectral Scene.
 
     Yields Progress (samples per pixel done of planned; preview: the radiance so far, H×W×Nλ
     float32 photons/s/sr/m²/nm) after every chunk; between chunks, a set `cancel` (a CancelToken,
     or anything with is_set()) stops the render: the samples so far are returned with
-    meta['cancelled'] = True, or JobCancelled is raised when no chunk had finished."""
+    meta['cancelled'] = True, or JobCancelled is raised when no chunk had finished.
+    depth_m: the scene's depth map where the caller has cast it already (a label pass), so it is
+    not cast again; else depth_map_m.
+    coarse_sensor: a quick look — the samples are drawn through this sensor
+    (scene_builder.coarse_pinhole, coarse_factor times coarser per side) and each of its pixels
+    is repeated over the coarse_factor × coarse_factor pixels it covers."""
     import mitsuba as mi
 
     if params.shot_noise_ratio is not None:
@@ -107,8 +124,13 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
         done += spp
         index += 1
 
+    sensor = 0 if coarse_sensor is None else coarse_sensor
+    factor = 1 if coarse_sensor is None else int(coarse_factor)
+
     def preview():
-        return film.channels_to_radiance(acc / done).astype(np.float32)
+        return upsample_nearest(film.channels_to_radiance(acc / done).astype(np.float32), factor)
+
+    last = None                      # the preview of the last chunk: the final radiance, made once
 
     if params.spp is None:
         pilots = []
@@ -116,7 +138,7 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
             if (cancel is not None and cancel.is_set()):
                 cancelled = True
                 break
-            pilots.append(_render_chunk(mi_scene, params.pilot_spp, params.seed, index))
+            pilots.append(_render_chunk(mi_scene, params.pilot_spp, params.seed, index, sensor))
             add(pilots[-1], params.pilot_spp)
         if len(pilots) == 2:
             c_meas = noise_constant(*pilots, params.pilot_spp, params.error_metric)
@@ -134,23 +156,23 @@ def render_loaded(mi_scene, film: FilmSRFs, params: RenderParams, *, fov_deg: fl
             cancelled = True
             break
         k = min(params.preview_spp if done == 0 else params.chunk_spp, total - done)
-        add(_render_chunk(mi_scene, k, params.seed, index), k)
-        yield Progress(done, total, f"{done}/{total} spp", preview())
+        add(_render_chunk(mi_scene, k, params.seed, index, sensor), k)
+        last = preview()
+        yield Progress(done, total, f"{done}/{total} spp", last)
     cancelled = cancelled or done < total
     if acc is None:
         raise JobCancelled(f"{name}: cancelled before the first chunk finished")
-    channels = acc / done
-    if not np.all(np.isfinite(channels)):
+    if not np.isfinite(np.sum(acc, dtype=np.float64)):          # NaN/Inf propagate into the sum
         raise InvalidValueError(f"{name}: the renderer returned NaN/Inf radiance (variant, scene or spectra)")
-    radiance = film.channels_to_radiance(channels)
-    depth = depth_map_m(mi_scene)
+    radiance = last if last is not None else preview()
+    depth = depth_m if depth_m is not None else depth_map_m(mi_scene)
     hits = depth[depth < BACKGROUND_DEPTH_M] if depth is not None else np.zeros(0)
     meta = {"representation": film.kind, "spp": done, "spp_planned": total, "cancelled": cancelled,
             "noise_constant": c_meas, "variant": mi.variant(), "seed": params.seed,
             "render_s": time.perf_counter() - t0, "channel_names": list(film.names),
             "channel_integrals_nm": film.integrals_nm.tolist(),
-            "channel_centroids_nm": film.centroids_nm.tolist()}
-    return Scene(radiance.astype(np.float32), film.output_wavelengths_nm, float(fov_deg),
+            "channel_centroids_nm": film.centroids_nm.tolist(), "coarse_factor": factor}
+    return Scene(radiance.astype(np.float32, copy=False), film.output_wavelengths_nm, float(fov_deg),
                  distance_m=float(np.median(hits)) if hits.size else BACKGROUND_DEPTH_M,
                  depth_m=depth, name=name, meta=meta)
 
