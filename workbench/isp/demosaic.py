@@ -120,32 +120,28 @@ def bilinear_tent_convolution(mosaic: np.ndarray, tile: np.ndarray, n_channels: 
 
 
 @lru_cache(maxsize=32)
-def _bilinear_taps(tile_bytes: bytes, n_channels: int) -> tuple[np.ndarray, ...]:
-    """(dy, dx, weight, n_taps) of kernels.bilinear_2x2 for a 2×2 tile: for each phase and channel,
-    the channel's samples among the 8 neighbours with the tent weights (2 for edge, 1 for diagonal
+def _bilinear_coefficients(tile_bytes: bytes, n_channels: int) -> np.ndarray:
+    """coef (4 phases × K × 4) of kernels.bilinear_2x2 for a 2×2 tile: for each phase and
+    channel, the weights of (centre, horizontal pair, vertical pair, four diagonals) — the
+    channel's samples among the 8 neighbours with the tent weights (2 for edge, 1 for diagonal
     neighbours) normalised to sum 1, or the pixel itself where it measured the channel."""
     tile = np.frombuffer(tile_bytes, dtype=np.int64).reshape(2, 2)
-    dy = np.zeros((4, n_channels, 8), dtype=np.int64)
-    dx = np.zeros((4, n_channels, 8), dtype=np.int64)
-    weight = np.zeros((4, n_channels, 8), dtype=np.float32)
-    n_taps = np.zeros((4, n_channels), dtype=np.int64)
+    coef = np.zeros((4, n_channels, 4), dtype=np.float32)
     for ty in (0, 1):
         for tx in (0, 1):
+            p = 2 * ty + tx
             for k in range(n_channels):
                 if tile[ty, tx] == k:
-                    found = [(0, 0, 1.0)]
-                else:
-                    found = [(oy, ox, float((2 - abs(oy)) * (2 - abs(ox))))
-                             for oy in (-1, 0, 1) for ox in (-1, 0, 1)
-                             if (oy, ox) != (0, 0) and tile[(ty + oy) % 2, (tx + ox) % 2] == k]
-                total = sum(wt for _, _, wt in found)
-                p = 2 * ty + tx
-                n_taps[p, k] = len(found)
-                for j, (oy, ox, wt) in enumerate(found):
-                    dy[p, k, j], dx[p, k, j], weight[p, k, j] = oy, ox, wt / total
-    for a in (dy, dx, weight, n_taps):
-        a.setflags(write=False)
-    return dy, dx, weight, n_taps
+                    coef[p, k, 0] = 1.0
+                    continue
+                # (group, tent weight of each member, members) of the neighbour groups holding k
+                groups = [(g, wt, n) for g, wt, n, phase in ((1, 2.0, 2, tile[ty, 1 - tx]), (2, 2.0, 2, tile[1 - ty, tx]),
+                                                             (3, 1.0, 4, tile[1 - ty, 1 - tx])) if phase == k]
+                total = sum(wt * n for _, wt, n in groups)
+                for g, wt, _ in groups:
+                    coef[p, k, g] = wt / total          # applied to the group's sum
+    coef.setflags(write=False)
+    return coef
 
 
 def bilinear_2x2_tile(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> np.ndarray:
@@ -153,10 +149,9 @@ def bilinear_2x2_tile(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> 
     block (in threads for large frames)."""
     h, w = mosaic.shape
     mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
-    dy, dx, weight, n_taps = _bilinear_taps(np.ascontiguousarray(tile, dtype=np.int64).tobytes(), n_channels)
+    coef = _bilinear_coefficients(np.ascontiguousarray(tile, dtype=np.int64).tobytes(), n_channels)
     out = np.empty((h, w, n_channels), dtype=np.float32)
-    map_row_blocks(lambda _, rows: kernels.bilinear_2x2(mosaic, dy, dx, weight, n_taps, rows.start, rows.stop, out),
-                   h, h * w)
+    map_row_blocks(lambda _, rows: kernels.bilinear_2x2(mosaic, coef, rows.start, rows.stop, out), h, h * w)
     return out
 
 

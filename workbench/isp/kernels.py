@@ -110,33 +110,36 @@ def _mirror(i, n):
 
 
 @njit(cache=_CACHE, nogil=True)
-def bilinear_2x2(mosaic, tap_dy, tap_dx, tap_weight, n_taps, first_row, stop_row, out):
+def bilinear_2x2(mosaic, coef, first_row, stop_row, out):
     """Rows first_row…stop_row − 1 of a 2×2-tile bilinear demosaic (H×W float32 mosaic → out
     H×W×K).
 
-    For CFA phase p = 2·(y mod 2) + (x mod 2) and channel k, the value is Σ_j weight[p, k, j] ·
-    mosaic[y + dy[p, k, j], x + dx[p, k, j]] over the n_taps[p, k] same-channel samples (a measured
-    sample is the one tap (0, 0, 1)). Neighbours beyond the border are mirrored without repeating
-    the edge (index −1 → 1), which keeps the CFA phase; interior pixels skip the mirroring."""
+    On a 2×2 tile the two horizontal neighbours of a pixel share one CFA phase, as do the two
+    vertical and the four diagonal ones, so every channel at every pixel is
+    coef[p, k] · (centre, horizontal sum, vertical sum, diagonal sum) for the pixel's phase
+    p = 2·(y mod 2) + (x mod 2): (1, 0, 0, 0) where the pixel measured channel k, else the tent
+    weights (2 for edge, 1 for diagonal neighbours) of the groups that hold k, normalised.
+    Neighbours beyond the border are mirrored without repeating the edge (index −1 → 1), which
+    keeps the CFA phase."""
     h, w = mosaic.shape
     k_channels = out.shape[2]
     for y in range(first_row, stop_row):
-        edge_row = y == 0 or y == h - 1
+        up = mosaic[_mirror(y - 1, h)]
+        row = mosaic[y]
+        down = mosaic[_mirror(y + 1, h)]
+        o = out[y]
+        py = 2 * (y & 1)
         for x in range(w):
-            p = 2 * (y & 1) + (x & 1)
-            if edge_row or x == 0 or x == w - 1:
-                for k in range(k_channels):
-                    acc = np.float32(0.0)
-                    for j in range(n_taps[p, k]):
-                        acc += (mosaic[_mirror(y + tap_dy[p, k, j], h), _mirror(x + tap_dx[p, k, j], w)]
-                                * tap_weight[p, k, j])
-                    out[y, x, k] = acc
-            else:
-                for k in range(k_channels):
-                    acc = np.float32(0.0)
-                    for j in range(n_taps[p, k]):
-                        acc += mosaic[y + tap_dy[p, k, j], x + tap_dx[p, k, j]] * tap_weight[p, k, j]
-                    out[y, x, k] = acc
+            xl = _mirror(x - 1, w)
+            xr = _mirror(x + 1, w)
+            centre = row[x]
+            across = row[xl] + row[xr]
+            along = up[x] + down[x]
+            diagonal = (up[xl] + up[xr]) + (down[xl] + down[xr])
+            p = py + (x & 1)
+            for k in range(k_channels):
+                o[x, k] = (coef[p, k, 0] * centre + coef[p, k, 1] * across + coef[p, k, 2] * along
+                           + coef[p, k, 3] * diagonal)
 
 
 @njit(cache=_CACHE, nogil=True, inline="always")
