@@ -53,3 +53,31 @@ def test_budget_cores_are_the_cores_within_the_thread_budget(monkeypatch):
     assert budget_cores() == 1 and thread_count() == 1
     monkeypatch.setenv("WORKBENCH_THREADS", "64")
     assert budget_cores() == cores
+
+
+def test_row_blocks_run_in_order_and_on_the_calling_thread_when_the_pool_is_busy(monkeypatch):
+    import threading
+
+    from workbench.compute import pixel_threads as pt
+    monkeypatch.setattr(pt, "thread_count", lambda: 2)
+    where = {}
+
+    def block(i, rows):
+        where[i] = threading.current_thread().name
+        return i, rows.start, rows.stop
+    serial = [(i, b.start, b.stop) for i, b in enumerate(pt.row_blocks(480))]
+    assert pt.map_row_blocks(block, 480, 480 * 640) == serial
+    # Every pool thread busy: the blocks run on the calling thread instead of waiting for them.
+    release = threading.Event()
+    busy = [pt._executor().submit(release.wait, 10) for _ in range(pt.BLOCKS)]
+    try:
+        where.clear()
+        out = []
+        caller = threading.Thread(target=lambda: out.append(pt.map_row_blocks(block, 480, 480 * 640)), name="caller")
+        caller.start()
+        caller.join(5)
+        assert out == [serial] and set(where.values()) == {"caller"}
+    finally:
+        release.set()
+        for job in busy:
+            job.result()

@@ -62,9 +62,15 @@ def row_blocks(rows: int) -> list[slice]:
 
 def map_row_blocks(fn: Callable[[int, slice], R], rows: int, pixels: int) -> list[R]:
     """[fn(i, block i) for each row block], in threads when the frame has `pixels` ≥
-    PARALLEL_MIN_PIXELS and more than one thread is allowed. fn must release the GIL to gain."""
+    PARALLEL_MIN_PIXELS and more than one thread is allowed. fn must release the GIL to gain.
+
+    The calling thread runs the first block itself, then any block no pool thread has started
+    yet (on a busy machine a pool thread may wait for a core longer than the block takes)."""
     blocks = row_blocks(rows)
     if pixels < PARALLEL_MIN_PIXELS or thread_count() == 1:
         return [fn(i, block) for i, block in enumerate(blocks)]
-    jobs = [_executor().submit(fn, i, block) for i, block in enumerate(blocks)]
-    return [job.result() for job in jobs]
+    jobs = [_executor().submit(fn, i, block) for i, block in enumerate(blocks[1:], start=1)]
+    results = [fn(0, blocks[0])]
+    for i, job in enumerate(jobs, start=1):
+        results.append(fn(i, blocks[i]) if job.cancel() else job.result())
+    return results
