@@ -38,3 +38,24 @@ def test_cancel_stops_a_long_render_and_the_worker_takes_the_next_edit(qapp, qtb
         assert frames[0].project == quick and frames[0].srgb.std() > 0
     finally:
         runner.shutdown()
+
+
+def test_the_runner_warms_the_pixel_kernels_once_when_idle_after_its_first_frame(qapp, qtbot, monkeypatch):
+    import workbench.warm_up
+    from workbench.gui.live import LiveRunner
+    warmed = []
+    monkeypatch.setattr(workbench.warm_up, "warm_up_pixel_kernels", warmed.append)
+    runner = LiveRunner()
+    frames = []
+    runner.frameReady.connect(frames.append)
+    try:
+        project = load_project("paper_camera")
+        project = project.updated(sensor=project.sensor.updated(rows=24, cols=32))
+        runner.submit(project)
+        qtbot.waitUntil(lambda: len(frames) == 1 and bool(warmed), timeout=60_000)
+        runner.submit(project.updated(sensor=project.sensor.updated(analog_gain=2.0)))
+        qtbot.waitUntil(lambda: len(frames) == 2 and not runner.busy, timeout=60_000)
+        qtbot.wait(100)
+        assert warmed == [project]                   # once, with the window's project
+    finally:
+        runner.shutdown()

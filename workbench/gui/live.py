@@ -11,6 +11,7 @@ numpy arrays (Frame) through a queued signal; the GUI thread never waits on the 
 from __future__ import annotations
 
 import functools
+import logging
 import threading
 import time
 from dataclasses import dataclass, field
@@ -21,6 +22,8 @@ from PySide6.QtCore import QObject, Signal
 from workbench.jobs import CancelToken, JobCancelled
 from workbench.pipeline import Pipeline
 from workbench.project import Project
+
+log = logging.getLogger("workbench.gui.live")
 
 PREVIEW_SPP = 1          # samples per pixel of the first, quick city render after a camera move: a
 # quick look (render.city_frame.CitySceneSession.job): sampled on a 2× coarser film, visible labels only
@@ -164,6 +167,7 @@ class LiveRunner(QObject):
         self._preview_builder = FrameBuilder()
         self._last_full: Project | None = None
         self.render_worker = None                  # started with the first city project
+        self._warmed = False
         self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
         self._thread.start()
 
@@ -227,6 +231,18 @@ class LiveRunner(QObject):
                     idle = self._pending is None
                 if idle:
                     self.busyChanged.emit(False)
+            if idle and not self._warmed:
+                self._warm_up(project)
+
+    def _warm_up(self, project: Project) -> None:
+        """Once, when idle after the first run: load the pixel kernels a later edit may call
+        (workbench.warm_up), so that edit does not pay for it."""
+        from workbench.warm_up import warm_up_pixel_kernels
+        self._warmed = True
+        try:
+            warm_up_pixel_kernels(window_project(project))
+        except Exception:  # noqa: BLE001 — only a head start; the edit itself reports any error
+            log.exception("warming up the pixel kernels failed")
 
     def _drive(self, pipe: Pipeline, token: CancelToken) -> None:
         job = pipe.run_job(token)
