@@ -14,8 +14,8 @@ WARM_UP_PX = 4
 
 
 def warm_up_pixel_kernels(project) -> None:
-    """Run the sensor read-out and the ISP (white world, 'max' normalisation: every ISP kernel)
-    once on a WARM_UP_PX × WARM_UP_PX frame of `project`'s sensor."""
+    """Run the sensor read-out and the ISP (white world with 'max' normalisation, and the Malvar
+    demosaic: every ISP kernel) once on a WARM_UP_PX × WARM_UP_PX frame of `project`'s sensor."""
     from workbench.isp import sensor_image_to_srgb
     from workbench.sensor import signal_rate_to_sensor_image
     from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM
@@ -25,3 +25,4 @@ def warm_up_pixel_kernels(project) -> None:
     image = signal_rate_to_sensor_image(rate, sensor, 1e-3, np.random.default_rng(0),
                                         wavelengths_nm=SENSOR_SPECTRAL_GRID_NM)
     sensor_image_to_srgb(image, project.isp.updated(illuminant_correction="white_world", normalize="max"))
+    sensor_image_to_srgb(image, project.isp.updated(demosaic="malvar2004"))     # its kernel, on a Bayer tile

@@ -127,3 +127,21 @@ def test_a_large_frame_in_threads_equals_tent_convolution(monkeypatch):
     cfa = np.random.default_rng(2).random((301, 257)).astype(np.float32)
     assert cfa.size >= pixel_threads.PARALLEL_MIN_PIXELS
     np.testing.assert_allclose(bilinear_2x2_tile(cfa, tile, 3), bilinear_tent_convolution(cfa, tile, 3), atol=2e-6)
+
+
+@pytest.mark.parametrize("pattern", ["RGGB", "GRBG", "BGGR", "GBRG"])
+@pytest.mark.parametrize("h, w", [(3, 3), (7, 9), (240, 320)])
+def test_compiled_malvar_equals_colour_demosaicing_on_a_mirrored_mosaic(pattern, h, w):
+    """Oracle: colour-demosaicing's Malvar (2004) on the mosaic mirrored by 2 pixels (numpy 'reflect',
+    which keeps the CFA phase) sees, inside the crop, exactly the neighbourhoods our kernel mirrors
+    into; the clip to the data range is the wrapper's. 240×320 runs in threads."""
+    import colour_demosaicing
+    names = sorted(set(pattern), key=pattern.index)            # channel order as the pattern first lists it
+    tile = np.array([[names.index(c) for c in pattern[:2]], [names.index(c) for c in pattern[2:]]])
+    cfa = np.random.default_rng(h * w).random((h, w)).astype(np.float32)
+    ours, notes = demosaic(cfa, tile, names, "malvar2004")
+    ref = colour_demosaicing.demosaicing_CFA_Bayer_Malvar2004(np.pad(cfa.astype(np.float64), 2, mode="reflect"),
+                                                              pattern)[2:-2, 2:-2]
+    ref = np.clip(ref[..., ["RGB".index(n) for n in names]], cfa.min(), cfa.max())
+    assert notes == [] and ours.dtype == np.float32
+    np.testing.assert_allclose(ours, ref, atol=5e-7)

@@ -1,6 +1,6 @@
 """warm_up_pixel_kernels loads every compiled sensor and ISP kernel with the argument types a full
 frame uses: in a fresh process, after the warm-up, full 640×480 frames through every illuminant
-correction, highlight mode and normalisation compile or load nothing more."""
+correction, highlight mode, normalisation and compiled demosaic compile or load nothing more."""
 import subprocess
 import sys
 
@@ -14,7 +14,7 @@ from workbench.stages.geometry import project_geometry
 from workbench.stages.optics import form_optical_image
 from workbench.stages.scene import chart_scene
 
-KERNELS = [kernels.colour_pixels, kernels.bilinear_2x2, kernels.ics_maxima, kernels.bright_sums,
+KERNELS = [kernels.colour_pixels, kernels.bilinear_2x2, kernels.malvar_2x2, kernels.ics_maxima, kernels.bright_sums,
            kernels.srgb_encode_flat, sensor_kernels.read_out_block]
 project = load_project("paper_camera")
 warm_up_pixel_kernels(project)
@@ -29,8 +29,9 @@ assert image.dn.shape == (480, 640)
 for method in ("none", "gray_world", "gray_pixels", "white_world", "manual"):
     for highlights in ("neutral", "clip"):
         for normalize in ("swing", "max"):
-            sensor_image_to_srgb(image, project.isp.updated(illuminant_correction=method, highlights=highlights,
-                                                            normalize=normalize))
+            for demosaic in ("bilinear", "malvar2004"):
+                sensor_image_to_srgb(image, project.isp.updated(illuminant_correction=method, highlights=highlights,
+                                                                normalize=normalize, demosaic=demosaic))
 after = [len(k.signatures) for k in KERNELS]
 assert after == warm, (warm, after)
 print("ok")

@@ -8,8 +8,9 @@ notes). 'bilinear' is our own normalised convolution with the tent kernel [1 2 1
 colour-demosaicing (identical in the interior; at the outermost pixels we mirror without repeating
 the edge, which keeps the CFA phase, where colour-demosaicing's scipy 'reflect' does not), and it
 works for any CFA tile (RCCC, RCCB, RGBW, MONO, larger periods).
-'malvar2004' and 'menon2007' call colour-demosaicing and need a 2×2 Bayer tile; on other CFAs
-they fall back to bilinear and say so.
+'malvar2004' is our compiled Malvar–He–Cutler filter set (colour-demosaicing's filters, tested
+against it; mirrored borders as for bilinear), 'menon2007' calls colour-demosaicing; both need a
+2×2 Bayer tile and on other CFAs fall back to bilinear and say so.
 """
 from __future__ import annotations
 
@@ -155,6 +156,60 @@ def bilinear_2x2_tile(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> 
     return out
 
 
+# Malvar, He & Cutler (2004) filters as weights (×8) of (centre, horizontal pair, vertical pair,
+# horizontal pair at 2, vertical pair at 2, four diagonals): the green filter at red and blue
+# sites, red/blue at a green site whose horizontal (or vertical) neighbours hold it, and red at
+# blue / blue at red sites.
+MALVAR_GREEN = (4.0, 2.0, 2.0, -1.0, -1.0, 0.0)
+MALVAR_ACROSS = (5.0, 4.0, 0.0, -1.0, 0.5, -1.0)
+MALVAR_ALONG = (5.0, 0.0, 4.0, 0.5, -1.0, -1.0)
+MALVAR_DIAGONAL = (6.0, 0.0, 0.0, -1.5, -1.5, 2.0)
+
+
+@lru_cache(maxsize=32)
+def _malvar_coefficients(tile_bytes: bytes) -> np.ndarray:
+    """coef (4 phases × 3 × 6) of kernels.malvar_2x2 for a 2×2 Bayer tile (channel indices)."""
+    tile = np.frombuffer(tile_bytes, dtype=np.int64).reshape(2, 2)
+    green = int(np.bincount(tile.ravel()).argmax())          # the channel on the tile's diagonal
+    coef = np.zeros((4, 3, 6), dtype=np.float32)
+    for ty in (0, 1):
+        for tx in (0, 1):
+            p = 2 * ty + tx
+            for k in range(3):
+                if tile[ty, tx] == k:
+                    coef[p, k, 0] = 1.0
+                    continue
+                weights = (MALVAR_GREEN if k == green else MALVAR_ACROSS if tile[ty, 1 - tx] == k
+                           else MALVAR_ALONG if tile[1 - ty, tx] == k else MALVAR_DIAGONAL)
+                coef[p, k] = np.asarray(weights) / 8.0
+    coef.setflags(write=False)
+    return coef
+
+
+def demosaic_malvar2004(mosaic: np.ndarray, cfa_tile: np.ndarray, n_channels: int,
+                        channel_names: list[str] | None = None) -> tuple[np.ndarray, list[str]]:
+    """Malvar–He–Cutler (2004) gradient-corrected linear demosaic of a 2×2 Bayer R/G/B tile, one
+    compiled pass per row block (kernels.malvar_2x2; colour-demosaicing's
+    demosaicing_CFA_Bayer_Malvar2004 is the same filters with edge-repeating borders, where we
+    mirror and keep the CFA phase); clipped to the mosaic's range (the gradient terms can
+    overshoot). Other CFAs: bilinear, with a note."""
+    names = list(channel_names or [])
+    if bayer_pattern(cfa_tile, names) is None:
+        planes, notes = demosaic_bilinear(mosaic, cfa_tile, n_channels, names)
+        return planes, notes + [f"malvar2004 needs a 2×2 Bayer R/G/B tile; channels {names} with tile "
+                                f"{np.asarray(cfa_tile).tolist()} were demosaiced bilinearly"]
+    mosaic, tile = _check_inputs(mosaic, cfa_tile, n_channels)
+    h, w = mosaic.shape
+    if min(h, w) < 3:                      # the 5×5 filters need 3 pixels to mirror into
+        return demosaic_bilinear(mosaic, tile, n_channels, names)
+    mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
+    coef = _malvar_coefficients(np.ascontiguousarray(tile, dtype=np.int64).tobytes())
+    out = np.empty((h, w, 3), dtype=np.float32)
+    map_row_blocks(lambda _, rows: kernels.malvar_2x2(mosaic, coef, rows.start, rows.stop, out), h, h * w)
+    np.clip(out, mosaic.min(), mosaic.max(), out=out)
+    return out, []
+
+
 def bayer_pattern(cfa_tile: np.ndarray, channel_names: list[str]) -> str | None:
     """The colour-demosaicing pattern name ('RGGB', …) of a 2×2 R/G/B tile, else None."""
     tile = np.asarray(cfa_tile)
@@ -190,7 +245,7 @@ def _colour_demosaicing(fn_name: str) -> Callable:
 
 DEMOSAIC_METHODS: Registry[Callable] = Registry("isp.demosaic", "demosaic method")
 DEMOSAIC_METHODS.register("bilinear")(demosaic_bilinear)
-DEMOSAIC_METHODS.register("malvar2004")(_colour_demosaicing("demosaicing_CFA_Bayer_Malvar2004"))
+DEMOSAIC_METHODS.register("malvar2004")(demosaic_malvar2004)
 DEMOSAIC_METHODS.register("menon2007")(_colour_demosaicing("demosaicing_CFA_Bayer_Menon2007"))
 
 

@@ -147,6 +147,41 @@ def bilinear_2x2(mosaic, coef, first_row, stop_row, out):
                            + coef[p, k, 3] * diagonal)
 
 
+@njit(cache=_CACHE, nogil=True)
+def malvar_2x2(mosaic, coef, first_row, stop_row, out):
+    """Rows first_row…stop_row − 1 of a Malvar–He–Cutler (2004) demosaic of a 2×2 tile (H×W
+    float32 mosaic, H, W ≥ 3 → out H×W×K).
+
+    Its 5×5 filters weigh, around a pixel, the centre, the horizontal and vertical neighbours at
+    distance 1 and 2 and the four diagonal ones; on a 2×2 tile each of these groups shares one CFA
+    phase, so every channel is coef[p, k] · (centre, horizontal pair, vertical pair, horizontal
+    pair at 2, vertical pair at 2, diagonals) for the pixel's phase p (demosaic.py builds coef
+    from the paper's filters). Beyond the border the mosaic is mirrored without repeating the
+    edge, which keeps the CFA phase."""
+    h, w = mosaic.shape
+    k_channels = out.shape[2]
+    for y in range(first_row, stop_row):
+        up2 = mosaic[_mirror(y - 2, h)]
+        up = mosaic[_mirror(y - 1, h)]
+        row = mosaic[y]
+        down = mosaic[_mirror(y + 1, h)]
+        down2 = mosaic[_mirror(y + 2, h)]
+        o = out[y]
+        py = 2 * (y & 1)
+        for x in range(w):
+            xl = _mirror(x - 1, w)
+            xr = _mirror(x + 1, w)
+            sums = (row[x], row[xl] + row[xr], up[x] + down[x],
+                    row[_mirror(x - 2, w)] + row[_mirror(x + 2, w)], up2[x] + down2[x],
+                    (up[xl] + up[xr]) + (down[xl] + down[xr]))
+            p = py + (x & 1)
+            for k in range(k_channels):
+                acc = np.float32(0.0)
+                for j in range(6):
+                    acc += coef[p, k, j] * sums[j]
+                o[x, k] = acc
+
+
 @njit(cache=_CACHE, nogil=True, inline="always")
 def _below(flat, i, limit):
     """Every channel of pixel i is below limit (a NaN channel is not)."""
