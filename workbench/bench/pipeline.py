@@ -54,6 +54,7 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
     def capture(rate):
         return signal_rate_to_sensor_image(rate, sensor, resolve_exposure(rate, sensor), rng, wavelengths_nm=wl)
     image = capture(rate)
+    malvar = project.isp.updated(demosaic="malvar2004")
 
     def live():
         sensor_image_to_srgb(capture(irradiance_to_signal_rate(oi, sensor)), project.isp)
@@ -72,6 +73,7 @@ def bench_resolution(rows: int, cols: int, repeats: int, bands_step_nm: float = 
         **_times("signal", lambda: irradiance_to_signal_rate(oi, sensor), repeats),
         **_times("sensor", lambda: capture(rate), repeats),
         **_times("isp", lambda: sensor_image_to_srgb(image, project.isp), repeats),
+        **_times("isp_malvar2004", lambda: sensor_image_to_srgb(image, malvar), repeats),
         **_times("sensor+isp_from_cached_irradiance", live, repeats),
         "peak_traced_MB": peak_bytes / 2**20,
     }
