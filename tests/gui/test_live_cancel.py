@@ -40,11 +40,11 @@ def test_cancel_stops_a_long_render_and_the_worker_takes_the_next_edit(qapp, qtb
         runner.shutdown()
 
 
-def test_the_runner_warms_the_pixel_kernels_once_when_idle_after_its_first_frame(qapp, qtbot, monkeypatch):
+def test_the_runner_warms_the_pixel_kernels_once_before_its_first_run(qapp, qtbot, monkeypatch):
     import workbench.warm_up
     from workbench.gui.live import LiveRunner
     warmed = []
-    monkeypatch.setattr(workbench.warm_up, "warm_up_pixel_kernels", warmed.append)
+    monkeypatch.setattr(workbench.warm_up, "warm_up_pixel_kernels", lambda p: warmed.append((p, len(frames))))
     runner = LiveRunner()
     frames = []
     runner.frameReady.connect(frames.append)
@@ -56,6 +56,6 @@ def test_the_runner_warms_the_pixel_kernels_once_when_idle_after_its_first_frame
         runner.submit(project.updated(sensor=project.sensor.updated(analog_gain=2.0)))
         qtbot.waitUntil(lambda: len(frames) == 2 and not runner.busy, timeout=60_000)
         qtbot.wait(100)
-        assert warmed == [project]                   # once, with the window's project
+        assert warmed == [(project, 0)]             # once, with the window's project, before the first frame
     finally:
         runner.shutdown()

@@ -218,6 +218,8 @@ class LiveRunner(QObject):
                 token = self._token = CancelToken()
             self.busyChanged.emit(True)
             limit_worker_threads()
+            if not self._warmed:
+                self._warm_up(project)
             try:
                 self._run(project, submitted_at, token)
             except JobCancelled:
@@ -231,12 +233,12 @@ class LiveRunner(QObject):
                     idle = self._pending is None
                 if idle:
                     self.busyChanged.emit(False)
-            if idle and not self._warmed:
-                self._warm_up(project)
 
     def _warm_up(self, project: Project) -> None:
-        """Once, when idle after the first run: load the pixel kernels a later edit may call
-        (workbench.warm_up), so that edit does not pay for it."""
+        """Once, before the first run (the window is still opening, nobody is editing yet; ~80 ms
+        in a fresh process): load the pixel kernels a later edit may call (workbench.warm_up), so
+        that edit does not pay for it. Done after the first frame, it delayed an edit made right
+        then by as much."""
         from workbench.warm_up import warm_up_pixel_kernels
         self._warmed = True
         try:
