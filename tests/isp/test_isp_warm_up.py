@@ -14,7 +14,7 @@ from workbench.stages.geometry import project_geometry
 from workbench.stages.optics import form_optical_image
 from workbench.stages.scene import chart_scene
 
-KERNELS = [kernels.colour_pixels, kernels.bilinear_2x2, kernels.malvar_2x2, kernels.ics_maxima, kernels.bright_sums,
+KERNELS = [kernels.colour_pixels, kernels.demosaic_2x2, kernels.ics_maxima, kernels.bright_sums,
            kernels.srgb_encode_flat, sensor_kernels.read_out_block]
 project = load_project("paper_camera")
 warm_up_pixel_kernels(project)

@@ -122,12 +122,12 @@ def bilinear_tent_convolution(mosaic: np.ndarray, tile: np.ndarray, n_channels: 
 
 @lru_cache(maxsize=32)
 def _bilinear_coefficients(tile_bytes: bytes, n_channels: int) -> np.ndarray:
-    """coef (4 phases × K × 4) of kernels.bilinear_2x2 for a 2×2 tile: for each phase and
-    channel, the weights of (centre, horizontal pair, vertical pair, four diagonals) — the
-    channel's samples among the 8 neighbours with the tent weights (2 for edge, 1 for diagonal
-    neighbours) normalised to sum 1, or the pixel itself where it measured the channel."""
+    """coef (4 phases × K × 6) of kernels.demosaic_2x2 for a 2×2 tile: for each phase and
+    channel, the weights of its neighbour groups — the channel's samples among the 8 neighbours
+    with the tent weights (2 for edge, 1 for diagonal neighbours) normalised to sum 1, or the
+    pixel itself where it measured the channel."""
     tile = np.frombuffer(tile_bytes, dtype=np.int64).reshape(2, 2)
-    coef = np.zeros((4, n_channels, 4), dtype=np.float32)
+    coef = np.zeros((4, n_channels, 6), dtype=np.float32)
     for ty in (0, 1):
         for tx in (0, 1):
             p = 2 * ty + tx
@@ -152,23 +152,23 @@ def bilinear_2x2_tile(mosaic: np.ndarray, tile: np.ndarray, n_channels: int) -> 
     mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
     coef = _bilinear_coefficients(np.ascontiguousarray(tile, dtype=np.int64).tobytes(), n_channels)
     out = np.empty((h, w, n_channels), dtype=np.float32)
-    map_row_blocks(lambda _, rows: kernels.bilinear_2x2(mosaic, coef, rows.start, rows.stop, out), h, h * w)
+    map_row_blocks(lambda _, rows: kernels.demosaic_2x2(mosaic, coef, False, rows.start, rows.stop, out), h, h * w)
     return out
 
 
 # Malvar, He & Cutler (2004) filters as weights (×8) of (centre, horizontal pair, vertical pair,
-# horizontal pair at 2, vertical pair at 2, four diagonals): the green filter at red and blue
+# four diagonals, horizontal pair at 2, vertical pair at 2): the green filter at red and blue
 # sites, red/blue at a green site whose horizontal (or vertical) neighbours hold it, and red at
 # blue / blue at red sites.
-MALVAR_GREEN = (4.0, 2.0, 2.0, -1.0, -1.0, 0.0)
-MALVAR_ACROSS = (5.0, 4.0, 0.0, -1.0, 0.5, -1.0)
-MALVAR_ALONG = (5.0, 0.0, 4.0, 0.5, -1.0, -1.0)
-MALVAR_DIAGONAL = (6.0, 0.0, 0.0, -1.5, -1.5, 2.0)
+MALVAR_GREEN = (4.0, 2.0, 2.0, 0.0, -1.0, -1.0)
+MALVAR_ACROSS = (5.0, 4.0, 0.0, -1.0, -1.0, 0.5)
+MALVAR_ALONG = (5.0, 0.0, 4.0, -1.0, 0.5, -1.0)
+MALVAR_DIAGONAL = (6.0, 0.0, 0.0, 2.0, -1.5, -1.5)
 
 
 @lru_cache(maxsize=32)
 def _malvar_coefficients(tile_bytes: bytes) -> np.ndarray:
-    """coef (4 phases × 3 × 6) of kernels.malvar_2x2 for a 2×2 Bayer tile (channel indices)."""
+    """coef (4 phases × 3 × 6) of kernels.demosaic_2x2 for a 2×2 Bayer tile (channel indices)."""
     tile = np.frombuffer(tile_bytes, dtype=np.int64).reshape(2, 2)
     green = int(np.bincount(tile.ravel()).argmax())          # the channel on the tile's diagonal
     coef = np.zeros((4, 3, 6), dtype=np.float32)
@@ -189,9 +189,9 @@ def _malvar_coefficients(tile_bytes: bytes) -> np.ndarray:
 def demosaic_malvar2004(mosaic: np.ndarray, cfa_tile: np.ndarray, n_channels: int,
                         channel_names: list[str] | None = None) -> tuple[np.ndarray, list[str]]:
     """Malvar–He–Cutler (2004) gradient-corrected linear demosaic of a 2×2 Bayer R/G/B tile, one
-    compiled pass per row block (kernels.malvar_2x2; colour-demosaicing's
+    compiled pass per row block (colour-demosaicing's
     demosaicing_CFA_Bayer_Malvar2004 is the same filters with edge-repeating borders, where we
-    mirror and keep the CFA phase); clipped to the mosaic's range (the gradient terms can
+    mirror and keep the CFA phase; kernels.demosaic_2x2); clipped to the mosaic's range (the gradient terms can
     overshoot). Other CFAs: bilinear, with a note."""
     names = list(channel_names or [])
     if bayer_pattern(cfa_tile, names) is None:
@@ -205,7 +205,7 @@ def demosaic_malvar2004(mosaic: np.ndarray, cfa_tile: np.ndarray, n_channels: in
     mosaic = np.ascontiguousarray(mosaic, dtype=np.float32)
     coef = _malvar_coefficients(np.ascontiguousarray(tile, dtype=np.int64).tobytes())
     out = np.empty((h, w, 3), dtype=np.float32)
-    map_row_blocks(lambda _, rows: kernels.malvar_2x2(mosaic, coef, rows.start, rows.stop, out), h, h * w)
+    map_row_blocks(lambda _, rows: kernels.demosaic_2x2(mosaic, coef, True, rows.start, rows.stop, out), h, h * w)
     np.clip(out, mosaic.min(), mosaic.max(), out=out)
     return out, []
 

@@ -115,69 +115,40 @@ def _mirror(i, n):
 
 
 @njit(cache=_CACHE, nogil=True)
-def bilinear_2x2(mosaic, coef, first_row, stop_row, out):
-    """Rows first_row…stop_row − 1 of a 2×2-tile bilinear demosaic (H×W float32 mosaic → out
-    H×W×K).
+def demosaic_2x2(mosaic, coef, far, first_row, stop_row, out):
+    """Rows first_row…stop_row − 1 of a linear demosaic of a 2×2 CFA tile (H×W float32 mosaic,
+    H, W ≥ 2, or ≥ 3 with `far` → out H×W×K): bilinear and Malvar–He–Cutler (2004).
 
-    On a 2×2 tile the two horizontal neighbours of a pixel share one CFA phase, as do the two
-    vertical and the four diagonal ones, so every channel at every pixel is
-    coef[p, k] · (centre, horizontal sum, vertical sum, diagonal sum) for the pixel's phase
-    p = 2·(y mod 2) + (x mod 2): (1, 0, 0, 0) where the pixel measured channel k, else the tent
-    weights (2 for edge, 1 for diagonal neighbours) of the groups that hold k, normalised.
-    Neighbours beyond the border are mirrored without repeating the edge (index −1 → 1), which
+    Their filters weigh, around a pixel, the centre, the horizontal and vertical neighbours at
+    distance 1 (and, for Malvar's 5×5 filters, at distance 2: `far`) and the four diagonal ones;
+    on a 2×2 tile each of these groups shares one CFA phase, so every channel is
+    coef[p, k] · (centre, horizontal pair, vertical pair, diagonals, horizontal pair at 2,
+    vertical pair at 2; the last two only with `far`) for the pixel's phase p = 2·(y mod 2) + (x mod 2) (demosaic.py builds coef).
+    Beyond the border the mosaic is mirrored without repeating the edge (index −1 → 1), which
     keeps the CFA phase."""
     h, w = mosaic.shape
     k_channels = out.shape[2]
+    zero = np.float32(0.0)
+    groups = 6 if far else 4
     for y in range(first_row, stop_row):
         up = mosaic[_mirror(y - 1, h)]
         row = mosaic[y]
         down = mosaic[_mirror(y + 1, h)]
+        up2 = mosaic[_mirror(y - 2, h)] if far else row
+        down2 = mosaic[_mirror(y + 2, h)] if far else row
         o = out[y]
         py = 2 * (y & 1)
         for x in range(w):
             xl = _mirror(x - 1, w)
             xr = _mirror(x + 1, w)
-            centre = row[x]
-            across = row[xl] + row[xr]
-            along = up[x] + down[x]
-            diagonal = (up[xl] + up[xr]) + (down[xl] + down[xr])
+            across2 = row[_mirror(x - 2, w)] + row[_mirror(x + 2, w)] if far else zero
+            along2 = up2[x] + down2[x] if far else zero
+            sums = (row[x], row[xl] + row[xr], up[x] + down[x], (up[xl] + up[xr]) + (down[xl] + down[xr]),
+                    across2, along2)
             p = py + (x & 1)
             for k in range(k_channels):
-                o[x, k] = (coef[p, k, 0] * centre + coef[p, k, 1] * across + coef[p, k, 2] * along
-                           + coef[p, k, 3] * diagonal)
-
-
-@njit(cache=_CACHE, nogil=True)
-def malvar_2x2(mosaic, coef, first_row, stop_row, out):
-    """Rows first_row…stop_row − 1 of a Malvar–He–Cutler (2004) demosaic of a 2×2 tile (H×W
-    float32 mosaic, H, W ≥ 3 → out H×W×K).
-
-    Its 5×5 filters weigh, around a pixel, the centre, the horizontal and vertical neighbours at
-    distance 1 and 2 and the four diagonal ones; on a 2×2 tile each of these groups shares one CFA
-    phase, so every channel is coef[p, k] · (centre, horizontal pair, vertical pair, horizontal
-    pair at 2, vertical pair at 2, diagonals) for the pixel's phase p (demosaic.py builds coef
-    from the paper's filters). Beyond the border the mosaic is mirrored without repeating the
-    edge, which keeps the CFA phase."""
-    h, w = mosaic.shape
-    k_channels = out.shape[2]
-    for y in range(first_row, stop_row):
-        up2 = mosaic[_mirror(y - 2, h)]
-        up = mosaic[_mirror(y - 1, h)]
-        row = mosaic[y]
-        down = mosaic[_mirror(y + 1, h)]
-        down2 = mosaic[_mirror(y + 2, h)]
-        o = out[y]
-        py = 2 * (y & 1)
-        for x in range(w):
-            xl = _mirror(x - 1, w)
-            xr = _mirror(x + 1, w)
-            sums = (row[x], row[xl] + row[xr], up[x] + down[x],
-                    row[_mirror(x - 2, w)] + row[_mirror(x + 2, w)], up2[x] + down2[x],
-                    (up[xl] + up[xr]) + (down[xl] + down[xr]))
-            p = py + (x & 1)
-            for k in range(k_channels):
-                acc = np.float32(0.0)
-                for j in range(6):
+                acc = zero
+                for j in range(groups):
                     acc += coef[p, k, j] * sums[j]
                 o[x, k] = acc
 
