@@ -159,3 +159,13 @@ def test_a_quick_look_samples_a_coarser_film_of_the_same_view_and_casts_visible_
               run_job(CitySceneSession().job(inputs, seeds, quick_look=True)))
     finally:
         worker.close()
+
+
+def test_a_quick_look_of_an_odd_sized_film_samples_every_pixel():
+    """A film whose side is not a multiple of the factor has no coarser film of exactly its view:
+    the quick look then samples the film itself (its labels are still the visible ones)."""
+    p = tiny_city(spp=1)
+    p = p.updated(sensor=p.sensor.updated(rows=35, cols=48))
+    quick = run_job(CitySceneSession().job(city_scene_inputs(p), frame_seeds(0, 0), quick_look=True))
+    assert quick.meta["render"]["coarse_factor"] == 1 and quick.labels.meta["max_layers"] == 1
+    assert quick.scene.radiance_photons.shape[:2] == (35, 48)
