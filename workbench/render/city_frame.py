@@ -217,12 +217,12 @@ class CitySceneSession:
             quick_look: bool = False) -> Job[CityRender]:
         """city_scene_job, reusing the loaded scene where only the pose changed.
 
-        quick_look: a preview at about a quarter of the cost — the label pass records the first
+        quick_look: a first look after a camera move — the label pass records the first
         surface along each ray only (render_labels with max_layers=1: the depth, class and
         instance maps and the visible boxes are exact, the amodal boxes are the visible ones;
         labels.meta['max_layers'] says so), and a pinhole render draws its samples on a film
-        QUICK_LOOK_FACTOR times coarser per side (each coarse pixel shown over the pixels it
-        covers; meta['render']['coarse_factor']; not through the full lens model or a volumetric
+        QUICK_LOOK_FACTOR times coarser per side, a quarter of the samples at the same spp (each
+        coarse pixel shown over the pixels it covers; meta['render']['coarse_factor']; not through the full lens model or a volumetric
         fog, nor when a side is not a multiple of the factor)."""
         from workbench.jobs import JobCancelled, Progress
         from workbench.render.labels import render_labels
