@@ -21,8 +21,8 @@ def warm_up_pixel_kernels(project) -> None:
     from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM
 
     sensor = project.sensor.updated(rows=WARM_UP_PX, cols=WARM_UP_PX)
-    rate = np.linspace(1e3, 1e6, WARM_UP_PX * WARM_UP_PX, dtype=np.float32).reshape(WARM_UP_PX, WARM_UP_PX)
-    image = signal_rate_to_sensor_image(rate, sensor, 1e-3, np.random.default_rng(0),
+    rate_e_per_s = np.linspace(1e3, 1e6, WARM_UP_PX * WARM_UP_PX, dtype=np.float32).reshape(WARM_UP_PX, WARM_UP_PX)
+    image = signal_rate_to_sensor_image(rate_e_per_s, sensor, exposure_s=1e-3, rng=np.random.default_rng(0),
                                         wavelengths_nm=SENSOR_SPECTRAL_GRID_NM)
     sensor_image_to_srgb(image, project.isp.updated(illuminant_correction="white_world", normalize="max"))
     sensor_image_to_srgb(image, project.isp.updated(demosaic="malvar2004"))     # its kernel, on a Bayer tile

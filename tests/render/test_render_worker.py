@@ -41,7 +41,7 @@ def test_a_camera_move_reuses_the_loaded_scene_and_renders_what_a_fresh_load_doe
     assert session.loads == 1                                    # the pose moved, the scene stayed
     _same(again, run_job(city_scene_job(city_scene_inputs(moved), seeds)))
     assert not np.array_equal(first.scene.radiance_photons, again.scene.radiance_photons)
-    # The window's 2-spp preview of a move, then its full render: sample counts and seeds are
+    # A low-sample render of a move, then its full render: sample counts and seeds are
     # render-time settings, so both use the loaded scene, and each equals a fresh load's render.
     preview = moved.updated(pose=moved.pose.updated(manual_pan_deg=60.0),
                             render=moved.render.updated(spp=2, chunk_spp=2, preview_spp=2, seed=7))

@@ -8,8 +8,9 @@
   edit (ISP re-runs) and a sensor edit (exposure + ISP re-run), each with the longest GUI-thread
   tick gap during it; on the city: a CFA edit (a sensor-stage run on the cached render) and Undo
   of a camera move (from the stage cache).
-* A camera move on the city: the 2-spp preview on screen, the refined frame, and the longest GUI
-  stall while both render (in the render worker process); "Colour by class" switched on and off.
+* Camera moves on the city (and on a 640×480 one): the quick-look preview on screen, the refined
+  frame, and the longest GUI stall while both render (in the render worker process); "Colour by
+  class" switched on and off.
 * 3-D view frames per second with the full city of the city sample while orbiting the view.
 With --load N, N busy processes (one core each) run during every measurement.
 """

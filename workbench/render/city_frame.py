@@ -197,7 +197,8 @@ RENDER_TIME_FIELDS = frozenset({"spp", "target_rel_error", "shot_noise_ratio", "
 
 def scene_reuse_key(inputs: CitySceneInputs, seeds: FrameSeeds) -> tuple:
     """What a loaded scene depends on: the inputs without the pose and the render-time settings
-    (so the window's 2-spp preview and its full render of a camera move share one loaded scene)."""
+    (so the window's low-sample preview and its full render of a camera move share one loaded
+    scene)."""
     scene_render = inputs.render.model_dump(exclude=set(RENDER_TIME_FIELDS))
     return replace(inputs, pose=None, render=None), scene_render, seeds.arrangement
 
