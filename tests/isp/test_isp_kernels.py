@@ -29,42 +29,39 @@ def test_scale_multiplies_before_the_curve():
     np.testing.assert_allclose(srgb_encode(x, 0.25), exact_srgb(x * np.float32(0.25)), atol=2e-7)
 
 
-def reference_colour(linear, to_rgb, to_xyz, neutral):
+def reference_colour(linear, to_rgb, neutral):
     lin = linear.astype(np.float64)
     rgb = lin @ to_rgb
     if neutral:
         t = np.clip((lin.max(axis=-1) - HIGHLIGHT_START) / (SATURATED_FRACTION - HIGHLIGHT_START), 0, 1)
         w = (t * t * (3 - 2 * t))[..., None]
         rgb = rgb + w * (rgb.max(axis=-1, keepdims=True) - rgb)
-    return rgb, (None if to_xyz is None else lin @ to_xyz)
+    return rgb
 
 
 @pytest.mark.parametrize("k", [3, 4])
 @pytest.mark.parametrize("neutral", [False, True])
-@pytest.mark.parametrize("with_xyz", [False, True])
-def test_colour_pass_matches_numpy(k, neutral, with_xyz):
-    rng = np.random.default_rng(k + 2 * neutral + 4 * with_xyz)
+def test_colour_pass_matches_numpy(k, neutral):
+    """float32 sums of K products: within a few float32 roundings of the float64 reference."""
+    rng = np.random.default_rng(k + 2 * neutral)
     linear = rng.uniform(0, 1, (37, 53, k)).astype(np.float32)
     linear[::5, ::3] = rng.uniform(0.85, 1.0, (k,)).astype(np.float32)      # near saturation
-    to_rgb, to_xyz = rng.normal(0, 1, (k, 3)), (rng.normal(0, 1, (k, 3)) if with_xyz else None)
-    rgb, xyz, peak = colour_transform(linear, to_rgb, to_xyz, neutral)
-    want_rgb, want_xyz = reference_colour(linear, to_rgb, to_xyz, neutral)
+    to_rgb = rng.normal(0, 1, (k, 3))
+    rgb, peak = colour_transform(linear, to_rgb, neutral)
+    want_rgb = reference_colour(linear, to_rgb, neutral)
     assert rgb.dtype == np.float32 and rgb.shape == (37, 53, 3)
-    np.testing.assert_allclose(rgb, want_rgb, atol=2e-6)
-    assert peak == pytest.approx(want_rgb.max(), abs=2e-6)
-    if with_xyz:
-        np.testing.assert_allclose(xyz, want_xyz, atol=2e-6)
-    else:
-        assert xyz is None
+    scale = np.abs(linear).sum(axis=-1, keepdims=True) * np.abs(to_rgb).max()   # the sums' magnitude
+    assert np.all(np.abs(rgb - want_rgb) <= 1e-6 * scale)
+    assert peak == pytest.approx(want_rgb.max(), rel=1e-6)
 
 
 def test_the_fused_pass_encodes_what_the_two_passes_do():
     rng = np.random.default_rng(9)
     linear = rng.uniform(0, 1.2, (29, 31, 3)).astype(np.float32)
     to_rgb = rng.normal(0.4, 0.3, (3, 3))
-    rgb, _, peak = colour_transform(linear, to_rgb, None, True)
-    fused, _, fused_peak = colour_transform(linear, to_rgb, None, True, encode=True)
-    np.testing.assert_allclose(fused, srgb_encode(rgb), atol=1e-6)     # float64 sums, not rounded first
+    rgb, peak = colour_transform(linear, to_rgb, True)
+    fused, fused_peak = colour_transform(linear, to_rgb, True, encode=True)
+    np.testing.assert_array_equal(fused, srgb_encode(rgb))
     assert fused_peak == peak
 
 

@@ -240,6 +240,15 @@ def test_bad_input_is_refused():
         ISPParams(normalize="auto")
 
 
+def test_a_non_finite_colour_matrix_is_refused_before_the_pixels(monkeypatch):
+    """The raw image is finite and in [0, 1], so only the matrix can make a pixel NaN or Inf."""
+    from workbench.isp import process
+    monkeypatch.setattr(process, "xyz_to_linear_srgb_matrix", lambda: np.full((3, 3), np.nan))
+    si = sensor_image(np.full((6, 6, 3), 0.5), BAYER_TILES["RGGB"], "RGB", camera_like_qe())
+    with pytest.raises(ValueError, match="colour matrix .* not finite"):
+        sensor_image_to_srgb(si)
+
+
 def test_menon_on_bayer_runs_through_pipeline():
     qe = cie_like_qe()
     img, xyz_ref = macbeth_chart(qe)

@@ -57,48 +57,44 @@ def srgb_encode_flat(x, scale, table, out):
 
 
 @njit(cache=_CACHE, nogil=True)
-def colour_pixels(linear, to_rgb, to_xyz, want_xyz, highlights, highlight_start, saturated, encode, table,
-                  rgb, xyz):
-    """Per pixel of linear (N×K): rgb = linear·to_rgb (K×3), xyz = linear·to_xyz when want_xyz;
-    with highlights, blend rgb towards the neutral of its brightest component by the smoothstep of
-    the brightest sensor channel between highlight_start and saturated; with encode, rgb holds
-    the sRGB-encoded values (the table of srgb_encode_flat). Returns max(rgb) before encoding."""
+def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode, table, rgb):
+    """Per pixel of linear (N×K, float32): rgb = linear·to_rgb (K×3); with highlights, rgb blends
+    towards the neutral of its brightest component by the smoothstep of the brightest sensor
+    channel between highlight_start and saturated; with encode, rgb holds the sRGB-encoded values
+    (the table of srgb_encode_flat). float32 arithmetic without branches, so pixels pipeline
+    (relative error ~1e-7 against float64). Returns max(rgb) before encoding."""
     k_channels = linear.shape[1]
-    peak_out = -math.inf
-    span = 1.0 / (saturated - highlight_start)
-    for start in range(0, linear.shape[0], ENCODE_CHUNK):
-        stop = min(start + ENCODE_CHUNK, linear.shape[0])
-        for i in range(start, stop):
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            peak = -math.inf
+    m = to_rgb.astype(np.float32)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    start = np.float32(highlight_start)
+    span = np.float32(1.0 / (saturated - highlight_start)) if highlights else zero   # 0: no blend
+    peak_out = np.float32(-np.inf)
+    for first in range(0, linear.shape[0], ENCODE_CHUNK):
+        stop = min(first + ENCODE_CHUNK, linear.shape[0])
+        for i in range(first, stop):
+            r = zero
+            g = zero
+            b = zero
+            peak = linear[i, 0]
             for k in range(k_channels):
                 v = linear[i, k]
-                r += v * to_rgb[k, 0]
-                g += v * to_rgb[k, 1]
-                b += v * to_rgb[k, 2]
-                if v > peak:
-                    peak = v
-            if want_xyz:
-                for c in range(3):
-                    acc = 0.0
-                    for k in range(k_channels):
-                        acc += linear[i, k] * to_xyz[k, c]
-                    xyz[i, c] = acc
-            if highlights and peak > highlight_start:
-                t = min(max((peak - highlight_start) * span, 0.0), 1.0)
-                w = t * t * (3.0 - 2.0 * t)
-                grey = max(r, max(g, b))
-                r += w * (grey - r)
-                g += w * (grey - g)
-                b += w * (grey - b)
+                r += v * m[k, 0]
+                g += v * m[k, 1]
+                b += v * m[k, 2]
+                peak = max(peak, v)
+            t = min(max(zero, (peak - start) * span), one)       # max(0, NaN) is 0 in numba
+            w = t * t * (np.float32(3.0) - np.float32(2.0) * t)
+            grey = max(r, max(g, b))
+            r += w * (grey - r)
+            g += w * (grey - g)
+            b += w * (grey - b)
             peak_out = max(peak_out, max(r, max(g, b)))
             rgb[i, 0] = r
             rgb[i, 1] = g
             rgb[i, 2] = b
-        if encode:               # a loop of its own, which the compiler vectorises
-            chunk = rgb[start:stop].reshape(-1)
+        if encode:               # a loop of its own over pixels still in cache
+            chunk = rgb[first:stop].reshape(-1)
             for j in range(chunk.shape[0]):
                 chunk[j] = _encode(chunk[j], table)
     return peak_out

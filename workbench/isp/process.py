@@ -6,6 +6,7 @@ raw → (demosaic) linear sensor channels → (Macbeth/D65 matrix) XYZ → (illu
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -44,8 +45,10 @@ class ISPResult:
     linear: H×W×K demosaiced sensor channels in [0, 1], in channel_names order, black level
         removed ((dn − black) / (max_dn − black)); no colour transform.
     srgb: H×W×3 sRGB-encoded values in [0, 1] (the full pipeline).
-    xyz: H×W×3 CIE XYZ after illuminant correction, before normalisation and clipping (Y = 1 for a
-        D65 white that fills the swing), or None when no colour transform was applied.
+    xyz (made when first read): H×W×3 CIE XYZ after illuminant correction, before normalisation
+        and clipping (Y = 1 for a D65 white that fills the swing), or None when no colour
+        transform was applied.
+    to_xyz: the K×3 matrix linear → xyz (illuminant gains included), or None.
     colour_fit: the sensor→XYZ fit used (or None); gains: the illuminant-correction gains (or None).
     notes: why something was not done as asked (fallbacks, grey renderings, regularised fits)."""
 
@@ -53,10 +56,14 @@ class ISPResult:
     linear: np.ndarray
     srgb: np.ndarray
     channel_names: list[str]
-    xyz: np.ndarray | None = None
+    to_xyz: np.ndarray | None = None
     colour_fit: ColourFit | None = None
     gains: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+
+    @cached_property
+    def xyz(self) -> np.ndarray | None:
+        return None if self.to_xyz is None else linear_to_xyz(self.linear, self.to_xyz)
 
 
 def _validate(image: SensorImage) -> float:
@@ -115,32 +122,27 @@ def _scale(peak: float, normalize: str, notes: list[str]) -> float:
     raise InvalidValueError(f"normalize '{normalize}' is unknown; allowed: 'swing', 'max'")
 
 
-def colour_transform(linear: np.ndarray, to_rgb: np.ndarray, to_xyz: np.ndarray | None,
-                     neutral_highlights: bool, encode: bool = False) -> tuple[np.ndarray, np.ndarray | None, float]:
-    """H×W×K sensor channels → (linear sRGB H×W×3, XYZ H×W×3 or None, max of the linear sRGB
-    values), one compiled pass over the pixels (isp.kernels.colour_pixels); with encode the first
-    is the sRGB-encoded image (the 'swing' normalisation: nothing to scale first).
+def colour_transform(linear: np.ndarray, to_rgb: np.ndarray, neutral_highlights: bool,
+                     encode: bool = False) -> tuple[np.ndarray, float]:
+    """H×W×K sensor channels → (linear sRGB H×W×3, its maximum), one compiled pass over the pixels
+    (isp.kernels.colour_pixels); with encode the image is sRGB-encoded (the 'swing' normalisation:
+    nothing to scale first).
     neutral_highlights: pixels whose brightest sensor channel nears saturation blend towards a
     neutral of their brightest output channel — weight 0 below HIGHLIGHT_START, 1 from
     SATURATED_FRACTION on, smoothstep between — so a clipped white renders white, not pink;
     unsaturated colours are untouched."""
     h, w, k = linear.shape
-    if to_rgb.shape != (k, 3) or (to_xyz is not None and to_xyz.shape != (k, 3)):
-        raise InvalidValueError(f"colour matrices must be {k}×3 for {k} channels, got {to_rgb.shape}"
-                                + ("" if to_xyz is None else f" and {to_xyz.shape}"))
+    if to_rgb.shape != (k, 3):
+        raise InvalidValueError(f"colour matrix must be {k}×3 for {k} channels, got {to_rgb.shape}")
     flat = np.ascontiguousarray(linear.reshape(-1, k), dtype=np.float32)
     rgb = np.empty((h * w, 3), dtype=np.float32)
-    xyz = np.empty((h * w, 3), dtype=np.float32) if to_xyz is not None else None
-    m_rgb = np.ascontiguousarray(to_rgb, dtype=np.float64)
-    m_xyz = np.ascontiguousarray(to_rgb if to_xyz is None else to_xyz, dtype=np.float64)
-    no_xyz = np.empty((1, 3), dtype=np.float32)
+    matrix = np.ascontiguousarray(to_rgb, dtype=np.float64)
 
     def block(_, rows: slice) -> float:          # rows of the flat pixel array; the kernel releases the GIL
-        return kernels.colour_pixels(flat[rows], m_rgb, m_xyz, xyz is not None, bool(neutral_highlights),
-                                     HIGHLIGHT_START, SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE,
-                                     rgb[rows], no_xyz if xyz is None else xyz[rows])
+        return kernels.colour_pixels(flat[rows], matrix, bool(neutral_highlights), HIGHLIGHT_START,
+                                     SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE, rgb[rows])
     peak = max(map_row_blocks(block, h * w, h * w))
-    return rgb.reshape(h, w, 3), (xyz.reshape(h, w, 3) if xyz is not None else None), float(peak)
+    return rgb.reshape(h, w, 3), float(peak)
 
 
 def xyz_to_srgb(xyz: np.ndarray, normalize: str = "swing") -> np.ndarray:
@@ -223,7 +225,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     to_ics, white, fit, grey_reason = _colour_path(image, params, notes)
 
     gains = None
-    xyz = None
+    to_xyz = None
     if to_ics is None:
         rgb_linear = _grey(linear, names, grey_reason, notes)
         if params.illuminant_correction != "none":
@@ -239,13 +241,12 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
         to_ics = to_ics * gains   # gains folded into the matrices: one K×3 product per output
         to_rgb = to_ics @ xyz_to_linear_srgb_matrix().T if fit is not None else to_ics
         encoded = params.normalize == "swing"          # nothing to scale: encoded in the same pass
-        rgb_linear, xyz, rgb_peak = colour_transform(linear, to_rgb, to_ics if fit is not None else None,
-                                                     params.highlights == "neutral", encode=encoded)
+        to_xyz = to_ics if fit is not None else None
+        if not np.all(np.isfinite(to_rgb)):   # the raw image is finite and in [0, 1]: so is every pixel after
+            raise InvalidValueError(f"ISP: the colour matrix (fit × illuminant gains) is not finite: {to_rgb.tolist()}")
+        rgb_linear, rgb_peak = colour_transform(linear, to_rgb, params.highlights == "neutral", encode=encoded)
     srgb = rgb_linear if encoded else srgb_encode(rgb_linear, _scale(rgb_peak, params.normalize, notes))
-    for name, arr in (("linear", linear), ("srgb", srgb), ("xyz", xyz)):
-        if arr is not None and not np.isfinite(np.sum(arr)):   # NaN/Inf propagate into the sum
-            raise InvalidValueError(f"ISP produced non-finite values in '{name}' (input dn was finite)")
-    return ISPResult(raw=raw, linear=linear, srgb=srgb, channel_names=names, xyz=xyz,
+    return ISPResult(raw=raw, linear=linear, srgb=srgb, channel_names=names, to_xyz=to_xyz,
                      colour_fit=fit, gains=gains, notes=notes)
 
 
