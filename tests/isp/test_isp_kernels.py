@@ -1,5 +1,5 @@
 """The compiled per-pixel ISP kernels against plain numpy float64 references of the same formulas:
-the sRGB table against the exact curve at every float32 step near the knee and across [0, 1],
+the sRGB encoding against the exact curve at every float32 step near the knee and across [0, 1],
 the colour pass (K×3 products, neutral highlights, the maximum) on random K-channel images."""
 import numpy as np
 import pytest
@@ -13,7 +13,7 @@ def exact_srgb(x):
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
 
 
-def test_srgb_table_is_within_float32_rounding_of_the_curve():
+def test_srgb_encoding_is_within_float32_rounding_of_the_curve():
     rng = np.random.default_rng(0)
     knee = np.float32(0.0031308)
     around_knee = np.nextafter(knee, np.float32(1), dtype=np.float32) + np.arange(-2000, 2000, dtype=np.float32) * np.float32(1e-9)

@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 
 from workbench.errors import InvalidValueError
-from workbench.isp.kernels import SRGB_TABLE, srgb_encode_flat
+from workbench.isp.kernels import srgb_encode_flat
 from workbench.spectra import illuminant_spd, macbeth_reflectances, xyz_from_photons
 from workbench.units import band_widths_nm, energy_to_photons
 
@@ -149,8 +149,8 @@ def srgb_encode(linear: np.ndarray, scale: float = 1.0) -> np.ndarray:
 
     12.92·x for x ≤ 0.0031308, else 1.055·x^(1/2.4) − 0.055; within 1e-7 of
     colour.cctf_encoding(…, 'sRGB'), with 0 ↦ 0 and 1 ↦ 1 exactly, NaN kept (isp.kernels: a
-    table in √x, one compiled pass)."""
+    polynomial in the float's mantissa, one compiled pass)."""
     x = np.ascontiguousarray(linear, dtype=np.float32)
     out = np.empty_like(x)
-    srgb_encode_flat(x.reshape(-1), np.float32(scale), SRGB_TABLE, out.reshape(-1))
+    srgb_encode_flat(x.reshape(-1), np.float32(scale), out.reshape(-1))
     return out

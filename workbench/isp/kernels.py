@@ -2,9 +2,13 @@
 curve, each pixel read once.
 
 In numpy each of these is a pass over the whole frame with temporaries; the sRGB curve's power
-alone cost ~13 ms of a 640×480 frame. Here the curve is a table in s = √x: y(s) = 1.055·s^(1/1.2) −
-0.055 is smooth in s, so linear interpolation on 4,096 intervals is within 4e-8 of the exact
-curve (float32 rounding is 6e-8); below the knee the linear segment 12.92·x is computed exactly.
+alone cost ~13 ms of a 640×480 frame. Here the power x^(1/2.4) is split by the float's own
+exponent, x = 2^−n·m with m ∈ [1, 2): m^(1/2.4) is a degree-8 polynomial (Chebyshev
+interpolant, within 5e-9) and 2^(−n/2.4) a product of four constants chosen by the bits of n,
+so the curve is within 4e-8 of the exact one (float32 rounding is 6e-8) with no table and no
+branch: the compiler vectorises it (1.6 ms for 921,600 values on one thread, against 3.0 ms for
+the table in √x it replaces, whose reads cannot be vectorised). Below the knee the linear
+segment 12.92·x is computed exactly.
 """
 from __future__ import annotations
 
@@ -15,53 +19,60 @@ import numpy as np
 from numba import njit
 
 SRGB_KNEE = 0.0031308
-SRGB_TABLE_INTERVALS = 4096
+SRGB_POWER_DEGREE = 8
 ENCODE_CHUNK = 2048       # pixels whose colour products are made before they are encoded (in cache)
 _CACHE = not getattr(sys, "frozen", False)     # a frozen app has no source beside which to cache
+_CONTRACT = {"contract"}  # fused multiply-adds where the CPU has them (no other fast-math liberty)
 
 
-def _srgb_table() -> np.ndarray:
-    """The power segment of the sRGB curve (IEC 61966-2-1), 1.055·x^(1/2.4) − 0.055, at x = s²
-    for s on a uniform grid of [0, 1], float32. It is read only above the knee; the node below the
-    knee holds the power segment too (the two segments' slopes differ, 12.92 against 12.70, so a
-    node from the linear one would bend the interval that holds the knee by ~9e-7)."""
-    s = np.linspace(0.0, 1.0, SRGB_TABLE_INTERVALS + 1)
-    y = (1.055 * np.power(s * s, 1.0 / 2.4) - 0.055).astype(np.float32)
-    y[-1] = 1.0
-    y.setflags(write=False)
-    return y
+def _power_polynomial() -> tuple[float, ...]:
+    """m^(1/2.4) for m ∈ [1, 2) as a polynomial in t = 2m − 3 ∈ [−1, 1), highest power first."""
+    cheb = np.polynomial.chebyshev.chebinterpolate(lambda t: ((t + 3.0) / 2.0) ** (1.0 / 2.4), SRGB_POWER_DEGREE)
+    return tuple(float(c) for c in np.polynomial.chebyshev.cheb2poly(cheb)[::-1])
 
 
-SRGB_TABLE = _srgb_table()
+_P8, _P7, _P6, _P5, _P4, _P3, _P2, _P1, _P0 = _power_polynomial()
+_OCTAVE_1, _OCTAVE_2, _OCTAVE_4, _OCTAVE_8 = (2.0 ** (-n / 2.4) for n in (1, 2, 4, 8))
+"""2^(−n/2.4) for the bits of n: the curve at x ∈ [2^−15, 1) (the knee is 2^−8.3)."""
 
 
-@njit(cache=_CACHE, nogil=True, inline="always")
-def _encode(value, table):
-    """One value through the sRGB curve, clipped to [0, 1] first; NaN stays NaN. float32 arithmetic
-    and selects instead of branches, so the compiler can pipeline (and vectorise) it: within 1e-7
-    of the exact curve."""
-    v = np.float32(value)
-    c = min(max(np.float32(0.0), v), np.float32(1.0))   # numba's max(0, NaN) is 0: c indexes the table
-    s = np.sqrt(c) * np.float32(SRGB_TABLE_INTERVALS)
-    j = min(int(s), SRGB_TABLE_INTERVALS - 1)
-    y = table[j] + (s - np.float32(j)) * (table[j + 1] - table[j])
-    y = y if c > np.float32(SRGB_KNEE) else np.float32(12.92) * c
+@njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT, inline="always")
+def _encode(v, bits):
+    """One float32 value v (its IEEE bits: bits) through the sRGB curve, clipped to [0, 1]; NaN
+    stays NaN. Both segments are computed and one is selected, so a loop of these vectorises."""
+    n = np.int32(127) - (bits >> np.int32(23))                 # x = 2^−n·m; garbage where unused
+    t = np.float64(bits & np.int32(0x7FFFFF)) * (2.0 / 8388608.0) - 1.0
+    power = (((((((_P8 * t + _P7) * t + _P6) * t + _P5) * t + _P4) * t + _P3) * t + _P2) * t + _P1) * t + _P0
+    octave = ((_OCTAVE_1 if n & 1 else 1.0) * (_OCTAVE_2 if n & 2 else 1.0)) * (
+        (_OCTAVE_4 if n & 4 else 1.0) * (_OCTAVE_8 if n & 8 else 1.0))
+    y = np.float32(1.055 * power * octave - 0.055)
+    y = y if v > np.float32(SRGB_KNEE) else np.float32(12.92) * max(np.float32(0.0), v)
+    y = y if v < np.float32(1.0) else np.float32(1.0)
     return v if v != v else y
 
 
-@njit(cache=_CACHE, nogil=True)
-def srgb_encode_flat(x, scale, table, out):
-    """out[i] = sRGB(scale · x[i]) for flat float32 arrays."""
+@njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT)
+def _encode_in_place(values):
+    """values[i] = sRGB(values[i]) for a flat contiguous float32 array."""
+    bits = values.view(np.int32)
+    for i in range(values.shape[0]):
+        values[i] = _encode(values[i], bits[i])
+
+
+@njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT)
+def srgb_encode_flat(x, scale, out):
+    """out[i] = sRGB(scale · x[i]) for flat contiguous float32 arrays."""
     for i in range(x.shape[0]):
-        out[i] = _encode(x[i] * scale, table)
+        out[i] = x[i] * scale
+    _encode_in_place(out)
 
 
-@njit(cache=_CACHE, nogil=True)
-def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode, table, rgb):
+@njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT)
+def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode, rgb):
     """Per pixel of linear (N×K, float32): rgb = linear·to_rgb (K×3); with highlights, rgb blends
     towards the neutral of its brightest component by the smoothstep of the brightest sensor
-    channel between highlight_start and saturated; with encode, rgb holds the sRGB-encoded values
-    (the table of srgb_encode_flat). float32 arithmetic without branches, so pixels pipeline
+    channel between highlight_start and saturated; with encode, rgb holds the sRGB-encoded values.
+    float32 arithmetic without branches, so pixels pipeline
     (relative error ~1e-7 against float64). Returns max(rgb) before encoding."""
     k_channels = linear.shape[1]
     m = to_rgb.astype(np.float32)
@@ -94,9 +105,7 @@ def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode
             rgb[i, 1] = g
             rgb[i, 2] = b
         if encode:               # a loop of its own over pixels still in cache
-            chunk = rgb[first:stop].reshape(-1)
-            for j in range(chunk.shape[0]):
-                chunk[j] = _encode(chunk[j], table)
+            _encode_in_place(rgb[first:stop].reshape(-1))
     return peak_out
 
 

@@ -140,7 +140,7 @@ def colour_transform(linear: np.ndarray, to_rgb: np.ndarray, neutral_highlights:
 
     def block(_, rows: slice) -> float:          # rows of the flat pixel array; the kernel releases the GIL
         return kernels.colour_pixels(flat[rows], matrix, bool(neutral_highlights), HIGHLIGHT_START,
-                                     SATURATED_FRACTION, bool(encode), kernels.SRGB_TABLE, rgb[rows])
+                                     SATURATED_FRACTION, bool(encode), rgb[rows])
     peak = max(map_row_blocks(block, h * w, h * w))
     return rgb.reshape(h, w, 3), float(peak)
 
