@@ -108,3 +108,44 @@ def test_white_world_on_an_all_saturated_frame_uses_every_pixel_and_says_so():
     gains, notes = illuminant_gains(linear, np.eye(3), "white_world", np.ones(3), saturated=SATURATED_FRACTION)
     np.testing.assert_allclose(gains, [1 / 1.5, 1.0, 1.0])
     assert any("every pixel is saturated" in n for n in notes)
+
+
+def reference_gray_pixels(flat, to_ics, white, saturated):
+    """The gray-pixels statistic by its definition, in float64 numpy with masked copies: the
+    sampled unsaturated pixels, gray world, then rounds of gray world over the lit pixels whose
+    corrected chromaticity lies within each round's tolerance of the white's."""
+    from workbench.isp.illuminant import GREY_PIXEL_MIN_SHARE, GREY_PIXEL_SAMPLES, GREY_PIXEL_TOLERANCES
+    sample = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)].astype(np.float64)
+    valid = np.all(sample < saturated, axis=1)
+    ics = sample[valid] @ to_ics
+    gains = (white / white[1]) * (ics.mean(axis=0)[1] / ics.mean(axis=0))
+    corrected = ics * gains
+    lit = corrected.sum(axis=1) > 0.02 * np.percentile(corrected.sum(axis=1), 99)
+    for tolerance in GREY_PIXEL_TOLERANCES:
+        corrected = ics * gains
+        chroma = corrected / corrected.sum(axis=1, keepdims=True)
+        grey = lit & np.all(np.abs(chroma - white / white.sum()) < tolerance, axis=1)
+        if grey.sum() < GREY_PIXEL_MIN_SHARE * len(ics):
+            break
+        means = ics[grey].mean(axis=0)
+        gains = (white / white[1]) * (means[1] / means)
+    return gains
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_gray_pixels_statistic_matches_its_definition(seed):
+    """The compiled rounds against the numpy definition on a frame of a few coloured patches,
+    noisy greys, dark and clipped pixels, seen under a tinted light."""
+    from workbench.isp.illuminant import illuminant_gains
+    rng = np.random.default_rng(seed)
+    patches = np.concatenate([rng.uniform(0.05, 0.9, (6, 3)), np.repeat(rng.uniform(0.1, 0.9, (4, 1)), 3, axis=1)])
+    linear = patches[rng.integers(0, len(patches), (120, 160))] * rng.uniform(0.6, 1.4, 3)   # the light's tint
+    linear += rng.normal(0, 0.01, linear.shape)
+    linear[rng.random((120, 160)) < 0.05] = 1.0                          # clipped
+    linear[rng.random((120, 160)) < 0.05] = 0.001                        # dark
+    linear = np.clip(linear, 0, 1).astype(np.float32)
+    to_ics = rng.uniform(0.1, 1.0, (3, 3)) + np.eye(3)
+    white = np.array([0.95, 1.0, 1.09])
+    gains, _ = illuminant_gains(linear, to_ics, "gray_pixels", white, saturated=SATURATED_FRACTION)
+    expected = reference_gray_pixels(linear.reshape(-1, 3), to_ics, white, SATURATED_FRACTION)
+    np.testing.assert_allclose(gains, expected, rtol=1e-6)

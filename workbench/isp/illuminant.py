@@ -79,28 +79,19 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, satura
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
     sample = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)]     # an even subsample is statistic enough
     valid, saturation_notes = _unsaturated("gray_pixels", sample, saturated)
-    ics = pixels_matmul(np.ascontiguousarray(sample if valid is None else sample[valid]), to_ics)
+    ics = pixels_matmul(np.ascontiguousarray(sample if valid is None else sample[valid]), to_ics).astype(np.float64)
     gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
-    notes = saturation_notes + notes
     target = white / white.sum()
-    columns = [np.ascontiguousarray(ics[:, c]) for c in range(3)]      # column-wise: numpy's small-axis
-    lit = None                                                         # reductions are slow
-    for tolerance in GREY_PIXEL_TOLERANCES:
-        corrected = [col * g for col, g in zip(columns, gains)]
-        total = corrected[0] + corrected[1] + corrected[2]
-        if lit is None:                                                # not the darkest (noise) pixels
-            lit = total > 0.02 * np.percentile(total, 99)
-        safe = np.where(total > 0, total, 1.0)
-        distance = np.abs(corrected[0] / safe - target[0])
-        for c in (1, 2):
-            np.maximum(distance, np.abs(corrected[c] / safe - target[c]), out=distance)
-        grey = lit & (distance < tolerance)
-        if grey.sum() < GREY_PIXEL_MIN_SHARE * len(ics):
+    lit_totals = ics @ gains                       # by the first round's gains: not the darkest
+    lit = lit_totals > 0.02 * np.percentile(lit_totals, 99) if len(ics) else np.zeros(0, bool)
+    for tolerance in GREY_PIXEL_TOLERANCES:        # (noise) pixels
+        sums, count = kernels.grey_pixel_sums(ics, lit, gains, target, tolerance)
+        if count < GREY_PIXEL_MIN_SHARE * len(ics):
             notes.append(f"gray_pixels: fewer than {100 * GREY_PIXEL_MIN_SHARE:g} % of the pixels are near grey; "
                          "gray world over all of them")
             break
-        gains, notes = _gains_to_white("gray_pixels", _channel_means(ics[grey]), white)
-    return gains, notes
+        gains, notes = _gains_to_white("gray_pixels", sums / count, white)
+    return gains, saturation_notes + notes
 
 
 @ILLUMINANT_CORRECTIONS.register("white_world")

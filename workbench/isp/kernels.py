@@ -211,3 +211,26 @@ def bright_sums(ics, channel, threshold):
             for c in range(3):
                 sums[c] += ics[i, c]
     return sums, selected
+
+
+@njit(cache=_CACHE, nogil=True)
+def grey_pixel_sums(ics, lit, gains, target, tolerance):
+    """The sums (3,) of the rows of ics (N×3) that are `lit` and nearly grey once corrected: the
+    r, g, b chromaticity of ics·gains within `tolerance` of `target` in every component; and how
+    many rows those are (a round of the gray-pixels statistic)."""
+    sums = np.zeros(3)
+    count = 0
+    for i in range(ics.shape[0]):
+        if not lit[i]:
+            continue
+        r = ics[i, 0] * gains[0]
+        g = ics[i, 1] * gains[1]
+        b = ics[i, 2] * gains[2]
+        total = r + g + b
+        scale = 1.0 / total if total > 0.0 else 1.0
+        distance = max(abs(r * scale - target[0]), max(abs(g * scale - target[1]), abs(b * scale - target[2])))
+        if distance < tolerance:
+            count += 1
+            for c in range(3):
+                sums[c] += ics[i, c]
+    return sums, count
