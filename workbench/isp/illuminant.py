@@ -11,7 +11,7 @@ import numpy as np
 from workbench.errors import InvalidValueError
 from workbench.isp import kernels
 from workbench.compute.pixel_threads import map_row_blocks
-from workbench.isp.blocked import pixels_matmul, pixels_sum
+from workbench.isp.blocked import pixels_sum
 from workbench.registry import Registry
 
 REFERENCE_CHANNEL = 1
@@ -77,10 +77,12 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, satura
     """Gray world over the pixels that are nearly grey once corrected (r, g, b chromaticity within
     a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
-    sample = flat[::max(1, len(flat) // GREY_PIXEL_SAMPLES)]     # an even subsample is statistic enough
-    valid, saturation_notes = _unsaturated("gray_pixels", sample, saturated)
-    ics = pixels_matmul(np.ascontiguousarray(sample if valid is None else sample[valid]), to_ics).astype(np.float64)
-    gains, notes = _gains_to_white("gray_pixels", _channel_means(ics), white)
+    step = max(1, len(flat) // GREY_PIXEL_SAMPLES)                # an even subsample is statistic enough
+    ics, any_unsaturated = kernels.sample_ics(np.ascontiguousarray(flat, dtype=np.float32), step, saturated,
+                                              np.ascontiguousarray(to_ics, dtype=np.float64))
+    saturation_notes = [] if any_unsaturated or not len(flat) else [
+        "gray_pixels: every pixel is saturated; the statistic uses them all"]
+    gains, notes = _gains_to_white("gray_pixels", ics.mean(axis=0) if len(ics) else np.zeros(3), white)
     target = white / white.sum()
     lit_totals = ics @ gains                       # by the first round's gains: not the darkest
     lit = lit_totals > 0.02 * np.percentile(lit_totals, 99) if len(ics) else np.zeros(0, bool)

@@ -234,3 +234,22 @@ def grey_pixel_sums(ics, lit, gains, target, tolerance):
             for c in range(3):
                 sums[c] += ics[i, c]
     return sums, count
+
+
+@njit(cache=_CACHE, nogil=True)
+def sample_ics(flat, step, saturated, to_ics):
+    """ics = pixel·to_ics (K×3, float64) of every step-th pixel of flat (N×K) whose every channel
+    is below saturated, or of every step-th pixel when none is; returns (ics M×3, whether any was)."""
+    out = np.empty(((flat.shape[0] + step - 1) // step, 3))
+    m = 0
+    for i in range(0, flat.shape[0], step):
+        if _below(flat, i, saturated):
+            for c in range(3):
+                out[m, c] = _ics(flat, i, to_ics, c)
+            m += 1
+    if m > 0:
+        return out[:m], True
+    for j, i in enumerate(range(0, flat.shape[0], step)):
+        for c in range(3):
+            out[j, c] = _ics(flat, i, to_ics, c)
+    return out, False
