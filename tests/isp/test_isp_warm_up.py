@@ -1,6 +1,7 @@
-"""warm_up_pixel_kernels loads every compiled sensor and ISP kernel with the argument types a full
-frame uses: in a fresh process, after the warm-up, full 640×480 frames through every illuminant
-correction, highlight mode, normalisation and compiled demosaic compile or load nothing more."""
+"""warm_up_pixel_kernels loads every compiled signal, sensor and ISP kernel with the argument types
+a full frame uses: in a fresh process, after the warm-up, full 640×480 frames through every
+illuminant correction, highlight mode, normalisation and compiled demosaic compile or load
+nothing more."""
 import subprocess
 import sys
 
@@ -15,7 +16,8 @@ from workbench.stages.optics import form_optical_image
 from workbench.stages.scene import chart_scene
 
 KERNELS = [kernels.colour_pixels, kernels.demosaic_2x2, kernels.ics_maxima, kernels.bright_sums,
-           kernels.srgb_encode_flat, sensor_kernels.read_out_block]
+           kernels.srgb_encode_flat, kernels.sample_ics, kernels.grey_pixel_sums, sensor_kernels.read_out_block,
+           sensor_kernels.project_by_tile]
 project = load_project("paper_camera")
 warm_up_pixel_kernels(project)
 warm = [len(k.signatures) for k in KERNELS]

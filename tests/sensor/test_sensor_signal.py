@@ -10,6 +10,7 @@ from workbench.optics.types import OpticalImage
 from workbench.resource_dir import RESOURCES
 from workbench.sensor import (channel_qe, irradiance_to_sensor_image, irradiance_to_signal_rate,
                               signal_rate_to_sensor_image)
+from workbench.sensor.cfa import cfa_layout
 from workbench.sensor.signal import resample_matrix
 
 from sensor_helpers import WL16, make_params, uniform_oi
@@ -113,6 +114,24 @@ def test_crop_fast_path_equals_general_path():
     assert fast[0, 0] == pytest.approx(manual[0, 0, 0] * 9e-12 * 0.75 * 20, rel=1e-5)
 
 
+@pytest.mark.parametrize("pattern", ["GRBG", "RGBW", "RCCC", "MONO"])
+def test_crop_fast_path_equals_the_camera_equation_in_float64(pattern):
+    """Every pixel of a 300×300 frame (row blocks in threads) against Σ_λ E·A·FF·QE·Δλ in
+    float64 numpy, its channel read from the CFA tile; slightly negative irradiance (FFT optics)
+    gives 0."""
+    p = make_params(rows=300, cols=300, cfa_pattern=pattern)
+    rng = np.random.default_rng(5)
+    e = rng.random((304, 306, WL16.size), dtype=np.float32) * 1e15
+    e[10:20, 10:20] = -1e9
+    rate = irradiance_to_signal_rate(OpticalImage(e, WL16, 3e-6, 4e-3, 4.0), p)
+    per_channel = e[2:302, 3:303].astype(np.float64) @ (channel_qe(p, WL16) * 20.0 * 9e-12 * 0.75)
+    tile, _ = cfa_layout(pattern)
+    channel = np.tile(tile, (150, 150))
+    expected = np.maximum(np.take_along_axis(per_channel, channel[..., None], axis=2)[..., 0], 0.0)
+    np.testing.assert_allclose(rate, expected, rtol=1e-5, atol=1e-6 * expected.max())
+    assert rate[8:18, 7:17].max() == 0.0
+
+
 def test_sensor_outside_the_optical_image_is_dark():
     p = make_params(rows=8, cols=8, cfa_pattern="MONO")
     rate = irradiance_to_signal_rate(uniform_oi(p, 1e15, WL16, shape=(4, 4)), p)
@@ -125,6 +144,9 @@ def test_nan_or_inf_irradiance_is_refused():
     oi.irradiance_photons[1, 1, 3] = np.nan
     with pytest.raises(ValueError, match="NaN"):
         irradiance_to_sensor_image(oi, p)
+    oi.irradiance_photons[1, 1, 3] = np.inf
+    with pytest.raises(ValueError, match="Inf"):
+        irradiance_to_signal_rate(oi, p)
     with pytest.raises(ValueError, match="H×W×Nλ"):
         irradiance_to_signal_rate(OpticalImage(np.ones((4, 4), np.float32), WL16, 3e-6, 4e-3, 4.0), p)
 

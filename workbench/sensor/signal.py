@@ -12,10 +12,12 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from workbench.compute.pixel_threads import map_row_blocks
 from workbench.errors import InvalidValueError
 from workbench.optics.types import OpticalImage
 from workbench.registry import Registry
 from workbench.sensor.cfa import SENSOR_SPECTRAL_GRID_NM, cfa_layout, channel_qe
+from workbench.sensor.kernels import project_by_tile
 from workbench.sensor.params import PixelResponseParams
 from workbench.units import band_widths_nm
 
@@ -128,15 +130,23 @@ def film_channel_weights(oi: OpticalImage, params: PixelResponseParams) -> np.nd
     return np.diag(params.pixel_area_m2 * params.fill_factor * integrals).astype(np.float32)
 
 
-def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray) -> np.ndarray:
-    """Per pixel Σ_λ E·w[:, channel]: one matrix-vector product per CFA tile position."""
-    h, w = irr.shape[:2]
-    out = np.empty((h, w), dtype=np.float32)
-    th, tw = tile.shape
-    for i in range(th):
-        for j in range(tw):
-            out[i::th, j::tw] = irr[i::th, j::tw] @ weights[:, tile[i, j]]
-    return out
+def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray, r0: int, c0: int,
+                     rows: int, cols: int) -> np.ndarray:
+    """Per pixel of the rows×cols window at (r0, c0): Σ_λ E·w[:, channel], clipped at 0 (one
+    compiled pass per row block)."""
+    irr = np.ascontiguousarray(irr)
+    weights = np.ascontiguousarray(weights, dtype=np.float32)
+    tile = np.ascontiguousarray(tile, dtype=np.int64)
+    rate = np.empty((rows, cols), dtype=np.float32)
+    non_finite = map_row_blocks(lambda _, block: project_by_tile(irr, weights, tile, r0, c0, block.start,
+                                                                 block.stop, rate), rows, rows * cols)
+    if sum(non_finite):
+        raise InvalidValueError(_NON_FINITE)
+    return rate
+
+
+_NON_FINITE = ("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
+               "(photons/s/m²/nm); fix the optics stage output")
 
 
 def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, method: str | None = None) -> np.ndarray:
@@ -163,24 +173,21 @@ def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, met
     h, w = irr.shape[:2]
     same_grid = abs(oi.sample_spacing_m - pitch_m) <= 1e-6 * pitch_m
     if same_grid and h >= rows and w >= cols and (h - rows) % 2 == 0 and (w - cols) % 2 == 0:
-        r0, c0 = (h - rows) // 2, (w - cols) // 2
-        rate = _project_by_tile(irr[r0:r0 + rows, c0:c0 + cols], weights, tile)
-    else:
-        planes = irr.reshape(-1, irr.shape[2]) @ weights           # (h·w, K) e⁻/s on the OI grid
-        r_m = resample_matrix(h, oi.sample_spacing_m, rows, pitch_m, method)
-        c_m = resample_matrix(w, oi.sample_spacing_m, cols, pitch_m, method)
-        rate = np.empty((rows, cols), dtype=np.float32)
-        th, tw = tile.shape
-        for k in range(weights.shape[1]):
-            plane = planes[:, k].reshape(h, w)
-            resampled = (c_m @ (r_m @ plane).T).T
-            mask = tile == k
-            for i in range(th):
-                for j in range(tw):
-                    if mask[i, j]:
-                        rate[i::th, j::tw] = resampled[i::th, j::tw]
+        return _project_by_tile(irr, weights, tile, (h - rows) // 2, (w - cols) // 2, rows, cols)
+    planes = irr.reshape(-1, irr.shape[2]) @ weights           # (h·w, K) e⁻/s on the OI grid
+    r_m = resample_matrix(h, oi.sample_spacing_m, rows, pitch_m, method)
+    c_m = resample_matrix(w, oi.sample_spacing_m, cols, pitch_m, method)
+    rate = np.empty((rows, cols), dtype=np.float32)
+    th, tw = tile.shape
+    for k in range(weights.shape[1]):
+        plane = planes[:, k].reshape(h, w)
+        resampled = (c_m @ (r_m @ plane).T).T
+        mask = tile == k
+        for i in range(th):
+            for j in range(tw):
+                if mask[i, j]:
+                    rate[i::th, j::tw] = resampled[i::th, j::tw]
     if not np.isfinite(rate).all():
-        raise InvalidValueError("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
-                         "(photons/s/m²/nm); fix the optics stage output")
+        raise InvalidValueError(_NON_FINITE)
     np.maximum(rate, 0.0, out=rate)                                 # tiny negatives from FFT optics
     return rate
