@@ -67,39 +67,51 @@ def srgb_encode_flat(x, scale, out):
     _encode_in_place(out)
 
 
+@njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT, inline="always")
+def _neutral_blend(r, g, b, peak, start, span):
+    """(r, g, b) blended towards max(r, g, b) by the smoothstep of (peak − start)·span in [0, 1]."""
+    t = min(max(np.float32(0.0), (peak - start) * span), np.float32(1.0))   # max(0, NaN) is 0 in numba
+    w = t * t * (np.float32(3.0) - np.float32(2.0) * t)
+    grey = max(r, max(g, b))
+    return r + w * (grey - r), g + w * (grey - g), b + w * (grey - b)
+
+
 @njit(cache=_CACHE, nogil=True, fastmath=_CONTRACT)
 def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode, rgb):
     """Per pixel of linear (N×K, float32): rgb = linear·to_rgb (K×3); with highlights, rgb blends
     towards the neutral of its brightest component by the smoothstep of the brightest sensor
     channel between highlight_start and saturated; with encode, rgb holds the sRGB-encoded values.
-    float32 arithmetic without branches, so pixels pipeline
-    (relative error ~1e-7 against float64). Returns max(rgb) before encoding."""
+    float32 arithmetic without branches, so pixels pipeline (relative error ~1e-7 against
+    float64); three channels, the common case, unrolled. Returns max(rgb) before encoding."""
     k_channels = linear.shape[1]
     m = to_rgb.astype(np.float32)
     zero = np.float32(0.0)
-    one = np.float32(1.0)
     start = np.float32(highlight_start)
     span = np.float32(1.0 / (saturated - highlight_start)) if highlights else zero   # 0: no blend
     peak_out = np.float32(-np.inf)
     for first in range(0, linear.shape[0], ENCODE_CHUNK):
         stop = min(first + ENCODE_CHUNK, linear.shape[0])
         for i in range(first, stop):
-            r = zero
-            g = zero
-            b = zero
-            peak = linear[i, 0]
-            for k in range(k_channels):
-                v = linear[i, k]
-                r += v * m[k, 0]
-                g += v * m[k, 1]
-                b += v * m[k, 2]
-                peak = max(peak, v)
-            t = min(max(zero, (peak - start) * span), one)       # max(0, NaN) is 0 in numba
-            w = t * t * (np.float32(3.0) - np.float32(2.0) * t)
-            grey = max(r, max(g, b))
-            r += w * (grey - r)
-            g += w * (grey - g)
-            b += w * (grey - b)
+            if k_channels == 3:
+                c0 = linear[i, 0]
+                c1 = linear[i, 1]
+                c2 = linear[i, 2]
+                r = c0 * m[0, 0] + c1 * m[1, 0] + c2 * m[2, 0]
+                g = c0 * m[0, 1] + c1 * m[1, 1] + c2 * m[2, 1]
+                b = c0 * m[0, 2] + c1 * m[1, 2] + c2 * m[2, 2]
+                peak = max(c0, max(c1, c2))
+            else:
+                r = zero
+                g = zero
+                b = zero
+                peak = linear[i, 0]
+                for k in range(k_channels):
+                    v = linear[i, k]
+                    r += v * m[k, 0]
+                    g += v * m[k, 1]
+                    b += v * m[k, 2]
+                    peak = max(peak, v)
+            r, g, b = _neutral_blend(r, g, b, peak, start, span)
             peak_out = max(peak_out, max(r, max(g, b)))
             rgb[i, 0] = r
             rgb[i, 1] = g
