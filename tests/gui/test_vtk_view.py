@@ -133,3 +133,28 @@ v.close_view()
     assert line, out.stdout + out.stderr
     r, g, b = map(int, line[0].split()[1:])
     assert r > 150 and b < 100, f"the sphere is not drawn: {r, g, b}"
+
+
+
+@pytest.mark.skipif(not __import__("sys").platform.startswith("linux"), reason="per-thread niceness is Linux's")
+def test_the_render_thread_and_the_threads_it_starts_yield_to_the_gui(view, qtbot):
+    """The render thread runs at VIEW_THREAD_NICE, and so does a thread it starts (as a software
+    OpenGL such as Mesa's llvmpipe starts its own), so a redraw cannot take the cores from the GUI."""
+    import os
+
+    from workbench.gui.vtk_view import VIEW_THREAD_NICE
+
+    def niceness() -> int:
+        return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    seen = {}
+
+    def on_render_thread(_pl):
+        seen["render"] = niceness()
+        child = threading.Thread(target=lambda: seen.update(child=niceness()))
+        child.start()
+        child.join()
+    view.call(on_render_thread)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    gui = niceness()
+    assert seen["render"] == min(19, gui + VIEW_THREAD_NICE)
+    assert seen["child"] == seen["render"]

@@ -26,9 +26,27 @@ from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtGui import QColor, QImage, QPainter
 from PySide6.QtWidgets import QWidget
 
+VIEW_THREAD_NICE = 10
+"""The render thread (and the threads a software OpenGL such as Mesa's llvmpipe starts from it,
+one per core) runs at this niceness: a redraw after a camera move used to take both cores from the
+GUI thread for 0.1–0.5 s, and the panes painted 3–5× slower meanwhile."""
+
 _BUTTON_EVENTS = {Qt.MouseButton.LeftButton: "Left", Qt.MouseButton.MiddleButton: "Middle",
                   Qt.MouseButton.RightButton: "Right"}
 _STOP = object()
+
+
+def _lower_thread_priority(nice: int) -> None:
+    """Raise the calling thread's niceness by `nice` (Linux: a thread's own value, which the
+    threads it starts inherit); nothing where threads have no priority of their own."""
+    import os
+    import sys
+    if sys.platform.startswith("linux"):
+        try:
+            tid = threading.get_native_id()
+            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + nice))
+        except OSError:
+            pass
 
 
 class _Relay(QObject):
@@ -63,6 +81,7 @@ class _RenderLoop:
     def run(self) -> None:
         import pyvista as pv
         from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+        _lower_thread_priority(VIEW_THREAD_NICE)     # before the GL context: its renderer's threads inherit it
         plotter = pv.Plotter(off_screen=True, window_size=self.size_px)
         plotter.set_background(self.background[0], top=self.background[1])
         plotter.iren.interactor.EnableRenderOff()    # the thread renders once per batch of commands
