@@ -66,6 +66,8 @@ def test_bench_pipeline_json(capsys):
         assert row[f"{stage}_cpu_ms"] > 0
     # the live path is signal + sensor + ISP: it costs more CPU than its ISP step alone
     assert row["sensor+isp_from_cached_irradiance_cpu_ms"] > row["isp_cpu_ms"]
+    assert data["sensor_isp_ms"] == row["sensor_ms"] + row["isp_ms"]            # the window's goals' figures
+    assert data["sensor_malvar_ms"] == row["sensor_ms"] + row["isp_malvar2004_ms"]
 
 
 def test_bench_city_json(capsys):
