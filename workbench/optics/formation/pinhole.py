@@ -24,14 +24,15 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     rows, cols = scene.shape
     dx = g.sample_spacing_m
     gain = geometry.camera_equation_factor(params.f_number, m, params.transmittance)
-    irr = scene.radiance_photons.astype(np.float64) * gain
-    if params.off_axis == "cos4th":
+    if params.off_axis == "cos4th":           # one float32 product per sample: gain × fall-off (float64) × L
         x, y = geometry.sample_positions_m((rows, cols), dx)
         fall = geometry.cos4th_falloff(np.hypot(x, y), d_img, params.f_number, m,
                                        dx * math.hypot(rows, cols))
-        irr *= fall[..., None]
-    irr = geometry.distort_image(irr, dx, d_img, params.distortion_k)
-    return OpticalImage(check_finite("optics pinhole", irr).astype(np.float32), scene.wavelengths_nm.copy(), dx, d_img,
+        irr = np.multiply(scene.radiance_photons, (gain * fall)[..., None].astype(np.float32), dtype=np.float32)
+    else:
+        irr = np.multiply(scene.radiance_photons, np.float32(gain), dtype=np.float32)
+    irr = geometry.distort_image(irr, dx, d_img, params.distortion_k).astype(np.float32, copy=False)
+    return OpticalImage(check_finite("optics pinhole", irr), scene.wavelengths_nm.copy(), dx, d_img,
                         params.f_number, depth_m=scene.depth_m,
                         meta={"model": "pinhole", "image_distance_m": d_img, "magnification": m,
                               "focal_length_m": f_m})
