@@ -108,6 +108,23 @@ def test_illuminance_adjustment():
     assert float(lux) == pytest.approx(1000.0, rel=1e-4)
 
 
+@pytest.mark.parametrize("model", ["pinhole", "diffraction_limited", "thin_lens"])
+def test_the_illuminance_scaling_changes_only_the_optics_own_array(model):
+    """The optical image is scaled in place (it is the optics model's new array): the scene's
+    radiance is left as it was and a second run gives the same irradiance, not a rescaled one."""
+    from workbench.stages.optics import form_optical_image
+    from workbench.stages.scene import chart_scene
+    project = small(load_project("paper_camera"))
+    project = project.updated(optics=project.optics.updated(model=model))
+    geometry = project_geometry(project)
+    scene = chart_scene(project.scene, geometry)
+    radiance = scene.radiance_photons.copy()
+    first = form_optical_image(scene, project.optics, geometry, 1000.0).irradiance_photons
+    second = form_optical_image(scene, project.optics, geometry, 1000.0).irradiance_photons
+    assert np.array_equal(scene.radiance_photons, radiance)
+    assert np.array_equal(first, second) and not np.shares_memory(first, second)
+
+
 def test_pipeline_job_cancels_between_stages():
     from workbench.jobs import CancelToken, JobCancelled
     token = CancelToken()

@@ -43,5 +43,6 @@ class OpticalImage:
 
 OPTICS_MODELS: Registry[Callable] = Registry("optics.model", "optics model")
 """The optics levels of detail: name → fn(scene, params, camera=None) -> OpticalImage
-(filled by optics.formation); camera: the CameraGeometry the scene was sampled for."""
+(filled by optics.formation); camera: the CameraGeometry the scene was sampled for. The image's
+irradiance is a new array the caller may change (stages.optics scales it in place)."""
 register_optics = OPTICS_MODELS.register

@@ -13,9 +13,9 @@ from workbench.optics.types import OpticalImage
 from workbench.scene.types import Scene
 
 
-def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None) -> OpticalImage:
+def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None, in_place: bool = False) -> OpticalImage:
     """A copy of the optical image scaled to a mean illuminance (scene.adjust_illuminance_lux);
-    None returns it unchanged."""
+    None returns it unchanged. in_place: scale its irradiance array itself (one nobody else holds)."""
     from workbench import spectra
     if target_lux is None:
         return oi
@@ -24,6 +24,9 @@ def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None) -> Opt
     if lux <= 0:
         raise StageError("optics", "scene.adjust_illuminance_lux: the optical image is black, it cannot "
                                    "be scaled to a mean illuminance")
+    if in_place:
+        oi.irradiance_photons *= np.float32(target_lux / lux)
+        return oi
     return dataclasses.replace(oi, irradiance_photons=oi.irradiance_photons * np.float32(target_lux / lux))
 
 
@@ -34,4 +37,6 @@ def form_optical_image(scene: Scene, optics: OpticsParams, camera: CameraGeometr
     import workbench.optics.formation  # noqa: F401  (registers the optics models)
     from workbench.optics.types import OPTICS_MODELS
     oi = OPTICS_MODELS[optics.model](scene, optics, camera)
-    return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
+    owned = (oi.irradiance_photons.flags.writeable and oi.irradiance_photons.dtype == np.float32
+             and not np.may_share_memory(oi.irradiance_photons, scene.radiance_photons))   # a new array
+    return scale_to_mean_illuminance(oi, adjust_illuminance_lux, in_place=owned)
