@@ -387,13 +387,13 @@ def city_optical_image(render: CityRender, optics, adjust_illuminance_lux: float
     from workbench.stages.optics import form_optical_image, scale_to_mean_illuminance
     film_meta = {k: render.scene.meta[k] for k in FILM_META_KEYS if k in render.scene.meta}
     if render.camera is None:
-        oi = form_optical_image(render.scene, optics, render.geometry)
+        oi = form_optical_image(render.scene, optics, render.geometry, adjust_illuminance_lux)
         oi.meta.update(film_meta)
-        return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
+        return oi
     from workbench.optics.formation.full_model import full_model_optical_image
     oi = full_model_optical_image(render.scene.radiance_photons, render.scene.wavelengths_nm, render.camera,
                                   optics, depth_m=render.labels.depth_m, meta=film_meta)
-    return scale_to_mean_illuminance(oi, adjust_illuminance_lux)
+    return scale_to_mean_illuminance(oi, adjust_illuminance_lux, in_place=True)      # its own new array
 
 
 def render_city_frame(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> FrameData:
