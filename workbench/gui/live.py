@@ -14,6 +14,7 @@ import functools
 import logging
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,7 @@ WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so th
 # The city render worker is a process of its own: it uses every core of the thread budget, niced so
 # that the window's threads (GUI, live worker, 3-D view) take a core whenever they need one.
 RENDER_NICE = 10
+IRRADIANCE_PREVIEWS = 4   # irradiance panes' sRGB kept per optical image (Undo/Redo find theirs)
 
 
 def limit_worker_threads(n: int = WORKER_THREADS) -> None:
@@ -89,20 +91,30 @@ class FrameBuilder:
     """Turns a pipeline's stages into a Frame, re-deriving display arrays only for stages that ran."""
 
     def __init__(self) -> None:
-        self._irr_key = None
-        self._irr_rgb = None
+        self._irr_rgb: dict[int, tuple] = {}   # id(optical image) → (weak reference to it, sRGB preview)
         self._readouts_key = None      # the sensor image the read-outs were taken from
         self._readouts = None
 
+    def _irradiance_rgb(self, oi) -> np.ndarray:
+        """The irradiance pane's sRGB of `oi`, kept for the last IRRADIANCE_PREVIEWS optical images
+        (Undo and Redo bring back one the stage cache still holds: 10–20 ms each otherwise)."""
+        from workbench.previews import irradiance_preview
+        hit = self._irr_rgb.pop(id(oi), None)
+        if hit is None or hit[0]() is not oi:
+            hit = (weakref.ref(oi), irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm,
+                                                       oi.meta).astype(np.float32))
+        self._irr_rgb[id(oi)] = hit                    # newest last
+        while len(self._irr_rgb) > IRRADIANCE_PREVIEWS:
+            self._irr_rgb.pop(next(iter(self._irr_rgb)))
+        return hit[1]
+
     def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float) -> Frame:
-        from workbench.previews import channels_to_rgb, irradiance_preview
+        from workbench.previews import channels_to_rgb
         from workbench.sensor.signal import colour_wavelengths_nm
         oi = pipe.optical_image()
         img = pipe.sensor_image()
         isp = pipe.isp_result()
-        if self._irr_key is not oi:
-            self._irr_rgb = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta).astype(np.float32)
-            self._irr_key = oi
+        irradiance_rgb = self._irradiance_rgb(oi)
         level, reason = _optics_level(oi, project)
         from workbench.metrics.frame import frame_readouts
         if not preview and self._readouts_key is not img:      # an ISP edit keeps the sensor's read-outs
@@ -110,7 +122,7 @@ class FrameBuilder:
             self._readouts_key = img
         readouts = None if preview else self._readouts
         return Frame(project=project, irradiance_photons=oi.irradiance_photons,
-                     wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=self._irr_rgb,
+                     wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=irradiance_rgb,
                      colour_wavelengths_nm=colour_wavelengths_nm(oi),
                      raw_dn=img.dn, max_dn=float(img.max_dn), cfa_tile=np.asarray(img.cfa_tile),
                      channel_names=list(img.channel_names), linear=isp.linear,
