@@ -130,10 +130,14 @@ def film_channel_weights(oi: OpticalImage, params: PixelResponseParams) -> np.nd
     return np.diag(params.pixel_area_m2 * params.fill_factor * integrals).astype(np.float32)
 
 
+_NON_FINITE = ("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
+               "(photons/s/m²/nm); fix the optics stage output")
+
+
 def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray, r0: int, c0: int,
                      rows: int, cols: int) -> np.ndarray:
-    """Per pixel of the rows×cols window at (r0, c0): Σ_λ E·w[:, channel], clipped at 0 (one
-    compiled pass per row block)."""
+    """Mean electron rate (e⁻/s) per pixel of the rows×cols window at (r0, c0) of the irradiance:
+    Σ_λ E·w[:, channel], clipped at 0 (one compiled pass per row block)."""
     irr = np.ascontiguousarray(irr)
     weights = np.ascontiguousarray(weights, dtype=np.float32)
     tile = np.ascontiguousarray(tile, dtype=np.int64)
@@ -143,10 +147,6 @@ def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray, r0:
     if sum(non_finite):
         raise InvalidValueError(_NON_FINITE)
     return rate
-
-
-_NON_FINITE = ("sensor: the optical image holds NaN/Inf or irradiance too large for float32 "
-               "(photons/s/m²/nm); fix the optics stage output")
 
 
 def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, method: str | None = None) -> np.ndarray:

@@ -14,8 +14,9 @@ from workbench.scene.types import Scene
 
 
 def scale_to_mean_illuminance(oi: OpticalImage, target_lux: float | None, in_place: bool = False) -> OpticalImage:
-    """A copy of the optical image scaled to a mean illuminance (scene.adjust_illuminance_lux);
-    None returns it unchanged. in_place: scale its irradiance array itself (one nobody else holds)."""
+    """The optical image scaled to a mean illuminance in lux (scene.adjust_illuminance_lux): a copy,
+    or with in_place its own irradiance array scaled (for an array nobody else holds); None
+    returns it unchanged."""
     from workbench import spectra
     if target_lux is None:
         return oi
