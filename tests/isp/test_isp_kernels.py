@@ -4,6 +4,7 @@ the colour pass (K×3 products, neutral highlights, the maximum) on random K-cha
 import numpy as np
 import pytest
 
+from workbench.errors import InvalidValueError
 from workbench.isp.color import srgb_encode
 from workbench.isp.process import HIGHLIGHT_START, SATURATED_FRACTION, colour_transform
 
@@ -149,3 +150,32 @@ def test_gray_pixels_statistic_matches_its_definition(seed):
     gains, _ = illuminant_gains(linear, to_ics, "gray_pixels", white, saturated=SATURATED_FRACTION)
     expected = reference_gray_pixels(linear.reshape(-1, 3), to_ics, white, SATURATED_FRACTION)
     np.testing.assert_allclose(gains, expected, rtol=1e-6)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 100, 8192, 8193])
+def test_gray_pixels_percentile_equals_numpys(n):
+    from workbench.isp.illuminant import _percentile
+    values = np.random.default_rng(n).lognormal(0, 2, n)
+    for q in (0.0, 1.0, 50.0, 99.0, 100.0):
+        assert _percentile(values, q) == pytest.approx(np.percentile(values, q), rel=1e-15, abs=0)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint16])
+def test_raw_is_the_clipped_dn_fraction_and_refuses_nan_and_inf(dtype):
+    from workbench.isp.process import _raw
+    from workbench.sensor.image import SensorImage
+    dn = (np.random.default_rng(0).uniform(-20, 300, (37, 53))).clip(0 if dtype == np.uint16 else -20).astype(dtype)
+
+    def image(values):
+        return SensorImage(electrons=values, volts=values, dn=values, cfa_tile=np.zeros((1, 1), int),
+                           channel_names=["M"], pattern="MONO", qe=np.zeros((0, 1)), wavelengths_nm=np.zeros(0),
+                           exposure_s=0.01, max_dn=255.0, meta={})
+    raw = _raw(image(dn))
+    assert raw.dtype == np.float32
+    np.testing.assert_allclose(raw, np.clip(dn.astype(np.float64) / 255.0, 0, 1), rtol=2.5e-7, atol=0)   # two float32 roundings
+    if dtype != np.uint16:
+        for bad in (np.nan, np.inf, -np.inf):
+            spoiled = dn.copy()
+            spoiled[5, 7] = bad
+            with pytest.raises(InvalidValueError, match="NaN or Inf"):
+                _raw(image(spoiled))

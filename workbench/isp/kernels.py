@@ -121,6 +121,24 @@ def colour_pixels(linear, to_rgb, highlights, highlight_start, saturated, encode
     return peak_out
 
 
+@njit(cache=_CACHE, nogil=True)
+def normalise_raw(dn, inv_max_dn, raw):
+    """raw = clip(dn · inv_max_dn, 0, 1) (H×W, into float32) in one pass; returns how many dn
+    were NaN or infinite (the ISP refuses such an image)."""
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    non_finite = 0
+    for y in range(dn.shape[0]):
+        source = dn[y]
+        out = raw[y]
+        for x in range(dn.shape[1]):
+            v = source[x]
+            if not abs(v) < np.inf:
+                non_finite += 1
+            out[x] = min(max(np.float32(v * inv_max_dn), zero), one)
+    return non_finite
+
+
 @njit(cache=_CACHE, nogil=True, inline="always")
 def _mirror(i, n):
     """Index i of an axis of length n, mirrored without repeating the edge (−1 → 1, n → n − 2)."""
@@ -251,17 +269,21 @@ def grey_pixel_sums(ics, lit, gains, target, tolerance):
 @njit(cache=_CACHE, nogil=True)
 def sample_ics(flat, step, saturated, to_ics):
     """ics = pixel·to_ics (K×3, float64) of every step-th pixel of flat (N×K) whose every channel
-    is below saturated, or of every step-th pixel when none is; returns (ics M×3, whether any was)."""
+    is below saturated, or of every step-th pixel when none is; returns (ics M×3, their sum (3,),
+    whether any pixel was below saturated)."""
     out = np.empty(((flat.shape[0] + step - 1) // step, 3))
+    sums = np.zeros(3)
     m = 0
     for i in range(0, flat.shape[0], step):
         if _below(flat, i, saturated):
             for c in range(3):
                 out[m, c] = _ics(flat, i, to_ics, c)
+                sums[c] += out[m, c]
             m += 1
     if m > 0:
-        return out[:m], True
+        return out[:m], sums, True
     for j, i in enumerate(range(0, flat.shape[0], step)):
         for c in range(3):
             out[j, c] = _ics(flat, i, to_ics, c)
-    return out, False
+            sums[c] += out[j, c]
+    return out, sums, False

@@ -67,12 +67,10 @@ class ISPResult:
 
 
 def _validate(image: SensorImage) -> float:
-    """Check what the ISP relies on; return the black level in dn."""
+    """Check what the ISP relies on but the pixels' values (see _raw); return the black level in dn."""
     dn = np.asarray(image.dn)
     if dn.ndim != 2 or min(dn.shape) < 1:
         raise InvalidValueError(f"ISP: SensorImage.dn must be H×W with H, W ≥ 1, got shape {dn.shape}")
-    if not np.all(np.isfinite(dn)):
-        raise InvalidValueError("ISP: SensorImage.dn contains NaN or Inf")
     if not (np.isfinite(image.max_dn) and image.max_dn > 0):
         raise InvalidValueError(f"ISP: SensorImage.max_dn must be a positive number, got {image.max_dn}")
     k = len(image.channel_names)
@@ -85,6 +83,17 @@ def _validate(image: SensorImage) -> float:
         raise InvalidValueError(f"ISP: SensorImage.meta['{BLACK_LEVEL_KEY}'] = {black} must lie in "
                          f"[0, max_dn = {image.max_dn})")
     return black
+
+
+def _raw(image: SensorImage) -> np.ndarray:
+    """dn / max_dn clipped to [0, 1] (float32), one compiled pass that also refuses NaN and Inf."""
+    dn = np.asarray(image.dn)
+    if dn.dtype not in (np.float32, np.float64):
+        dn = dn.astype(np.float32)
+    raw = np.empty(dn.shape, dtype=np.float32)
+    if kernels.normalise_raw(dn, dn.dtype.type(1.0 / image.max_dn), raw):
+        raise InvalidValueError("ISP: SensorImage.dn contains NaN or Inf")
+    return raw
 
 
 def raw_to_linear(raw: np.ndarray, cfa_tile: np.ndarray, channel_names: list[str],
@@ -219,7 +228,7 @@ def sensor_image_to_srgb(image: SensorImage, params: ISPParams | None = None) ->
     params = ISPParams() if params is None else params
     black_dn = _validate(image)
     names = list(image.channel_names)
-    raw = np.clip(np.asarray(image.dn, dtype=np.float32) * np.float32(1.0 / image.max_dn), 0.0, 1.0)
+    raw = _raw(image)
     linear, notes = _tiny_safe_raw_to_linear(raw, image.cfa_tile, names, params.demosaic,
                                              black_dn / image.max_dn)
     to_ics, white, fit, grey_reason = _colour_path(image, params, notes)
