@@ -233,3 +233,27 @@ def test_vectorised_boxes_equal_pycocotools_boxes(seed):
     for i in range(1, n + 1):
         rle = mask_utils.encode(np.asfortranarray((inst == i).astype(np.uint8)))
         assert tuple(boxes[i]) == tuple(mask_utils.toBbox(rle).astype(int))
+
+
+def test_one_layer_is_a_single_cast_with_the_loops_results():
+    """max_layers=1 without helper shapes casts each ray once instead of tracing the peeling loop:
+    every map, object and count equals the loop's; a scene with a helper shape (which rays pass
+    through) still takes the loop, and sees what is behind the helper."""
+    import workbench.render.labels as labels_module
+    shapes = {"a": rect((0, 5.0, 0), 1, 1), "b": rect((0.8, 10.0, 0.3), 1.5, 1), "c": rect((-2.5, 8.0, 0), 0.4, 2)}
+    table = {"a": (1, "car"), "b": (2, "bus"), "c": (3, "pedestrian")}
+    scene = make_scene(shapes)
+    single = render_labels(scene, table, W, H, class_ids=CLASSES, max_layers=1)
+    real_peel = labels_module._peel
+    try:
+        labels_module._peel = lambda *args, helpers: real_peel(*args, helpers=True)   # force the loop
+        looped = render_labels(scene, table, W, H, class_ids=CLASSES, max_layers=1)
+    finally:
+        labels_module._peel = real_peel
+    for name in ("depth_m", "planar_depth_m", "class_id", "instance_id"):
+        np.testing.assert_array_equal(getattr(single, name), getattr(looped, name))
+    assert single.objects == looped.objects and single.meta == looped.meta
+    assert single.meta["saturated_rays"] > 0
+    fogged = make_scene({**shapes, "fog_box": rect((0, 3.0, 0), 3, 3)})
+    through = render_labels(fogged, {**table, "fog_box": None}, W, H, class_ids=CLASSES, max_layers=1)
+    np.testing.assert_array_equal(through.instance_id, single.instance_id)

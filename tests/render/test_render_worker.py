@@ -122,7 +122,9 @@ def _binned(image, f=2):
 def test_a_quick_look_samples_a_coarser_film_of_the_same_view_and_casts_visible_labels():
     import mitsuba as mi
 
-    from workbench.render.city_frame import QUICK_LOOK_FACTOR as f
+    from workbench.render.city_frame import quick_look_factor
+    f = quick_look_factor(48, 36)
+    assert f == 2
     session = CitySceneSession()
     seeds = frame_seeds(0, 0)
     full = run_job(session.job(city_scene_inputs(tiny_city(spp=32)), seeds))
@@ -161,6 +163,19 @@ def test_a_quick_look_samples_a_coarser_film_of_the_same_view_and_casts_visible_
         worker.close()
 
 
+def test_a_quick_look_samples_a_film_of_at_most_its_pixel_budget():
+    """The coarse film of a quick look keeps its cost about constant: the smallest factor that
+    divides both sides and leaves at most QUICK_LOOK_MAX_PIXELS pixels."""
+    from workbench.render.city_frame import QUICK_LOOK_MAX_PIXELS, quick_look_factor
+    assert [quick_look_factor(w, h) for w, h in ((48, 36), (320, 240), (640, 480), (1280, 960), (1920, 1080))] == \
+           [2, 2, 4, 8, 8]
+    for w, h in ((640, 480), (1920, 1080), (4000, 3000), (1000, 10)):
+        f = quick_look_factor(w, h)
+        assert w % f == 0 and h % f == 0 and (w // f) * (h // f) <= QUICK_LOOK_MAX_PIXELS
+        assert all((w // g) * (h // g) > QUICK_LOOK_MAX_PIXELS for g in range(2, f) if w % g == 0 and h % g == 0)
+    assert quick_look_factor(48, 35) == 1 and quick_look_factor(7, 7) == 7
+
+
 def test_a_quick_look_of_an_odd_sized_film_samples_every_pixel():
     """A film whose side is not a multiple of the factor has no coarser film of exactly its view:
     the quick look then samples the film itself (its labels are still the visible ones)."""
@@ -169,3 +184,23 @@ def test_a_quick_look_of_an_odd_sized_film_samples_every_pixel():
     quick = run_job(CitySceneSession().job(city_scene_inputs(p), frame_seeds(0, 0), quick_look=True))
     assert quick.meta["render"]["coarse_factor"] == 1 and quick.labels.meta["max_layers"] == 1
     assert quick.scene.radiance_photons.shape[:2] == (35, 48)
+
+
+def test_results_through_shared_memory_equal_this_process_renders_and_leave_no_segment():
+    """With every result through the worker's shared-memory segment (kept between frames, grown
+    for a larger one), the frames equal this process's; closing the worker removes the segment."""
+    worker = RenderWorker(threads=1, shared_min_bytes=0)
+    seeds = frame_seeds(0, 0)
+    small, moved = tiny_city(), tiny_city(manual_position_xy_m=(10.0, 2.0), manual_pan_deg=30.0)
+    large = small.updated(sensor=small.sensor.updated(rows=72, cols=96))
+    try:
+        for project in (small, moved, large, small):
+            inputs = city_scene_inputs(project)
+            there = run_job(worker.job(inputs, seeds))
+            _same(there, run_job(city_scene_job(inputs, seeds)))
+            assert there.scene.radiance_photons.flags.writeable
+        name = worker._inbox.segment.name
+        assert worker._inbox.segment.size >= there.scene.radiance_photons.nbytes
+    finally:
+        worker.close()
+    assert not os.path.exists(f"/dev/shm/{name.lstrip('/')}")

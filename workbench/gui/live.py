@@ -27,7 +27,8 @@ from workbench.project import Project
 log = logging.getLogger("workbench.gui.live")
 
 PREVIEW_SPP = 1          # samples per pixel of the first, quick city render after a camera move: a
-# quick look (render.city_frame.CitySceneSession.job): sampled on a 2× coarser film, visible labels only
+# quick look (render.city_frame.CitySceneSession.job): sampled on a coarser film (at most
+# QUICK_LOOK_MAX_PIXELS pixels: 160×120 for a 640×480 sensor), visible labels only
 WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so the GUI keeps a core
 # The city render worker is a process of its own: it uses every core of the thread budget, niced so
 # that the window's threads (GUI, live worker, 3-D view) take a core whenever they need one.

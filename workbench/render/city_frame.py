@@ -185,8 +185,23 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
     return (yield from CitySceneSession().job(inputs, seeds, cancel))
 
 
-QUICK_LOOK_FACTOR = 2
-"""A quick look (CitySceneSession.job) samples a film this many times coarser per side."""
+QUICK_LOOK_MAX_PIXELS = 40_000
+"""A quick look (CitySceneSession.job) samples a film coarse enough to have at most this many
+pixels (at 1 spp, ~0.05 s of path tracing on this 2-core machine; a 640×480 film at a factor 2,
+76,800 pixels, took 0.17 s, and twice that under a CPU hog, where the window's 1 s goal for the
+preview of a camera move was missed)."""
+
+
+def quick_look_factor(width: int, height: int) -> int:
+    """How many times coarser per side a quick look samples a width × height film: the smallest
+    factor from 2 up that divides both sides and leaves at most QUICK_LOOK_MAX_PIXELS pixels
+    (320×240 → 2, 640×480 → 4, 1920×1080 → 8); when none does, the largest common divisor of
+    the sides; 1 when they have none (the film itself is sampled)."""
+    common = [f for f in range(2, min(width, height) + 1) if width % f == 0 and height % f == 0]
+    for f in common:
+        if (width // f) * (height // f) <= QUICK_LOOK_MAX_PIXELS:
+            return f
+    return common[-1] if common else 1
 
 # Render settings used only when the loaded scene is rendered (sample counts, error targets,
 # chunking, the noise seed): a change of these alone keeps the loaded scene. Everything else in
@@ -222,9 +237,10 @@ class CitySceneSession:
         surface along each ray only (render_labels with max_layers=1: the depth, class and
         instance maps and the visible boxes are exact, the amodal boxes are the visible ones;
         labels.meta['max_layers'] says so), and a pinhole render draws its samples on a film
-        QUICK_LOOK_FACTOR times coarser per side, a quarter of the samples at the same spp (each
-        coarse pixel shown over the pixels it covers; meta['render']['coarse_factor']; not through the full lens model or a volumetric
-        fog, nor when a side is not a multiple of the factor)."""
+        quick_look_factor(width, height) times coarser per side, so a quick look costs about the
+        same at any film size (each coarse pixel shown over the pixels it covers;
+        meta['render']['coarse_factor']; not through the full lens model or a volumetric fog,
+        nor when the sides have no common divisor)."""
         from workbench.jobs import JobCancelled, Progress
         from workbench.render.labels import render_labels
         from workbench.render.scene_builder import build_scene, move_pinhole, pinhole_sensor
@@ -279,9 +295,9 @@ class CitySceneSession:
         self._loaded = (reuse_key, city, mi_scene, id_table, film) if reuse_key is not None else None
         fog = inputs.render.world.fog
         coarse = None             # not through a lens or a fog medium (the camera carries both)
-        if (quick_look and lens_camera is None and (fog is None or fog.model != "volumetric")
-                and width % QUICK_LOOK_FACTOR == 0 and height % QUICK_LOOK_FACTOR == 0):
-            coarse = self._coarse_pinhole(pose, fov, film, width, height, inputs.render.sampler)
+        factor = quick_look_factor(width, height)
+        if quick_look and lens_camera is None and (fog is None or fog.model != "volumetric") and factor > 1:
+            coarse = self._coarse_pinhole(pose, fov, film, width, height, factor, inputs.render.sampler)
         yield Progress(0.05, 1.0, f"frame {seeds.index}: label pass")
         labels = render_labels(mi_scene, id_table, width, height, **({"max_layers": 1} if quick_look else {}))
         params = inputs.render.updated(seed=seeds.render)
@@ -341,20 +357,20 @@ class CitySceneSession:
         start = 0.2 if inputs.render.shot_noise_ratio is not None else 0.1
         scene = with_sun((yield from rendered(
             render_loaded(mi_scene, film, params, fov_deg=fov, cancel=cancel, name=f"frame {seeds.index}",
-                          depth_m=labels.depth_m, coarse_sensor=coarse, coarse_factor=QUICK_LOOK_FACTOR),
+                          depth_m=labels.depth_m, coarse_sensor=coarse, coarse_factor=factor),
             start, 1.0 - start)))
         scene.depth_m = labels.depth_m
         meta["spp"] = scene.meta.get("spp")
         meta["render"] = scene.meta
         return CityRender(scene, labels, lens_camera, meta, camera)
 
-    def _coarse_pinhole(self, pose, fov: float, film, width: int, height: int, sampler: str):
-        """The quick look's coarse pinhole for the loaded scene, made once per loaded scene and
-        pointed along `pose`."""
+    def _coarse_pinhole(self, pose, fov: float, film, width: int, height: int, factor: int, sampler: str):
+        """The quick look's coarse pinhole (`factor` times coarser per side) for the loaded scene,
+        made once per loaded scene and pointed along `pose`."""
         from workbench.render.scene_builder import coarse_pinhole, move_pinhole
-        key = (fov, width, height, sampler)            # reset when a scene is loaded
+        key = (fov, width, height, factor, sampler)     # reset when a scene is loaded
         if self._coarse is None or self._coarse[0] != key:
-            self._coarse = (key, coarse_pinhole(pose, fov, film, width, height, QUICK_LOOK_FACTOR, sampler))
+            self._coarse = (key, coarse_pinhole(pose, fov, film, width, height, factor, sampler))
         else:
             move_pinhole(None, pose, fov, sensor=self._coarse[1])
         return self._coarse[1]

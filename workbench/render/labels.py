@@ -162,14 +162,30 @@ def _shape_luts(mi_scene, id_table: Mapping[str, Any], class_ids: Mapping[str, i
     return shape_to_inst, inst_to_class, names
 
 
+def _labelled(mi_scene, ray, active, lut):
+    """(the surface interaction along `ray`, the instance id of the shape it hit: 0 for a miss or
+    an unlabelled helper)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    si = mi_scene.ray_intersect(ray, active)
+    hit = active & si.is_valid()
+    inst = dr.reinterpret_array(mi.UInt32, si.instance)
+    shape = dr.select(inst != 0, inst, dr.reinterpret_array(mi.UInt32, si.shape))
+    return si, hit, dr.gather(mi.UInt32, lut, shape, hit)
+
+
 def _peel(mi_scene, sensor, shape_to_inst: np.ndarray, width: int, height: int, margin_px: int,
-          max_layers: int):
+          max_layers: int, helpers: bool = True):
     """Cast one ray per pixel centre of the extended grid and peel every surface along it.
 
     shape_to_inst maps a shape's registry id to its instance id. Returns (ids P×L uint32 instance
     ids of the successive different objects met (0 = none), distance P×L float32 m from the
     camera centre, ray directions P×3, number of saturated rays, forward axis),
-    P = (H+2m)·(W+2m), L ≤ max_layers the deepest layer any ray reached."""
+    P = (H+2m)·(W+2m), L ≤ max_layers the deepest layer any ray reached.
+    helpers: whether the scene has unlabelled shapes that rays pass through; without them one
+    layer is a single intersection, not a loop (no loop to trace: 0.13 → 0.10 s for a 640×480
+    city's quick look here), with the loop's results and counts."""
     import drjit as dr
     import mitsuba as mi
 
@@ -189,11 +205,7 @@ def _peel(mi_scene, sensor, shape_to_inst: np.ndarray, width: int, height: int, 
         return active & (layer < k_max)
 
     def body(ray, layer, prev, active):
-        si = mi_scene.ray_intersect(ray, active)
-        hit = active & si.is_valid()
-        inst = dr.reinterpret_array(mi.UInt32, si.instance)
-        shape = dr.select(inst != 0, inst, dr.reinterpret_array(mi.UInt32, si.shape))
-        top = dr.gather(mi.UInt32, lut, shape, hit)
+        si, hit, top = _labelled(mi_scene, ray, active, lut)
         # another face or mesh of the same object is not a new layer; unlabelled helpers (id 0,
         # e.g. the fog box) are passed through
         new = hit & (top != prev) & (top != 0)
@@ -201,8 +213,15 @@ def _peel(mi_scene, sensor, shape_to_inst: np.ndarray, width: int, height: int, 
         dr.scatter(dist, dr.norm(si.p - origin), idx * k_max + layer, new)
         return si.spawn_ray(ray.d), dr.select(new, layer + 1, layer), dr.select(hit, top, prev), hit
 
-    _, layers, _, active = dr.while_loop(
-        (mi.Ray3f(ray0), mi.UInt32(0), mi.UInt32(0), mi.Bool(True)), cond, body)
+    if k_max == 1 and not helpers:
+        si, hit, top = _labelled(mi_scene, mi.Ray3f(ray0), mi.Bool(True), lut)
+        new = hit & (top != 0)
+        ids = dr.select(new, top, 0)
+        dist = dr.select(new, dr.norm(si.p - origin), 0.0)
+        layers, active = dr.select(new, mi.UInt32(1), mi.UInt32(0)), hit   # as the loop leaves them
+    else:
+        _, layers, _, active = dr.while_loop(
+            (mi.Ray3f(ray0), mi.UInt32(0), mi.UInt32(0), mi.Bool(True)), cond, body)
     forward = to_world @ mi.Vector3f(0, 0, 1)
     dr.eval(ids, dist, ray0.d, layers, active, forward)   # one kernel before any numpy conversion
     layers_np = np.asarray(layers)
@@ -276,7 +295,8 @@ def render_labels(mi_scene, id_table: Mapping[str, Any], width: int, height: int
 
     shape_to_inst, inst_to_class, class_names = _shape_luts(mi_scene, id_table, class_ids)
     inst, dist, dirs, saturated, forward = _peel(mi_scene, sensor, shape_to_inst, width, height,
-                                                 margin, max_layers)
+                                                 margin, max_layers,
+                                                 helpers=any(v is None for v in id_table.values()))
     we = width + 2 * margin
     n_inst = inst_to_class.size
     ray_row, ray_col = np.divmod(np.arange(inst.shape[0]), we)
