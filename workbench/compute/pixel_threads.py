@@ -3,10 +3,13 @@
 A frame is always cut into the same BLOCKS row blocks, so a result never depends on how many
 threads ran them (the sensor seeds its noise per block); large frames run their blocks in a few
 threads of this process, at most the thread budget (WORKBENCH_THREADS, see compute.local) or the
-cores this process may use.
+cores this process may use. The threads take the blocks one at a time as they come free, the
+calling thread among them: a helper that waits for a core (a busy machine) leaves its share to
+the others instead of holding them up at the end.
 """
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -18,8 +21,9 @@ from workbench.compute.local import THREAD_BUDGET_ENV
 
 R = TypeVar("R")
 
-BLOCKS = 2
-"""Row blocks per frame: fixed, so results do not depend on the number of threads."""
+BLOCKS = 4
+"""Row blocks per frame: fixed, so results do not depend on the number of threads; more blocks
+than threads, so that a thread that starts late takes fewer of them."""
 PARALLEL_MIN_PIXELS = 1 << 16
 """Frames smaller than this run their blocks one after the other on the calling thread."""
 
@@ -64,13 +68,24 @@ def map_row_blocks(fn: Callable[[int, slice], R], rows: int, pixels: int) -> lis
     """[fn(i, block i) for each row block], in threads when the frame has `pixels` ≥
     PARALLEL_MIN_PIXELS and more than one thread is allowed. fn must release the GIL to gain.
 
-    The calling thread runs the first block itself, then any block no pool thread has started
-    yet (on a busy machine a pool thread may wait for a core longer than the block takes)."""
+    The calling thread and thread_count() − 1 pool threads each take the next block not yet
+    taken until none is left; a pool thread that has not started by then (every pool thread
+    busy, or no core free) is not waited for."""
     blocks = row_blocks(rows)
-    if pixels < PARALLEL_MIN_PIXELS or thread_count() == 1:
+    threads = thread_count()
+    if pixels < PARALLEL_MIN_PIXELS or threads == 1:
         return [fn(i, block) for i, block in enumerate(blocks)]
-    jobs = [_executor().submit(fn, i, block) for i, block in enumerate(blocks[1:], start=1)]
-    results = [fn(0, blocks[0])]
-    for i, job in enumerate(jobs, start=1):
-        results.append(fn(i, blocks[i]) if job.cancel() else job.result())
+    results: list = [None] * len(blocks)
+    claims = itertools.count()                  # its next() is atomic: each block is taken once
+
+    def take_blocks() -> None:
+        while (i := next(claims)) < len(blocks):
+            results[i] = fn(i, blocks[i])
+    helpers = [_executor().submit(take_blocks) for _ in range(threads - 1)]
+    try:
+        take_blocks()
+    finally:
+        for helper in helpers:
+            if not helper.cancel():
+                helper.result()
     return results
