@@ -81,3 +81,24 @@ def test_row_blocks_run_in_order_and_on_the_calling_thread_when_the_pool_is_busy
         release.set()
         for job in busy:
             job.result()
+
+
+@pytest.mark.parametrize("failing", range(4))
+def test_an_error_in_any_row_block_reaches_the_caller_after_every_thread_is_done(monkeypatch, failing):
+    import threading
+    import time
+
+    from workbench.compute import pixel_threads as pt
+    monkeypatch.setattr(pt, "thread_count", lambda: 2)
+    running = set()
+
+    def block(i, rows):
+        running.add(threading.current_thread().name)
+        time.sleep(0.005)
+        running.discard(threading.current_thread().name)
+        if i == failing:
+            raise ValueError(f"block {i}")
+        return i
+    with pytest.raises(ValueError, match=f"block {failing}"):
+        pt.map_row_blocks(block, 480, 480 * 640)
+    assert not running                        # no block still running once the caller has the error
