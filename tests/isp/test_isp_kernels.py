@@ -152,14 +152,6 @@ def test_gray_pixels_statistic_matches_its_definition(seed):
     np.testing.assert_allclose(gains, expected, rtol=1e-6)
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 100, 8192, 8193])
-def test_gray_pixels_percentile_equals_numpys(n):
-    from workbench.isp.illuminant import _percentile
-    values = np.random.default_rng(n).lognormal(0, 2, n)
-    for q in (0.0, 1.0, 50.0, 99.0, 100.0):
-        assert _percentile(values, q) == pytest.approx(np.percentile(values, q), rel=1e-15, abs=0)
-
-
 @pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint16])
 def test_raw_is_the_clipped_dn_fraction_and_refuses_nan_and_inf(dtype):
     from workbench.isp.process import _raw

@@ -187,9 +187,9 @@ def city_scene_job(inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None) -> J
 
 QUICK_LOOK_MAX_PIXELS = 40_000
 """A quick look (CitySceneSession.job) samples a film coarse enough to have at most this many
-pixels (at 1 spp, ~0.05 s of path tracing on this 2-core machine; a 640×480 film at a factor 2,
-76,800 pixels, took 0.17 s, and twice that under a CPU hog, where the window's 1 s goal for the
-preview of a camera move was missed)."""
+pixels (at 1 spp, ~0.04 s of path tracing on this 2-core machine; a 640×480 film at a factor 2,
+76,800 pixels, took 0.17 s, and under a CPU hog the window's 1 s goal for the preview of a
+camera move was missed)."""
 
 
 def quick_look_factor(width: int, height: int) -> int:

@@ -12,9 +12,9 @@ bit generator), ~20 ms of a 640×480 frame. These kernels draw from numpy's SFC6
   with the ratio of the Poisson probability to the normal bin's, and the remainder of the Poisson
   distribution comes from a double-exponential hat. 9 ns a draw here (a 640×480 frame of λ
   357–20,932 e⁻ in 2.7–2.8 ms, one thread) against 28–37 ns for transformed rejection (numpy's
-  PTRS, 8.6–11.4 ms in an earlier, faster spell), whose per-pixel set-up and division-heavy loop
-  cost more when every pixel has its own λ. Its oracle is the Poisson probability function (tests: chi-square on a million
-  draws at each of nine means from 10 to 1e7). The Poisson probabilities are computed, not
+  PTRS, 8.6–11.4 ms in an earlier, faster spell), whose per-pixel set-up and division-heavy
+  loop cost more when every pixel has its own λ. Its oracle is the Poisson probability function
+  (tests: chi-square on a million draws at each of nine means from 10 to 1e7). The Poisson probabilities are computed, not
   approximated by the published polynomial: ln p(k) = k·ln(1 + (λ − k)/k) − (λ − k) −
   ½·ln(2πk) − the Stirling remainder (its series: 1e-13 at k = 10); the normal bin's mass is
   Ahrens and Dieter's corrected midpoint density (their series in 1/(24λ));
@@ -25,7 +25,8 @@ Inside a kernel the generator's state is a tuple of four uint64 that each helper
 returns, so the compiler keeps it in registers (in an array it goes through memory at every
 step); the samplers are inlined, but for PD's rare remainder step. The ziggurat's sign is a
 product and PD's steps I and S one test, not branches: each is a coin toss that a branch predictor
-cannot learn (the normal draws 2×, PD 1.5× faster than with the branches). numba's float() keeps
+cannot learn (the state in registers and these two together: normal draws 1.9–2.4 → 1.0 ms, PD
+draws 4.2–5.4 → 2.7–2.8 ms a 640×480 frame, one thread). numba's float() keeps
 a float32 a float32, so means are widened with np.float64() before the float64 sampling.
 
 A kernel takes a stream as its SFC64 state (uint64[4]: a, b, c, counter) and leaves the state
@@ -214,7 +215,7 @@ def _poisson(lam, state):
 @njit(cache=_CACHE, nogil=True, error_model="numpy", inline="always")
 def _normal(state):
     """(a standard normal variate (ziggurat), the next state). The sign is applied by a product,
-    not a branch (a coin toss a branch predictor cannot learn: 2× slower)."""
+    not a branch (a coin toss a branch predictor cannot learn)."""
     while True:
         r, state = _next_uint64(state)
         layer = int(r & np.uint64(0xFF))
