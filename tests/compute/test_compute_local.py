@@ -102,3 +102,26 @@ def test_an_error_in_any_row_block_reaches_the_caller_after_every_thread_is_done
     with pytest.raises(ValueError, match=f"block {failing}"):
         pt.map_row_blocks(block, 480, 480 * 640)
     assert not running                        # no block still running once the caller has the error
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="no CPU affinity here")
+def test_pool_threads_are_kept_off_the_calling_threads_core():
+    import os
+    import threading
+
+    from workbench.compute import pixel_threads as pt
+    cores = os.sched_getaffinity(0)
+    if len(cores) < 2 or pt._sched_getcpu is None:
+        pytest.skip("needs two cores and sched_getcpu")
+    pt._executor().submit(lambda: None).result()          # at least one pool thread exists
+    core = min(cores)
+    seen = []
+
+    def caller():
+        os.sched_setaffinity(0, {core})                     # this thread only
+        pt.keep_helpers_off_this_core()
+        seen.extend(os.sched_getaffinity(tid) for tid, _ in list(pt._helpers))
+    thread = threading.Thread(target=caller)
+    thread.start()
+    thread.join(5)
+    assert seen and all(mask == cores - {core} for mask in seen)

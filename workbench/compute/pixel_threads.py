@@ -6,16 +6,20 @@ threads of this process, at most the thread budget (WORKBENCH_THREADS, see compu
 cores this process may use. The threads take the blocks one at a time as they come free, the
 calling thread among them: a helper that waits for a core (a busy machine) leaves its share to
 the others instead of holding them up at the end.
+
+Before each frame the pool threads are kept off the calling thread's core (CPU affinity): left
+to itself the scheduler on this project's 2-core VM often woke a helper on the caller's core,
+where the two ran by turns for the ~1 ms of a block while the other core idled.
 """
 from __future__ import annotations
 
+import ctypes
 import itertools
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache
 from typing import Callable, TypeVar
-
-import numpy as np
 
 from workbench.compute.local import THREAD_BUDGET_ENV
 
@@ -30,6 +34,23 @@ PARALLEL_MIN_PIXELS = 1 << 16
 _pool: ThreadPoolExecutor | None = None
 _pool_pid = -1
 _pool_lock = threading.Lock()
+_helpers: list[tuple[int, set[int]]] = []   # the pool's threads: (native id, cores allowed at start)
+
+
+def _libc_sched_getcpu() -> Callable[[], int] | None:
+    """glibc's sched_getcpu (the core the calling thread runs on), or None where there is none."""
+    if not hasattr(os, "sched_setaffinity"):
+        return None
+    try:
+        fn = ctypes.CDLL(None).sched_getcpu
+    except (OSError, AttributeError):
+        return None
+    fn.restype = ctypes.c_int
+    fn.argtypes = []
+    return fn
+
+
+_sched_getcpu = _libc_sched_getcpu()
 
 
 def budget_cores() -> int:
@@ -53,15 +74,45 @@ def _executor() -> ThreadPoolExecutor:
     global _pool, _pool_pid
     with _pool_lock:
         if _pool is None or _pool_pid != os.getpid():
-            _pool = ThreadPoolExecutor(max_workers=BLOCKS, thread_name_prefix="pixels")
+            _helpers.clear()
+            _pool = ThreadPoolExecutor(max_workers=BLOCKS, thread_name_prefix="pixels",
+                                       initializer=_register_helper)
             _pool_pid = os.getpid()
         return _pool
 
 
+def _register_helper() -> None:
+    cores = os.sched_getaffinity(0) if _sched_getcpu is not None else set()
+    with _pool_lock:
+        _helpers.append((threading.get_native_id(), cores))
+
+
+def keep_helpers_off_this_core() -> None:
+    """Let each pool thread run on the cores it started with but the one this thread runs on now
+    (no change where the platform cannot say which core, or a pool thread has no other)."""
+    if _sched_getcpu is None:
+        return
+    cpu = _sched_getcpu()
+    with _pool_lock:
+        helpers = list(_helpers)
+    for tid, cores in helpers:
+        others = cores - {cpu}
+        if cpu < 0 or not others:
+            continue
+        try:
+            os.sched_setaffinity(tid, others)
+        except OSError:                  # a thread that has ended, or a core taken away meanwhile
+            pass
+
+
 def row_blocks(rows: int) -> list[slice]:
     """The BLOCKS row ranges of a frame of `rows` rows (some empty when rows < BLOCKS)."""
-    edges = np.linspace(0, rows, BLOCKS + 1).astype(int)
-    return [slice(int(edges[i]), int(edges[i + 1])) for i in range(BLOCKS)]
+    return list(_row_blocks(rows))
+
+
+@lru_cache(maxsize=64)
+def _row_blocks(rows: int) -> tuple[slice, ...]:
+    return tuple(slice(rows * i // BLOCKS, rows * (i + 1) // BLOCKS) for i in range(BLOCKS))
 
 
 def map_row_blocks(fn: Callable[[int, slice], R], rows: int, pixels: int) -> list[R]:
@@ -81,7 +132,9 @@ def map_row_blocks(fn: Callable[[int, slice], R], rows: int, pixels: int) -> lis
     def take_blocks() -> None:
         while (i := next(claims)) < len(blocks):
             results[i] = fn(i, blocks[i])
-    helpers = [_executor().submit(take_blocks) for _ in range(threads - 1)]
+    executor = _executor()
+    keep_helpers_off_this_core()
+    helpers = [executor.submit(take_blocks) for _ in range(threads - 1)]
     try:
         take_blocks()
     finally:
