@@ -121,7 +121,7 @@ def reference_gray_pixels(flat, to_ics, white, saturated):
     ics = sample[valid] @ to_ics
     gains = (white / white[1]) * (ics.mean(axis=0)[1] / ics.mean(axis=0))
     corrected = ics * gains
-    lit = corrected.sum(axis=1) > 0.02 * np.percentile(corrected.sum(axis=1), 99)
+    lit = corrected.sum(axis=1) > 0.02 * np.percentile(corrected.sum(axis=1), 99, method="higher")
     for tolerance in GREY_PIXEL_TOLERANCES:
         corrected = ics * gains
         chroma = corrected / corrected.sum(axis=1, keepdims=True)
@@ -150,6 +150,13 @@ def test_gray_pixels_statistic_matches_its_definition(seed):
     gains, _ = illuminant_gains(linear, to_ics, "gray_pixels", white, saturated=SATURATED_FRACTION)
     expected = reference_gray_pixels(linear.reshape(-1, 3), to_ics, white, SATURATED_FRACTION)
     np.testing.assert_allclose(gains, expected, rtol=1e-6)
+
+
+@pytest.mark.parametrize("n", [1, 2, 99, 100, 101, 8192, 8305])
+def test_gray_pixels_percentile_is_numpys_higher_rank(n):
+    from workbench.isp.illuminant import _percentile_99
+    values = np.random.default_rng(n).lognormal(0, 2, n)
+    assert _percentile_99(values) == np.percentile(values, 99, method="higher")
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64, np.uint16])

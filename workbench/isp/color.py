@@ -132,9 +132,12 @@ def xyz_to_linear_srgb_matrix() -> np.ndarray:
     return m
 
 
+@lru_cache(maxsize=1)
 def srgb_white_xyz() -> np.ndarray:
-    """XYZ (Y = 1) that renders as sRGB (1, 1, 1): the D65 white of the sRGB matrices."""
-    return np.linalg.solve(xyz_to_linear_srgb_matrix(), np.ones(3))
+    """XYZ (Y = 1) that renders as sRGB (1, 1, 1): the D65 white of the sRGB matrices (read-only)."""
+    white = np.linalg.solve(xyz_to_linear_srgb_matrix(), np.ones(3))
+    white.setflags(write=False)
+    return white
 
 
 def xyz_to_srgb_linear(xyz: np.ndarray) -> np.ndarray:

@@ -42,7 +42,7 @@ def _channel_means(pixels: np.ndarray) -> np.ndarray:
 def _gains_to_white(method: str, means: np.ndarray, white: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """Gains that give the statistic `means` (3,) the chromaticity of `white`, the reference
     channel unchanged; ones with a note when a channel of the statistic is zero."""
-    if np.any(means <= 0) or not np.all(np.isfinite(means)):
+    if not all(0.0 < m < math.inf for m in means.tolist()):      # a NaN fails too
         return np.ones(3), [f"{method}: a channel of the image statistic is zero "
                             f"(means {np.array2string(means, precision=3)}); no correction applied"]
     ref = REFERENCE_CHANNEL
@@ -72,6 +72,13 @@ GREY_PIXEL_MIN_SHARE = 0.005    # fewer grey pixels than this share of the image
 GREY_PIXEL_SAMPLES = 8192       # the statistic looks at about this many pixels, evenly spread
 
 
+def _percentile_99(values: np.ndarray) -> float:
+    """The 99th percentile of values (n ≥ 1) by the nearest rank at or above it, numpy's 'higher'
+    method (one partition: a quarter of np.percentile's time on 8,192 values)."""
+    rank = math.ceil(0.99 * (len(values) - 1))
+    return float(np.partition(values, rank)[rank])
+
+
 @ILLUMINANT_CORRECTIONS.register("gray_pixels")
 def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, saturated):
     """Gray world over the pixels that are nearly grey once corrected (r, g, b chromaticity within
@@ -85,7 +92,7 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, satura
     gains, notes = _gains_to_white("gray_pixels", sums / max(len(ics), 1), white)
     target = white / white.sum()
     lit_totals = ics @ gains                       # by the first round's gains: not the darkest
-    lit = lit_totals > 0.02 * np.percentile(lit_totals, 99) if len(ics) else np.zeros(0, bool)
+    lit = lit_totals > 0.02 * _percentile_99(lit_totals) if len(ics) else np.zeros(0, bool)
     for tolerance in GREY_PIXEL_TOLERANCES:        # (noise) pixels
         sums, count = kernels.grey_pixel_sums(ics, lit, gains, target, tolerance)
         if count < GREY_PIXEL_MIN_SHARE * len(ics):
