@@ -159,3 +159,16 @@ def test_a_frame_does_not_depend_on_the_threads(monkeypatch):
     serial = signal_rate_to_sensor_image(rate, p, 0.01, np.random.default_rng(5))
     np.testing.assert_array_equal(threaded.dn, serial.dn)
     np.testing.assert_array_equal(threaded.electrons, serial.electrons)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, -1.0])
+@pytest.mark.parametrize("shape", [(4, 6), (300, 300)])          # one block in one thread; blocks in threads
+def test_a_rate_that_is_not_finite_or_is_negative_is_refused(bad, shape):
+    from workbench.errors import InvalidValueError
+    from workbench.sensor import resolve_exposure
+    p = SensorParams(rows=shape[0], cols=shape[1])
+    rate = np.full(shape, 1e5, np.float32)
+    rate[-1, -1] = bad
+    for exposure in (0.01, resolve_exposure(rate, p)):       # auto-exposure of such rates is NaN or Inf
+        with pytest.raises(InvalidValueError, match="finite and ≥ 0"):
+            signal_rate_to_sensor_image(rate, p, exposure, np.random.default_rng(0))

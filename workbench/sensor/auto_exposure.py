@@ -75,10 +75,13 @@ def auto_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams, method:
     Returns a float, or an array of the CFA tile's shape for the 'cfa' method."""
     pick = AUTO_EXPOSURE_METHODS[method or params.auto_exposure_method]
     electrons_per_s = np.asarray(signal_rate_e_per_s, dtype=np.float32)
-    if params.noise_flag == 2 and params.dark_current_e_per_s > 0:
-        electrons_per_s = electrons_per_s + np.float32(params.dark_current_e_per_s)
     gain = params.analog_gain if params.noise_flag >= 0 else 1.0
-    vps = electrons_per_s * np.float32(gain * params.conversion_gain_V_per_e)
+    volts_per_e = np.float32(gain * params.conversion_gain_V_per_e)
+    if params.noise_flag == 2 and params.dark_current_e_per_s > 0:
+        vps = electrons_per_s + np.float32(params.dark_current_e_per_s)
+        vps *= volts_per_e                          # in place: one frame-sized array, not two
+    else:
+        vps = electrons_per_s * volts_per_e
     t = np.clip(np.asarray(pick(vps, params), dtype=np.float64) * 2.0 ** params.ev_bias, 0.0, params.max_exposure_s)
     return float(t) if t.ndim == 0 else t
 

@@ -76,16 +76,17 @@ _NO_MAP = np.zeros((0, 0), dtype=np.float32)       # a kernel's per-pixel map ar
 
 
 def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, seed: int, a, b,
-           electrons: np.ndarray, volts: np.ndarray, dn: np.ndarray | None) -> None:
+           electrons: np.ndarray, volts: np.ndarray, dn: np.ndarray | None) -> int:
     """Simulate rows `sl` of the frame in place (runs in a worker thread; the kernel releases the
-    GIL). Shot noise and read noise each draw from their own SFC64 stream of the block's seed."""
+    GIL). Shot noise and read noise each draw from their own SFC64 stream of the block's seed.
+    Returns how many rates of the block were NaN, infinite or negative."""
     flag = params.noise_flag
     cap = SATURATION_CAP * (params.voltage_swing_V + abs(params.analog_offset_V)) / (
         params.conversion_gain_V_per_e * params.analog_gain)
     t_map = t[sl] if isinstance(t, np.ndarray) else _NO_MAP
     a_map = a[sl] if isinstance(a, np.ndarray) else _NO_MAP
     b_map = b[sl] if isinstance(b, np.ndarray) else _NO_MAP
-    read_out_block(rate[sl], t_map, 0.0 if isinstance(t, np.ndarray) else float(t),
+    return read_out_block(rate[sl], t_map, 0.0 if isinstance(t, np.ndarray) else float(t),
                    params.dark_current_e_per_s if flag == 2 else 0.0, min(cap, 1e15), flag >= 1,
                    params.conversion_gain_V_per_e, params.read_noise_V if flag == 2 else 0.0,
                    a_map, b_map, 0.0 if isinstance(a, np.ndarray) else float(a),
@@ -93,6 +94,11 @@ def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, seed: int, a, b
                    1.0 / params.lsb_V, float(params.max_dn), dn is not None,
                    sfc64_state([seed, 0]), sfc64_state([seed, 1]),
                    electrons[sl], volts[sl], _NO_MAP if dn is None else dn[sl])
+
+
+def _refuse_invalid_rates(rate: np.ndarray) -> None:
+    if rate.size and not (rate.min() >= 0 and rate.max() < np.inf):
+        raise InvalidValueError("sensor: signal rate (e⁻/s) must be finite and ≥ 0; it holds NaN, Inf or negatives")
 
 
 def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorParams, exposure_s,
@@ -109,10 +115,12 @@ def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorP
                          f"{params.rows}×{params.cols} pixels")
     if rate.dtype != np.float32:
         rate = rate.astype(np.float32)
-    if rate.size and not (rate.min() >= 0 and rate.max() < np.inf):
-        raise InvalidValueError("sensor: signal rate (e⁻/s) must be finite and ≥ 0; it holds NaN, Inf or negatives")
     tile, names = cfa_layout(params.cfa_pattern)
-    t = _exposure_map(exposure_s, tile.shape, params.rows, params.cols)
+    try:
+        t = _exposure_map(exposure_s, tile.shape, params.rows, params.cols)
+    except InvalidValueError:
+        _refuse_invalid_rates(rate)           # a NaN exposure from auto-exposure comes from the rates
+        raise
     if rng is None:
         rng = np.random.default_rng([params.seed, 2])
     a, b = fixed_patterns(params) if params.noise_flag == 2 else (params.analog_gain, params.analog_offset_V)
@@ -120,8 +128,10 @@ def signal_rate_to_sensor_image(signal_rate_e_per_s: np.ndarray, params: SensorP
     volts = np.empty(rate.shape, dtype=np.float32)
     dn = np.empty(rate.shape, dtype=np.float32) if params.bit_depth else None
     seeds = [int(s) for s in rng.integers(0, 2 ** 63, size=BLOCKS)]
-    map_row_blocks(lambda i, rows: _block(rows, rate, t, params, seeds[i], a, b, electrons, volts, dn),
-                   params.rows, rate.size)
+    invalid = map_row_blocks(lambda i, rows: _block(rows, rate, t, params, seeds[i], a, b, electrons, volts, dn),
+                             params.rows, rate.size)
+    if sum(invalid):                    # counted by the read-out, which read them as 0
+        _refuse_invalid_rates(rate)
     qe = (channel_qe(params, wavelengths_nm) if wavelengths_nm is not None
           else np.zeros((0, len(names))))
     exposure = float(t) if not isinstance(t, np.ndarray) else np.asarray(exposure_s, dtype=np.float64)

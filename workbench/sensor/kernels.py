@@ -287,7 +287,8 @@ def read_out_block(rate, t_map, t, dark_e_per_s, cap_e, shot, gain_V_per_e, read
     Units: rate e⁻/s, t s, dark e⁻/s, cap e⁻, g V/e⁻, σ_read V, A a gain, B V, swing V, inv_lsb DN/V.
     t_map, a_map, b_map are per-pixel maps when they have the block's shape, else the scalars t, a, b
     are used. Each row runs as a few loops: the draws (sequential in their streams) apart from
-    the arithmetic, which the compiler vectorises."""
+    the arithmetic, which the compiler vectorises. Returns how many rates were NaN, infinite or
+    negative (read as 0 here; the caller refuses such a frame)."""
     rows, cols = rate.shape
     g = np.float32(gain_V_per_e)
     sigma = np.float32(read_sigma_V)
@@ -303,6 +304,7 @@ def read_out_block(rate, t_map, t, dark_e_per_s, cap_e, shot, gain_V_per_e, read
     z = np.zeros(cols, dtype=np.float32)           # the row's read-noise draws
     shot_state = _load(s_shot)
     read_state = _load(s_read)
+    bad = 0
     for r in range(rows):
         tr = t_map[r] if t_map.shape == rate.shape else t_row
         ar = a_map[r] if a_map.shape == rate.shape else a_row
@@ -311,7 +313,10 @@ def read_out_block(rate, t_map, t, dark_e_per_s, cap_e, shot, gain_V_per_e, read
         v_row = volts[r]
         rate_row = rate[r]
         for c in range(cols):
-            e_row[c] = min(rate_row[c] * tr[c] + dark * tr[c], cap)
+            v = rate_row[c]
+            valid = (v >= zero) & (v < np.float32(np.inf))
+            bad += not valid
+            e_row[c] = min((v if valid else zero) * tr[c] + dark * tr[c], cap)
         if shot:
             shot_state = _poisson_row(e_row, shot_state)
         if read_sigma_V > 0.0:
@@ -328,6 +333,7 @@ def read_out_block(rate, t_map, t, dark_e_per_s, cap_e, shot, gain_V_per_e, read
                 dn_row[c] = min(max(np.rint(v_row[c] * to_dn), zero), top)
     _store(s_shot, shot_state)
     _store(s_read, read_state)
+    return bad
 
 
 @njit(cache=_CACHE, nogil=True, fastmath={"contract", "reassoc"})
