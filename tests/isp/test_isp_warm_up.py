@@ -17,7 +17,8 @@ from workbench.stages.scene import chart_scene
 
 KERNELS = [kernels.colour_pixels, kernels.demosaic_2x2, kernels.ics_maxima, kernels.bright_sums,
            kernels.srgb_encode_flat, kernels.sample_ics, kernels.grey_pixel_sums, sensor_kernels.read_out_block,
-           sensor_kernels.project_by_tile, kernels.normalise_raw]
+           sensor_kernels.project_by_tile, kernels.normalise_raw, sensor_kernels.scale_rates,
+           sensor_kernels.mean_f64]
 project = load_project("paper_camera")
 warm_up_pixel_kernels(project)
 warm = [len(k.signatures) for k in KERNELS]

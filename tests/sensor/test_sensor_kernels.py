@@ -172,3 +172,12 @@ def test_a_rate_that_is_not_finite_or_is_negative_is_refused(bad, shape):
     for exposure in (0.01, resolve_exposure(rate, p)):       # auto-exposure of such rates is NaN or Inf
         with pytest.raises(InvalidValueError, match="finite and ≥ 0"):
             signal_rate_to_sensor_image(rate, p, exposure, np.random.default_rng(0))
+
+
+def test_auto_exposures_kernels_match_numpy():
+    rate = np.random.default_rng(3).lognormal(8, 3, 100_003).astype(np.float32)
+    out = np.empty_like(rate)
+    kernels.scale_rates(rate, np.float32(37.5), np.float32(2.7e-5), out)
+    np.testing.assert_array_equal(out, (rate + np.float32(37.5)) * np.float32(2.7e-5))     # float32 steps
+    assert kernels.mean_f64(out) == pytest.approx(out.mean(dtype=np.float64), rel=1e-13)
+    assert math.isnan(kernels.mean_f64(out[:0]))

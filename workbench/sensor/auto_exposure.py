@@ -15,6 +15,7 @@ import numpy as np
 from workbench.errors import InvalidValueError
 from workbench.registry import Registry
 from workbench.sensor.cfa import cfa_layout
+from workbench.sensor.kernels import mean_f64, scale_rates
 from workbench.sensor.params import SensorParams
 
 AUTO_EXPOSURE_METHODS: Registry[Callable] = Registry("sensor.auto_exposure_method", "auto-exposure method")
@@ -39,7 +40,8 @@ def _time_for(target_V: float, volts_per_s: float, params: SensorParams) -> floa
 @register_auto_exposure("mean")
 def _mean(vps: np.ndarray, params: SensorParams) -> float:
     """Mean voltage = level · swing (ISETCam 'mean'; the paper's experiment uses level 0.4)."""
-    return _time_for(_headroom_V(params, params.auto_exposure_level), float(vps.mean(dtype=np.float64)), params)
+    return _time_for(_headroom_V(params, params.auto_exposure_level),
+                     mean_f64(np.ascontiguousarray(vps, dtype=np.float32).reshape(-1)), params)
 
 
 @register_auto_exposure("brightest")
@@ -76,12 +78,10 @@ def auto_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams, method:
     pick = AUTO_EXPOSURE_METHODS[method or params.auto_exposure_method]
     electrons_per_s = np.asarray(signal_rate_e_per_s, dtype=np.float32)
     gain = params.analog_gain if params.noise_flag >= 0 else 1.0
-    volts_per_e = np.float32(gain * params.conversion_gain_V_per_e)
-    if params.noise_flag == 2 and params.dark_current_e_per_s > 0:
-        vps = electrons_per_s + np.float32(params.dark_current_e_per_s)
-        vps *= volts_per_e                          # in place: one frame-sized array, not two
-    else:
-        vps = electrons_per_s * volts_per_e
+    dark = params.dark_current_e_per_s if params.noise_flag == 2 and params.dark_current_e_per_s > 0 else 0.0
+    vps = np.empty(electrons_per_s.shape, dtype=np.float32)
+    scale_rates(np.ascontiguousarray(electrons_per_s).reshape(-1), np.float32(dark),
+                np.float32(gain * params.conversion_gain_V_per_e), vps.reshape(-1))
     t = np.clip(np.asarray(pick(vps, params), dtype=np.float64) * 2.0 ** params.ev_bias, 0.0, params.max_exposure_s)
     return float(t) if t.ndim == 0 else t
 

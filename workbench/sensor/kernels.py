@@ -364,3 +364,20 @@ def project_by_tile(irradiance, weights, tile, r0, c0, first_row, stop_row, rate
                 non_finite += 1
             out[x] = max(np.float32(0.0), acc)          # max(0, NaN) is 0 in numba
     return non_finite
+
+
+@njit(cache=_CACHE, nogil=True)
+def scale_rates(rate, dark, volts_per_e, out):
+    """out = (rate + dark) · volts_per_e for flat float32 arrays, each step rounded to float32 as
+    numpy's two passes would (auto-exposure's mean voltage rate per pixel, in one pass)."""
+    for i in range(rate.shape[0]):
+        out[i] = (rate[i] + dark) * volts_per_e
+
+
+@njit(cache=_CACHE, nogil=True, fastmath={"reassoc"})
+def mean_f64(values):
+    """The mean of a flat float32 array, summed in float64 (in the compiler's order: vectorised)."""
+    total = 0.0
+    for i in range(values.shape[0]):
+        total += np.float64(values[i])
+    return total / values.shape[0] if values.shape[0] else np.nan
