@@ -72,6 +72,15 @@ GREY_PIXEL_MIN_SHARE = 0.005    # fewer grey pixels than this share of the image
 GREY_PIXEL_SAMPLES = 8192       # the statistic looks at about this many pixels, evenly spread
 
 
+def _sample_ics(flat: np.ndarray, step: int, saturated: float, to_ics: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gray-pixels sample (every step-th pixel below saturation) in the internal colour space,
+    and its sum; gathered by row blocks in threads (its reads are a cache miss each)."""
+    n = len(flat)
+    parts = map_row_blocks(lambda _i, rows: kernels.sample_ics(flat, rows.start, rows.stop, step, saturated, to_ics),
+                           n, n)
+    return np.concatenate([ics for ics, _ in parts]), np.sum([part for _, part in parts], axis=0)
+
+
 def _percentile_99(values: np.ndarray) -> float:
     """The 99th percentile of values (n ≥ 1) by the nearest rank at or above it, numpy's 'higher'
     method (one partition: a quarter of np.percentile's time on 8,192 values)."""
@@ -85,10 +94,13 @@ def _gray_pixels(flat, to_ics, white, white_world_fraction, manual_gains, satura
     a tolerance of the white's), iterated from gray world with a tolerance that narrows each round,
     so a scene whose mean is coloured (a Macbeth chart, a red wall) does not tint its greys."""
     step = max(1, len(flat) // GREY_PIXEL_SAMPLES)                # an even subsample is statistic enough
-    ics, sums, any_unsaturated = kernels.sample_ics(np.ascontiguousarray(flat, dtype=np.float32), step, saturated,
-                                                    np.ascontiguousarray(to_ics, dtype=np.float64))
-    saturation_notes = [] if any_unsaturated or not len(flat) else [
-        "gray_pixels: every pixel is saturated; the statistic uses them all"]
+    flat = np.ascontiguousarray(flat, dtype=np.float32)
+    to_ics = np.ascontiguousarray(to_ics, dtype=np.float64)
+    ics, sums = _sample_ics(flat, step, saturated, to_ics)
+    saturation_notes = []
+    if not len(ics) and len(flat):
+        saturation_notes = ["gray_pixels: every pixel is saturated; the statistic uses them all"]
+        ics, sums = _sample_ics(flat, step, math.inf, to_ics)
     gains, notes = _gains_to_white("gray_pixels", sums / max(len(ics), 1), white)
     target = white / white.sum()
     lit_totals = ics @ gains                       # by the first round's gains: not the darkest

@@ -267,23 +267,18 @@ def grey_pixel_sums(ics, lit, gains, target, tolerance):
 
 
 @njit(cache=_CACHE, nogil=True)
-def sample_ics(flat, step, saturated, to_ics):
-    """ics = pixel·to_ics (K×3, float64) of every step-th pixel of flat (N×K) whose every channel
-    is below saturated, or of every step-th pixel when none is; returns (ics M×3, their sum (3,),
-    whether any pixel was below saturated)."""
-    out = np.empty(((flat.shape[0] + step - 1) // step, 3))
+def sample_ics(flat, first, stop, step, saturated, to_ics):
+    """ics = pixel·to_ics (K×3, float64) of the pixels first…stop − 1 of flat (N×K) whose index is
+    a multiple of step and whose every channel is below saturated; returns (ics M×3, their sum
+    (3,)). A row block's share of the gray-pixels sample."""
+    start = (first + step - 1) // step * step
+    out = np.empty((max(0, (stop - start + step - 1) // step), 3))
     sums = np.zeros(3)
     m = 0
-    for i in range(0, flat.shape[0], step):
+    for i in range(start, stop, step):
         if _below(flat, i, saturated):
             for c in range(3):
                 out[m, c] = _ics(flat, i, to_ics, c)
                 sums[c] += out[m, c]
             m += 1
-    if m > 0:
-        return out[:m], sums, True
-    for j, i in enumerate(range(0, flat.shape[0], step)):
-        for c in range(3):
-            out[j, c] = _ics(flat, i, to_ics, c)
-            sums[c] += out[j, c]
-    return out, sums, False
+    return out[:m], sums
