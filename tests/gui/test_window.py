@@ -101,6 +101,25 @@ def test_histograms_wait_while_a_simulation_runs(window, qtbot):
     assert np.array_equal(pane.histogram.plot.yData, pane.image.getHistogram()[1])
 
 
+def test_an_edit_holds_the_histograms_before_its_run_reports_busy(window, qtbot):
+    """A histogram timer that comes due between an edit and its run's (queued) busy signal would
+    take the GUI thread while the frame is computed: the edit holds the histograms itself."""
+    import dataclasses
+
+    from workbench.gui.previews import HISTOGRAM_DELAY_MS
+    previews = window.previews
+    pane = previews.panes["srgb"]
+    previews.show_frame(dataclasses.replace(previews.frame, srgb=1.0 - previews.frame.srgb))   # timer pending
+    shown = previews.frames_shown
+    window.apply_edit("sensor", {"ev_bias": 0.5})
+    assert previews._histograms_held
+    previews._histogram_timer_fired()                 # due before any event of the run arrived
+    assert pane._histogram_stale
+    qtbot.waitUntil(lambda: previews.frames_shown > shown and not window.live.busy, timeout=FRAME_TIMEOUT_MS)
+    qtbot.waitUntil(lambda: not pane._histogram_stale, timeout=10 * HISTOGRAM_DELAY_MS)   # caught up when idle
+    assert not previews._histograms_held
+
+
 def test_undo_returns_the_exact_previous_image(window, qtbot, grab):
     first = window.previews.frame
     first_pixels = grab(window.previews.panes["srgb"].view_widget)

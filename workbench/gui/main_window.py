@@ -240,7 +240,8 @@ class MainWindow(QMainWindow):
             editor.set_project(project)
         if self.city_view is not None:
             self.city_view.set_project(project)
-        self.live.submit(project)
+        self.previews.hold_histograms(True)      # now, not when the run's busy signal arrives: a
+        self.live.submit(project)                # histogram timer due meanwhile took the GUI thread ~12 ms
         self._update_title()
 
     def apply_edit(self, section: str, changes: dict) -> bool:
