@@ -155,3 +155,16 @@ def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_
     assert "no such data-set folder" in panel.log.toPlainText()
     assert "failed" in panel.status.text()
     assert panel.out_dir.text() == str(tmp_path / "experiment-isp-standard")
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "setpriority"), reason="no process niceness here")
+def test_the_experiment_process_runs_below_the_windows_priority(qtbot, tmp_path):
+    import os
+
+    from workbench.gui.panels.experiments import EXPERIMENT_NICE
+    panel = make_panel(qtbot)
+    script = "import os, time; time.sleep(0.5); print('NICE', os.nice(0), flush=True)"
+    with qtbot.waitSignal(panel.run_finished, timeout=30_000):
+        panel.run_argv([sys.executable, "-c", script], tmp_path / "none")
+    niceness = int(panel.log.toPlainText().split("NICE ")[-1].split()[0])
+    assert niceness == min(19, os.nice(0) + EXPERIMENT_NICE)
