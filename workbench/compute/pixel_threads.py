@@ -90,14 +90,14 @@ def _register_helper() -> None:
 def keep_helpers_off_this_core() -> None:
     """Let each pool thread run on the cores it started with but the one this thread runs on now
     (no change where the platform cannot say which core, or a pool thread has no other)."""
-    if _sched_getcpu is None:
+    cpu = -1 if _sched_getcpu is None else _sched_getcpu()
+    if cpu < 0:
         return
-    cpu = _sched_getcpu()
     with _pool_lock:
         helpers = list(_helpers)
     for tid, cores in helpers:
         others = cores - {cpu}
-        if cpu < 0 or not others:
+        if not others:
             continue
         try:
             os.sched_setaffinity(tid, others)

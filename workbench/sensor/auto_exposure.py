@@ -78,9 +78,9 @@ def auto_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams, method:
     pick = AUTO_EXPOSURE_METHODS[method or params.auto_exposure_method]
     electrons_per_s = np.asarray(signal_rate_e_per_s, dtype=np.float32)
     gain = params.analog_gain if params.noise_flag >= 0 else 1.0
-    dark = params.dark_current_e_per_s if params.noise_flag == 2 and params.dark_current_e_per_s > 0 else 0.0
+    dark_e_per_s = params.dark_current_e_per_s if params.noise_flag == 2 and params.dark_current_e_per_s > 0 else 0.0
     vps = np.empty(electrons_per_s.shape, dtype=np.float32)
-    scale_rates(np.ascontiguousarray(electrons_per_s).reshape(-1), np.float32(dark),
+    scale_rates(np.ascontiguousarray(electrons_per_s).reshape(-1), np.float32(dark_e_per_s),
                 np.float32(gain * params.conversion_gain_V_per_e), vps.reshape(-1))
     t = np.clip(np.asarray(pick(vps, params), dtype=np.float64) * 2.0 ** params.ev_bias, 0.0, params.max_exposure_s)
     return float(t) if t.ndim == 0 else t

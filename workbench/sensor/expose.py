@@ -97,6 +97,7 @@ def _block(sl: slice, rate: np.ndarray, t, params: SensorParams, seed: int, a, b
 
 
 def _refuse_invalid_rates(rate: np.ndarray) -> None:
+    """Raise InvalidValueError if any rate (e⁻/s) is NaN, infinite or negative."""
     if rate.size and not (rate.min() >= 0 and rate.max() < np.inf):
         raise InvalidValueError("sensor: signal rate (e⁻/s) must be finite and ≥ 0; it holds NaN, Inf or negatives")
 

@@ -404,11 +404,12 @@ def project_by_tile(irradiance, weights, tile, r0, c0, first_row, stop_row, rate
 
 
 @njit(cache=_CACHE, nogil=True)
-def scale_rates(rate, dark, volts_per_e, out):
-    """out = (rate + dark) · volts_per_e for flat float32 arrays, each step rounded to float32 as
-    numpy's two passes would (auto-exposure's mean voltage rate per pixel, in one pass)."""
-    for i in range(rate.shape[0]):
-        out[i] = (rate[i] + dark) * volts_per_e
+def scale_rates(rate_e_per_s, dark_e_per_s, volts_per_e, out_V_per_s):
+    """out_V_per_s = (rate_e_per_s + dark_e_per_s) · volts_per_e for flat float32 arrays, each step
+    rounded to float32 as numpy's two passes would (auto-exposure's mean voltage rate per pixel,
+    in one pass)."""
+    for i in range(rate_e_per_s.shape[0]):
+        out_V_per_s[i] = (rate_e_per_s[i] + dark_e_per_s) * volts_per_e
 
 
 @njit(cache=_CACHE, nogil=True, fastmath={"reassoc"})
