@@ -120,6 +120,35 @@ def test_an_edit_holds_the_histograms_before_its_run_reports_busy(window, qtbot)
     assert not previews._histograms_held
 
 
+def test_an_edit_starts_its_run_first_and_a_sensor_edits_read_outs_follow_its_frame(window, qtbot):
+    """The run is submitted before the editors show the edit (they took ~4 ms of it); a sensor
+    edit's frame reaches the panes without its read-outs, which follow (readoutsReady) into the
+    metrics dock; an ISP edit's frame brings the sensor image's read-outs with it."""
+    order, arrived, followed = [], [], []
+    submit = window.live.submit
+    window.live.submit = lambda project: (order.append("run"), submit(project))
+    for editor in window.editors.values():
+        show = editor.set_project
+        editor.set_project = lambda project, show=show: (order.append("editor"), show(project))
+    window.live.frameReady.connect(lambda f: arrived.append((f, f.readouts)))
+    window.live.readoutsReady.connect(lambda f, r: followed.append((f, r)))
+    shown = window.previews.frames_shown
+    window.apply_edit("sensor", {"analog_gain": 2.0})
+    assert order[0] == "run" and "editor" in order
+    wait_frame(qtbot, window, shown)
+    qtbot.waitUntil(lambda: bool(followed), timeout=FRAME_TIMEOUT_MS)
+    frame, readouts = followed[-1]
+    assert arrived[-1] == (frame, None) and readouts["analog_gain"] == 2.0
+    qtbot.waitUntil(lambda: frame.readouts is readouts)
+    metrics = window.editors["Metrics"]
+    assert metrics._frame is frame and metrics._readouts["analog_gain"] == 2.0
+    shown, count = window.previews.frames_shown, len(followed)
+    window.apply_edit("isp", {"demosaic": "malvar2004"})
+    wait_frame(qtbot, window, shown)
+    qtbot.wait(100)
+    assert arrived[-1][1] is readouts and len(followed) == count and metrics._frame is arrived[-1][0]
+
+
 def test_undo_returns_the_exact_previous_image(window, qtbot, grab):
     first = window.previews.frame
     first_pixels = grab(window.previews.panes["srgb"].view_widget)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from PySide6.QtCore import QObject, Signal
 
+from workbench.display8 import Display8
 from workbench.jobs import CancelToken, JobCancelled
 from workbench.pipeline import Pipeline
 from workbench.project import Project
@@ -33,6 +34,7 @@ WORKER_THREADS = 1       # torch / OpenMP / Mitsuba threads of the worker, so th
 # The city render worker is a process of its own: it uses every core of the thread budget, niced so
 # that the window's threads (GUI, live worker, 3-D view) take a core whenever they need one.
 RENDER_NICE = 10
+UNIT_LEVELS = (0.0, 1.0)  # the display levels of the irradiance, linear and sRGB panes (raw: 0…max DN)
 IRRADIANCE_PREVIEWS = 4   # irradiance panes' sRGB kept per optical image (Undo/Redo find theirs)
 
 
@@ -78,6 +80,7 @@ class Frame:
     submitted_at: float = 0.0
     isp_notes: list[str] = field(default_factory=list)
     readouts: dict | None = None           # metrics.frame.frame_readouts of this frame
+    display8: dict = field(default_factory=dict)   # pane name → display8.Display8 of its image
 
 
 def _optics_level(oi, project: Project) -> tuple[str, str]:
@@ -95,43 +98,70 @@ class FrameBuilder:
         self._irr_rgb: dict[int, tuple] = {}   # id(optical image) → (weak reference to it, sRGB preview)
         self._readouts_key = None      # the sensor image the read-outs were taken from
         self._readouts = None
+        self._raw_display: tuple = (None, None)   # (sensor image, display8.Display8 of its DN)
 
-    def _irradiance_rgb(self, oi) -> np.ndarray:
-        """The irradiance pane's sRGB of `oi`, kept for the last IRRADIANCE_PREVIEWS optical images
-        (Undo and Redo bring back one the stage cache still holds: 10–20 ms each otherwise)."""
+    def _irradiance_rgb(self, oi) -> Display8:
+        """The irradiance pane's sRGB of `oi` with its 8-bit copy, kept for the last
+        IRRADIANCE_PREVIEWS optical images (Undo and Redo bring back one the stage cache still
+        holds: 10–20 ms each otherwise)."""
         from workbench.previews import irradiance_preview
         hit = self._irr_rgb.pop(id(oi), None)
         if hit is None or hit[0]() is not oi:
-            hit = (weakref.ref(oi), irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm,
-                                                       oi.meta).astype(np.float32))
+            rgb = irradiance_preview(oi.irradiance_photons, oi.wavelengths_nm, oi.meta).astype(np.float32)
+            hit = (weakref.ref(oi), Display8.of(rgb, UNIT_LEVELS))
         self._irr_rgb[id(oi)] = hit                    # newest last
         while len(self._irr_rgb) > IRRADIANCE_PREVIEWS:
             self._irr_rgb.pop(next(iter(self._irr_rgb)))
         return hit[1]
 
-    def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float) -> Frame:
+    def _raw_display8(self, img) -> Display8:
+        """The raw pane's 8-bit copy of `img`'s DN (an ISP edit keeps the sensor image's)."""
+        if self._raw_display[0] is not img:
+            self._raw_display = (img, Display8.of(img.dn, (0.0, float(img.max_dn))))
+        return self._raw_display[1]
+
+    def readouts(self, pipe: Pipeline, project: Project) -> dict:
+        """metrics.frame.frame_readouts of the pipeline's sensor image (kept: an ISP edit keeps
+        the sensor's read-outs)."""
+        from workbench.metrics.frame import frame_readouts
+        img = pipe.sensor_image()
+        if self._readouts_key is not img:
+            self._readouts = frame_readouts(img, pipe.signal_rate(), project.sensor, pipe.labels())
+            self._readouts_key = img
+        return self._readouts
+
+    def build(self, pipe: Pipeline, project: Project, preview: bool, submitted_at: float,
+              readouts: bool = True) -> Frame:
+        """The Frame of the pipeline's results; with readouts=False a full frame carries its
+        read-outs only if they are known (its sensor image's), the caller adds them later
+        (readouts()), after the frame is on screen."""
         from workbench.previews import channels_to_rgb
         from workbench.sensor.signal import colour_wavelengths_nm
         oi = pipe.optical_image()
         img = pipe.sensor_image()
         isp = pipe.isp_result()
-        irradiance_rgb = self._irradiance_rgb(oi)
+        irradiance = self._irradiance_rgb(oi)
+        linear_rgb = np.asarray(channels_to_rgb(isp.linear, list(isp.channel_names)), dtype=np.float32)
+        srgb = np.asarray(isp.srgb, dtype=np.float32)
+        display8 = {"irradiance": irradiance, "raw": self._raw_display8(img),
+                    "linear": Display8.of(linear_rgb, UNIT_LEVELS), "srgb": Display8.of(srgb, UNIT_LEVELS)}
         level, reason = _optics_level(oi, project)
-        from workbench.metrics.frame import frame_readouts
-        if not preview and self._readouts_key is not img:      # an ISP edit keeps the sensor's read-outs
-            self._readouts = frame_readouts(img, pipe.signal_rate(), project.sensor, pipe.labels())
-            self._readouts_key = img
-        readouts = None if preview else self._readouts
+        if preview:
+            frame_readouts = None
+        elif readouts:
+            frame_readouts = self.readouts(pipe, project)
+        else:
+            frame_readouts = self._readouts if self._readouts_key is img else None
         return Frame(project=project, irradiance_photons=oi.irradiance_photons,
-                     wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=irradiance_rgb,
+                     wavelengths_nm=np.asarray(oi.wavelengths_nm), irradiance_rgb=irradiance.source,
                      colour_wavelengths_nm=colour_wavelengths_nm(oi),
                      raw_dn=img.dn, max_dn=float(img.max_dn), cfa_tile=np.asarray(img.cfa_tile),
                      channel_names=list(img.channel_names), linear=isp.linear,
-                     linear_rgb=np.asarray(channels_to_rgb(isp.linear, list(isp.channel_names)), dtype=np.float32),
-                     srgb=np.asarray(isp.srgb, dtype=np.float32), signal_rate_e_per_s=pipe.signal_rate(),
+                     linear_rgb=linear_rgb, srgb=srgb, signal_rate_e_per_s=pipe.signal_rate(),
                      optics_level=level, optics_reason=reason, stage_times_s=dict(pipe.stage_times_s),
                      recomputed=list(pipe.recomputed), preview=preview, submitted_at=submitted_at,
-                     isp_notes=list(getattr(isp, "notes", []) or []), readouts=readouts)
+                     isp_notes=list(getattr(isp, "notes", []) or []), readouts=frame_readouts,
+                     display8=display8)
 
 
 WINDOW_BANDS = 16        # a city rendered in the sensor's channels is shown from this many bands
@@ -160,9 +190,11 @@ class LiveRunner(QObject):
     """Owns one worker thread and one Pipeline; submit(project) → frameReady(Frame) later.
 
     Signals (delivered on the GUI thread): frameReady(Frame), progress(str stage, float 0…1),
-    failed(str message), busyChanged(bool)."""
+    failed(str message), busyChanged(bool), readoutsReady(Frame, dict): the read-outs of a full
+    frame that came without them (a sensor edit's), taken once the worker is idle after it."""
 
     frameReady = Signal(object)
+    readoutsReady = Signal(object, object)
     progress = Signal(str, float)
     failed = Signal(str)
     busyChanged = Signal(bool)
@@ -179,6 +211,7 @@ class LiveRunner(QObject):
         self._builder = FrameBuilder()
         self._preview_builder = FrameBuilder()
         self._last_full: Project | None = None
+        self._readouts_due: tuple[Frame, Project] | None = None   # the newest frame without read-outs
         self.render_worker = None                  # started with the first city project
         self._warmed = False
         self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
@@ -246,6 +279,22 @@ class LiveRunner(QObject):
                     idle = self._pending is None
                 if idle:
                     self.busyChanged.emit(False)
+            if idle:
+                self._take_due_readouts()
+
+    def _take_due_readouts(self) -> None:
+        """The read-outs of the newest full frame, if it came without them (readoutsReady): taken
+        after the frame is on screen, so a sensor edit's frame does not wait ~4 ms for them."""
+        due, self._readouts_due = self._readouts_due, None
+        if due is None:
+            return
+        frame, document_project = due
+        try:
+            readouts = self._builder.readouts(self.pipeline, document_project)
+        except Exception:  # noqa: BLE001 — the frame is shown; the metrics dock keeps its last read-outs
+            log.exception("frame read-outs failed")
+            return
+        self.readoutsReady.emit(frame, readouts)
 
     def _warm_up(self, project: Project) -> None:
         """Once, before the first run (the window is still opening, nobody is editing yet; ~80 ms
@@ -270,6 +319,7 @@ class LiveRunner(QObject):
             self.progress.emit(p.message, p.fraction)
 
     def _run(self, document_project: Project, submitted_at: float, token: CancelToken) -> None:
+        self._readouts_due = None                    # this run's frame supersedes the last one
         project = window_project(document_project)
         if project.scene.kind == "city" and self.render_worker is None:
             from workbench.compute.pixel_threads import budget_cores
@@ -296,6 +346,7 @@ class LiveRunner(QObject):
                                                              submitted_at))
         self._drive(self.pipeline, token)
         token.check()
-        frame = self._builder.build(self.pipeline, document_project, False, submitted_at)
+        frame = self._builder.build(self.pipeline, document_project, False, submitted_at, readouts=False)
         self._last_full = project
+        self._readouts_due = None if frame.readouts is not None else (frame, document_project)
         self.frameReady.emit(frame)

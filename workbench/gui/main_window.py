@@ -94,6 +94,7 @@ class MainWindow(QMainWindow):
         self.document.dirtyChanged.connect(self._update_title)
         self.document.pathChanged.connect(self._update_title)
         self.live.frameReady.connect(self._frame_ready)
+        self.live.readoutsReady.connect(self._readouts_ready)
         self.live.progress.connect(self._progress)
         self.live.failed.connect(self._run_failed)
         self.live.busyChanged.connect(self._busy_changed)
@@ -236,12 +237,12 @@ class MainWindow(QMainWindow):
         self.setWindowModified(self.document.dirty)
 
     def _project_changed(self, project: Project) -> None:
-        for editor in self.editors.values():
+        self.previews.hold_histograms(True)      # now, not when the run's busy signal arrives: a
+        self.live.submit(project)                # histogram timer due meanwhile took the GUI thread ~12 ms
+        for editor in self.editors.values():     # while the worker runs (they took ~4 ms of an edit)
             editor.set_project(project)
         if self.city_view is not None:
             self.city_view.set_project(project)
-        self.previews.hold_histograms(True)      # now, not when the run's busy signal arrives: a
-        self.live.submit(project)                # histogram timer due meanwhile took the GUI thread ~12 ms
         self._update_title()
 
     def apply_edit(self, section: str, changes: dict) -> bool:
@@ -267,7 +268,13 @@ class MainWindow(QMainWindow):
         if sweep is not None and not frame.preview and "signal" in frame.recomputed:
             sweep.set_frame(frame.project, frame.signal_rate_e_per_s, frame.colour_wavelengths_nm)
         metrics = self.editors.get("Metrics")
-        if metrics is not None and not frame.preview:
+        if metrics is not None and not frame.preview and frame.readouts is not None:
+            metrics.set_frame(frame)             # else with its read-outs (_readouts_ready)
+
+    def _readouts_ready(self, frame, readouts: dict) -> None:
+        frame.readouts = readouts
+        metrics = self.editors.get("Metrics")
+        if metrics is not None and frame is self.previews.frame:
             metrics.set_frame(frame)
 
     def _show_inspected(self, text: str) -> None:

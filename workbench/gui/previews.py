@@ -45,20 +45,47 @@ HISTOGRAM_DELAY_MS = 60
 
 
 @contextmanager
-def painted_together(panes):
-    """Changes made to these panes' scenes inside the block are painted in one repaint of the
-    window. Left alone, each scene repaints and flushes the whole window on its own (QGraphicsView
-    dispatches its update at once), and each flush of a 1600×1000 window costs a few ms."""
-    for pane in panes:
-        pane.view_widget.setUpdatesEnabled(False)
+def painted_together(parts):
+    """Changes made inside the block to these (pane, graphics item) parts are painted in one
+    repaint of the window, and only where the items lie. Left alone, each pane's scene repaints and
+    flushes the whole window on its own (QGraphicsView dispatches its update at once; each flush of
+    a 1600×1000 window costs a few ms), and re-enabling a view's updates would repaint all of it
+    (image, histogram, axes)."""
+    from PySide6.QtWidgets import QGraphicsView
+    views = {id(pane): pane.view_widget for pane, _item in parts}
+    modes = {key: view.viewportUpdateMode() for key, view in views.items()}
+    for view in views.values():
+        view.setViewportUpdateMode(QGraphicsView.ViewportUpdateMode.NoViewportUpdate)
     try:
         yield
-        for pane in panes:                      # the scenes' queued updates, now, while they cannot paint
-            QMetaObject.invokeMethod(pane.view_widget.scene(), "_q_processDirtyItems",
-                                     Qt.ConnectionType.DirectConnection)
+        for view in views.values():             # the scenes' queued updates, now, while the views ignore them
+            QMetaObject.invokeMethod(view.scene(), "_q_processDirtyItems", Qt.ConnectionType.DirectConnection)
     finally:
-        for pane in panes:                      # one repaint of them all, by the next event loop pass
-            pane.view_widget.setUpdatesEnabled(True)
+        for key, view in views.items():
+            view.setViewportUpdateMode(modes[key])
+        for pane, item in parts:                # repainted together by the next event loop pass
+            view = pane.view_widget
+            view.viewport().update(view.mapFromScene(item.sceneBoundingRect()).boundingRect())
+
+
+class PaneImage(pg.ImageItem):
+    """An ImageItem that draws the 8-bit copy made with its image (display8.Display8) instead of
+    rescaling the image on the GUI thread, while the levels are the copy's and no lookup table is
+    set (the histogram's gradient or a dragged level region fall back to pyqtgraph's own path)."""
+
+    display8 = None
+
+    def render(self):
+        d = self.display8
+        levels = self.levels
+        if (d is not None and self.lut is None and levels is not None and np.shape(levels) == (2,)
+                and (float(levels[0]), float(levels[1])) == d.levels):
+            fmt = pg.QtGui.QImage.Format.Format_Grayscale8 if d.u8.ndim == 2 else pg.QtGui.QImage.Format.Format_RGB888
+            self.qimage = pg.functions.ndarray_to_qimage(d.u8, fmt)
+            self._renderRequired = False
+            self._unrenderable = False
+            return
+        super().render()
 
 
 class PreviewPane(QWidget):
@@ -73,7 +100,7 @@ class PreviewPane(QWidget):
         self.viewbox = self.view_widget.addViewBox(row=0, col=0, lockAspect=True, invertY=True)
         self.viewbox.setMenuEnabled(False)        # our own menu (PreviewPanes.context_menu)
         self.view_widget.sceneObj.contextMenu = []   # no pyqtgraph scene menu either
-        self.image = pg.ImageItem()
+        self.image = PaneImage()
         self.clip_overlay = pg.ImageItem()
         self.clip_overlay.setZValue(10)
         self.viewbox.addItem(self.image)
@@ -104,14 +131,16 @@ class PreviewPane(QWidget):
         self._shape: tuple[int, int] | None = None
         self._shown: np.ndarray | None = None
 
-    def set_image(self, array: np.ndarray, levels: tuple[float, float]) -> bool:
+    def set_image(self, array: np.ndarray, levels: tuple[float, float], display=None) -> bool:
         """Show array (the very array already shown, a stage that came from the cache, is
-        skipped); True when its size differs from the image shown before (or none was)."""
+        skipped), drawn from `display` (a display8.Display8 of it) when that is its copy at these
+        levels; True when its size differs from the image shown before (or none was)."""
         if array is self._shown:
             return False
         self._shown = array
         new_shape = self._shape != array.shape[:2]
         self._shape = array.shape[:2]
+        self.image.display8 = display if display is not None and display.source is array else None
         self.image.setImage(array, autoLevels=False, levels=levels)
         self.histogram.setLevels(*levels)
         self._histogram_stale = True
@@ -265,8 +294,9 @@ class PreviewPanes(QWidget):
                   "linear": (frame.linear_rgb, (0.0, 1.0)), "srgb": (frame.srgb, (0.0, 1.0))}
         changed = [p[name] for name, (array, _levels) in images.items()
                    if array is not p[name]._shown or (name != "irradiance" and self.highlight_clipped.isChecked())]
-        with painted_together(changed):
-            resized = [p[name].set_image(array, levels) for name, (array, levels) in images.items()]
+        with painted_together([(pane, pane.viewbox) for pane in changed]):
+            resized = [p[name].set_image(array, levels, frame.display8.get(name))
+                       for name, (array, levels) in images.items()]
             self._update_clip()
             if any(resized):                    # a new image size: show it whole
                 self.fit()
@@ -286,7 +316,7 @@ class PreviewPanes(QWidget):
         """Bring every pane's histogram up to the image it shows (normally run by a timer after a
         frame), repainting the window once."""
         stale = [pane for pane in self.panes.values() if pane._histogram_stale]
-        with painted_together(stale):
+        with painted_together([(pane, pane.histogram) for pane in stale]):
             for pane in stale:
                 pane.refresh_histogram()
 
