@@ -66,13 +66,13 @@ def test_opens_headless_result_folder_and_draws_chart(qtbot, grab, tmp_path, kin
     with qtbot.waitSignal(panel.results_shown):
         assert panel.open_folder(tmp_path / "gpu-run")          # finds the folder below
     assert panel.doc["kind"] == kind
-    qtbot.wait(100)
+    qtbot.waitUntil(panel.chart.is_current, timeout=20_000)
     pixels = grab(panel.chart).reshape(-1, 3)
     assert len(np.unique(pixels, axis=0)) > 50 and pixels.std(axis=0).max() > 20
     if kind == "isp":
-        assert sorted(round(p.get_height(), 2) for p in panel.chart.figure.axes[0].patches) == [0.41, 0.52, 0.63]
+        assert sorted(round(p.get_height(), 2) for p in panel.chart.figure().axes[0].patches) == [0.41, 0.52, 0.63]
     else:
-        assert len([l for l in panel.chart.figure.axes[0].lines if len(l.get_xdata()) == 5]) == 3
+        assert len([l for l in panel.chart.figure().axes[0].lines if len(l.get_xdata()) == 5]) == 3
 
 
 def test_bad_folder_shows_the_error(qtbot, tmp_path):

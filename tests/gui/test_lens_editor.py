@@ -65,12 +65,12 @@ def test_lens_table_readouts_and_charts(qtbot, grab, user_lenses):
     assert f"EFL {efl:.4g} mm" in editor.readouts.text() and "f/4" in editor.readouts.text()
     assert emitted == []
     with qtbot.waitSignal(editor.chart_ready, timeout=120_000) as sig:
-        editor.charts.setCurrentWidget(editor.canvases["mtf"])
+        editor.charts.setCurrentWidget(editor.chart_views["mtf"])
     assert sig.args == ["mtf"]
     for tab in ("mtf", "layout"):
-        editor.charts.setCurrentWidget(editor.canvases[tab])
-        qtbot.wait(100)
-        assert len(np.unique(grab(editor.canvases[tab]).reshape(-1, 3), axis=0)) > 20, tab
+        editor.charts.setCurrentWidget(editor.chart_views[tab])
+        qtbot.waitUntil(editor.chart_views[tab].is_current, timeout=120_000)
+        assert len(np.unique(grab(editor.chart_views[tab]).reshape(-1, 3), axis=0)) > 20, tab
 
 
 def test_edited_lens_is_saved_to_the_library_and_used(qtbot, user_lenses):

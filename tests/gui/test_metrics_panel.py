@@ -106,21 +106,21 @@ def test_study_panel_runs_a_grid_resumes_it_and_draws_the_pareto_chart(qtbot, gr
     assert "SECTION.FIELD" in panel.status.text() and panel._worker is None
 
 
-def test_the_kept_measuring_process_outlives_the_thread_that_started_it():
-    """The measuring process is started from a pool thread that Qt retires after 30 s idle; with
+def test_the_kept_side_process_outlives_the_thread_that_started_it():
+    """The side process (camera metrics, EMVA) is started from a pool thread that Qt retires after 30 s idle; with
     Linux's parent-death signal (which follows that thread) the process died with it and the next
     measurement failed with BrokenProcessPool."""
     import os
     import threading
     import time
 
-    from workbench.gui.panels import metrics
+    from workbench.gui import side_process
 
-    metrics.shutdown_measuring_process()
+    side_process.shutdown()
     pids = []
-    starter = threading.Thread(target=lambda: pids.append(metrics._measure_process().submit(os.getpid).result()))
+    starter = threading.Thread(target=lambda: pids.append(side_process.run(os.getpid)))
     starter.start()
     starter.join()
     time.sleep(1.0)                                   # the starting thread has ended
-    assert metrics._measure_process().submit(os.getpid).result(timeout=30) == pids[0]
-    metrics.shutdown_measuring_process()
+    assert side_process.run(os.getpid) == pids[0] != os.getpid()
+    side_process.shutdown()

@@ -53,7 +53,7 @@ def test_cfa_tile_and_qe_chart_draw(qtbot, grab):
     tile = grab(editor.cfa)
     assert tile.reshape(-1, 3).std(axis=0).max() > 20
     editor.tabs.setCurrentIndex(1)
-    qtbot.wait(50)
+    qtbot.waitUntil(editor.qe_chart.is_current, timeout=20_000)
     chart = grab(editor.qe_chart)
     assert len(np.unique(chart.reshape(-1, 3), axis=0)) > 20
 
@@ -70,22 +70,23 @@ def test_emva_runs_in_background_and_plots(qtbot, grab):
     text = editor.emva_status.text()
     assert "µV/e⁻" in text and f"(configured {Project().sensor.read_noise_e:.3g})" in text
     assert result["notes"] and "read noise ≥ " in text and "lower bound" in text     # an 8-bit ADC hides it
-    snr_axes = editor.emva_chart.figure.axes[1]
+    snr_axes = editor.emva_chart.figure().axes[1]
     assert min(min(line.get_xdata()) for line in snr_axes.lines) >= 1.0             # no point below 1 e⁻
     qtbot.waitUntil(lambda: editor.emva_button.isEnabled())
-    qtbot.wait(50)
+    qtbot.waitUntil(editor.emva_chart.is_current, timeout=20_000)
     assert len(np.unique(grab(editor.emva_chart).reshape(-1, 3), axis=0)) > 20
 
 
 def test_a_hidden_qe_chart_is_built_when_it_is_seen(qtbot, grab):
-    """A CFA edit behind the 'Parameters' tab builds no chart on the GUI thread; the QE tab then
-    shows the new pattern's curves."""
+    """A CFA edit behind the 'Parameters' tab draws no chart; the QE tab then shows the new
+    pattern's curves, drawn off the GUI thread."""
     editor = make_editor(qtbot)
     editor.set_project(Project())
     assert not editor.qe_chart.isVisible()
     editor.set_project(Project(sensor=SENSOR_PRESETS["auto_rccc"]))
-    assert editor.qe_chart._pending_draw is not None          # deferred, not drawn
+    qtbot.wait(100)
+    assert editor.qe_chart._worker is None and not editor.qe_chart.is_current()   # deferred, not drawn
     editor.tabs.setCurrentIndex(1)
-    qtbot.waitUntil(lambda: editor.qe_chart._pending_draw is None, timeout=5_000)
-    assert editor.qe_chart.figure.axes[0].get_title() == "RCCC: effective channel QE"
+    qtbot.waitUntil(editor.qe_chart.is_current, timeout=20_000)
+    assert editor.qe_chart.figure().axes[0].get_title() == "RCCC: effective channel QE"
     assert len(np.unique(grab(editor.qe_chart).reshape(-1, 3), axis=0)) > 20

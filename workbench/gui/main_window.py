@@ -446,6 +446,8 @@ class MainWindow(QMainWindow):
         for editor in self.editors.values():
             if hasattr(editor, "shutdown"):
                 editor.shutdown()
+        from workbench.gui import side_process
+        side_process.shutdown()
         self.live.shutdown()
         if self.city_view is not None:
             self.city_view.close_view()

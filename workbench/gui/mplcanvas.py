@@ -1,68 +1,15 @@
-"""Matplotlib charts in Qt widgets (not the live image panes): a live canvas, or an image of a\nchart rendered on a worker thread."""
+"""Matplotlib charts in Qt widgets (not the live image panes), drawn and rasterised off the GUI
+thread: the GUI thread only shows the pixels (an Agg draw of one chart took 0.13–0.6 s here)."""
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QImage, QPixmap
-from PySide6.QtWidgets import QLabel
+from PySide6.QtWidgets import QLabel, QSizePolicy
+from superqt.utils import create_worker
 
-
-class ChartCanvas(FigureCanvasQTAgg):
-    """FigureCanvasQTAgg owning its Figure; `redraw(draw)` clears the figure, calls draw(fig), draws.
-
-    A hidden canvas (a tab not in front) defers the Agg draw to its next paint, so an edit does not
-    rasterise charts nobody sees on the GUI thread; `redraw_when_seen(draw)` defers building the
-    figure too (clearing and re-plotting axes costs ~30 ms on this machine's GUI thread)."""
-
-    def __init__(self, parent=None, figsize=(5.0, 3.0)):
-        super().__init__(Figure(figsize=figsize, layout="constrained"))
-        self.setParent(parent)
-        self.setMinimumSize(240, 160)
-        self._stale = False
-        self._pending_draw = None
-
-    def redraw(self, draw) -> None:
-        self._pending_draw = None
-        self.figure.clear()
-        draw(self.figure)
-        self._request_draw()
-
-    def redraw_when_seen(self, draw) -> None:
-        """redraw(draw) now when the canvas is on screen, else when it is next painted."""
-        if self.isVisible():
-            self.redraw(draw)
-        else:
-            self._pending_draw = draw
-            self._stale = True
-
-    def set_figure(self, fig: Figure) -> None:
-        """Show a Figure built elsewhere (e.g. on a worker thread), sized to this widget."""
-        ratio = self.device_pixel_ratio
-        fig.set_dpi(self.figure.dpi)
-        fig.set_size_inches(self.width() * ratio / fig.dpi, self.height() * ratio / fig.dpi, forward=False)
-        self._pending_draw = None
-        self.figure = fig
-        fig.set_canvas(self)
-        self._request_draw()
-
-    def _request_draw(self) -> None:
-        if self.isVisible():
-            self.draw_idle()
-        else:
-            self._stale = True
-
-    def paintEvent(self, event) -> None:
-        if self._stale:
-            self._stale = False
-            if self._pending_draw is not None:
-                draw, self._pending_draw = self._pending_draw, None
-                self.figure.clear()
-                draw(self.figure)
-            FigureCanvasAgg.draw(self)
-        super().paintEvent(event)
+RESIZE_REDRAW_MS = 250    # a resized chart is drawn again at its new size this long after the last resize
 
 
 def render_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.ndarray:
@@ -94,3 +41,90 @@ class ChartImage(QLabel):
         pixmap = QPixmap.fromImage(QImage(rgba.data, w, h, 4 * w, QImage.Format.Format_RGBA8888).copy())
         pixmap.setDevicePixelRatio(self.devicePixelRatioF())
         self.setPixmap(pixmap)
+
+
+class BackgroundChart(ChartImage):
+    """A chart drawn by draw(fig) at the widget's size in the window's side process, shown as an
+    image: matplotlib's Python (0.13–0.8 s a chart here, lens analysis included) never holds the
+    window's GIL. draw must pickle: a Qt-free module-level function or a functools.partial of one.
+
+    set_draw(draw) draws when the chart is on screen — at once, or when it is next shown (a tab
+    not in front costs nothing) — and again after a resize; one job at a time, the newest draw
+    wins. drawn() is emitted when the image of the newest draw is shown."""
+
+    drawn = Signal()
+
+    def __init__(self, hint: str, parent=None):
+        super().__init__(hint, parent)
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)   # not the pixmap's size
+        self._draw = None
+        self._shown = None            # (draw, size in px) of the image shown
+        self._worker = None
+        self._resized = QTimer(self)
+        self._resized.setSingleShot(True)
+        self._resized.setInterval(RESIZE_REDRAW_MS)
+        self._resized.timeout.connect(self._start)
+
+    def set_draw(self, draw, hint: str | None = None) -> None:
+        """Show draw(fig) from now on; `hint` is the text shown until its image arrives when no
+        image is shown yet."""
+        self._draw = draw
+        if hint is not None and self.pixmap().isNull():
+            self.setText(hint)
+        self._start()
+
+    def set_image(self, draw, rgba: np.ndarray) -> None:
+        """Show `rgba`, an image of draw(fig) made elsewhere (e.g. in a process) at this chart's
+        size_px(); a later resize draws it again here."""
+        self._draw = draw
+        self._shown = (draw, (rgba.shape[1], rgba.shape[0]))
+        self.show_rgba(rgba)
+        self.drawn.emit()
+        self._start()                         # resized since the image was asked for
+
+    def figure(self) -> Figure:
+        """A Figure drawn by the current draw on this thread (to inspect what the chart shows)."""
+        fig = Figure(layout="constrained")
+        if self._draw is not None:
+            self._draw(fig)
+        return fig
+
+    def is_current(self) -> bool:
+        """Whether the image shown is the newest draw's, at the widget's size."""
+        return self._draw is not None and self._shown == (self._draw, self.size_px())
+
+    def showEvent(self, event) -> None:
+        super().showEvent(event)
+        self._start()
+
+    def resizeEvent(self, event) -> None:
+        super().resizeEvent(event)
+        if self._draw is not None:
+            self._resized.start()
+
+    def _start(self) -> None:
+        if self._draw is None or not self.isVisible() or self._worker is not None or self.is_current():
+            return
+        job = (self._draw, self.size_px())
+        from workbench.gui import side_process
+        from workbench.metrics.charts import chart_rgba
+        self._worker = create_worker(side_process.run, chart_rgba, job[0], *job[1], _start_thread=False,
+                                     _ignore_errors=True)
+        self._worker.returned.connect(lambda rgba: self._returned(job, rgba))
+        self._worker.errored.connect(lambda exc: self._errored(job, exc))
+        self._worker.finished.connect(self._finished)
+        self._worker.start()
+
+    def _returned(self, job, rgba: np.ndarray) -> None:
+        self._shown = job
+        self.show_rgba(rgba)
+        if job[0] is self._draw:
+            self.drawn.emit()
+
+    def _errored(self, job, exc: Exception) -> None:
+        self._shown = job                     # not tried again until the draw or the size changes
+        self.setText(f"chart failed: {exc}")
+
+    def _finished(self) -> None:
+        self._worker = None
+        self._start()                         # a newer draw or size arrived meanwhile

@@ -125,6 +125,14 @@ def chart_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.nd
     return np.asarray(canvas.buffer_rgba()).copy()
 
 
+def characterise_and_draw(params, seed: int, size_px: int, chart_px: tuple[int, int]):
+    """sensor.emva.characterize(params), then its photon-transfer chart rasterised at chart_px
+    (w, h): (result, H×W×4 uint8). The window's Sensor editor runs this in its side process."""
+    from workbench.sensor.emva import characterize, draw_photon_transfer
+    result = characterize(params, seed=seed, size_px=size_px)
+    return result, chart_rgba(lambda fig: draw_photon_transfer(result, fig), *chart_px)
+
+
 def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
     """camera_metrics of the project and the chart of it beside the pinned design's (the window's
     Metrics panel runs this in a worker process). Returns (metrics, chart RGBA, seconds)."""

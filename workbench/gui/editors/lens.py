@@ -6,11 +6,11 @@ the layout / spot / ray-fan / PSF / MTF / distortion / relative-illumination cha
 worker thread (workbench.optics.lens.report)."""
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
 
-from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (QComboBox, QFileDialog, QHBoxLayout, QLabel, QLineEdit,
@@ -18,33 +18,20 @@ from PySide6.QtWidgets import (QComboBox, QFileDialog, QHBoxLayout, QLabel, QLin
                                QTabWidget, QVBoxLayout, QWidget)
 from superqt.utils import create_worker
 
-from workbench.errors import InvalidValueError, WorkbenchError
+from workbench.errors import InvalidValueError
 from workbench.gui.forms import ParamsForm
-from workbench.gui.mplcanvas import ChartCanvas
+from workbench.gui.mplcanvas import BackgroundChart
 from workbench.optics.formation.lens_setup import prepare_lens
 from workbench.optics.lens.io import (LENS_DIR, available_lenses, lens_from_json, lens_to_json, library_lens_path,
                                       load_lens, save_lens, user_lens_dir)
 from workbench.optics.lens.model import Lens
 from workbench.optics.lens.paraxial import paraxial
-from workbench.optics.lens.report import CHARTS, field_angles, max_field_deg
+from workbench.optics.lens.report import CHARTS, LENS_ERRORS, draw_chart, draw_no_lens
 from workbench.optics.params import OpticsParams, fov_deg
 
 NO_LENS = "(no lens: first-order optics)"
 CHARTS_BY_INDEX = list(CHARTS)
 COLUMNS = ("radius (mm)", "thickness (mm)", "material", "semi-aperture (mm)", "stop")
-LENS_ERRORS = (WorkbenchError, ValueError, TypeError, KeyError, ZeroDivisionError)
-
-
-def build_chart(name: str, lens: Lens, max_field: float) -> Figure:
-    """Chart `name` of CHARTS for `lens` up to field `max_field` (deg), as a Figure (no canvas)."""
-    draw, size = CHARTS[name]
-    fig = Figure(figsize=size, layout="constrained")
-    try:
-        draw(fig, lens, field_angles(lens, min(max_field, max_field_deg(lens))))
-    except LENS_ERRORS as exc:
-        fig.clear()
-        fig.text(0.5, 0.5, f"{name}: {exc}", ha="center", va="center", wrap=True)
-    return fig
 
 
 def select_for_project(project) -> tuple[str, dict, str]:
@@ -91,10 +78,6 @@ class LensEditor(QWidget):
         self._lens_doc: dict | None = None         # the shown prescription as lens JSON
         self._lens: Lens | None = None             # the prescription (file or edited)
         self._edited = False
-        self._chart_worker = None
-        self._chart_generation = 0                 # bumped whenever the shown lens changes
-        self._chart_job: tuple[str, int] = ("", -1)   # (chart, generation) being built
-        self._drawn: dict[str, int] = {}           # chart → generation it shows
         self._select_worker = None
         self._select_pending = False
 
@@ -160,12 +143,12 @@ class LensEditor(QWidget):
         lv.addWidget(scroll, 1)
 
         self.charts = QTabWidget(self)
-        self.canvases: dict[str, ChartCanvas] = {}
+        self.chart_views: dict[str, BackgroundChart] = {}
         for name in CHARTS:
-            canvas = ChartCanvas(self)
-            self.canvases[name] = canvas
-            self.charts.addTab(canvas, name.replace("_", " "))
-        self.charts.currentChanged.connect(lambda _i: self._request_charts())
+            view = BackgroundChart(f"the {name.replace('_', ' ')} chart of the lens", self)
+            view.drawn.connect(lambda name=name: self.chart_ready.emit(name))
+            self.chart_views[name] = view
+            self.charts.addTab(view, name.replace("_", " "))
         split = QSplitter(Qt.Orientation.Vertical, self)      # the charts under the table: one column
         split.addWidget(left)
         split.addWidget(self.charts)
@@ -408,51 +391,23 @@ class LensEditor(QWidget):
 
     # ------------------------------------------------------------------------------ background
     def _lens_changed(self) -> None:
-        self._chart_generation += 1
         self._update_readouts()
-        self._request_charts()
+        self._set_charts()
 
-    def _request_charts(self) -> None:
-        """Build the visible chart of the shown lens on a worker unless it is up to date; one build
-        at a time, and a build for a lens that has since changed is dropped."""
-        name = CHARTS_BY_INDEX[self.charts.currentIndex()]
-        if self._drawn.get(name) == self._chart_generation or self._chart_worker is not None:
-            return
+    def _set_charts(self) -> None:
+        """Every chart of the shown lens, each computed and drawn on a worker when it is seen."""
         lens = self.used_lens()
         if lens is None:
-            self.canvases[name].redraw(lambda fig: fig.text(0.5, 0.5, "no lens: first-order optics", ha="center"))
-            self._drawn[name] = self._chart_generation
-            self.chart_ready.emit(name)
+            for view in self.chart_views.values():
+                view.set_draw(draw_no_lens)
             return
         try:
             half_diagonal = paraxial(lens).fov_deg(self._sensor_mm()[2]) / 2 if self._project else 30.0
         except LENS_ERRORS:
             half_diagonal = 30.0
-        if name not in self._drawn:              # nothing shown yet: say that it is coming
-            self.canvases[name].redraw(lambda fig: fig.text(
-                0.5, 0.5, f"computing the {name.replace('_', ' ')} chart…", ha="center", color="0.4"))
-        self._chart_job = (name, self._chart_generation)
-        self._chart_worker = create_worker(build_chart, name, lens, half_diagonal, _start_thread=False,
-                                           _ignore_errors=True)
-        self._chart_worker.returned.connect(self._chart_returned)
-        self._chart_worker.errored.connect(self._chart_errored)
-        self._chart_worker.finished.connect(self._chart_finished)
-        self._chart_worker.start()
-
-    def _chart_errored(self, exc: Exception) -> None:
-        self.table_status.setText(f"{self._chart_job[0]} failed: {exc}")
-
-    def _chart_returned(self, fig: Figure) -> None:
-        name, generation = self._chart_job
-        if generation != self._chart_generation:
-            return                                  # stale: the lens changed meanwhile
-        self.canvases[name].set_figure(fig)
-        self._drawn[name] = generation
-        self.chart_ready.emit(name)
-
-    def _chart_finished(self) -> None:
-        self._chart_worker = None
-        self._request_charts()
+        for name, view in self.chart_views.items():
+            view.set_draw(functools.partial(draw_chart, name=name, lens=lens, max_field=half_diagonal),
+                          f"computing the {name.replace('_', ' ')} chart…")
 
     def run_selector(self) -> None:
         """Ask the automatic level-of-detail selector (on a worker) which optics level it picks."""

@@ -2,24 +2,31 @@
 and an EMVA 1288 characterisation run on a background thread."""
 from __future__ import annotations
 
-import numpy as np
+import functools
+
 from PySide6.QtCore import QRectF, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QPainter
-from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QPushButton, QScrollArea, QTabWidget,
-                               QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QScrollArea,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
 from superqt.utils import create_worker
 
+from workbench.gui import side_process
 from workbench.gui.forms import ParamsForm
-from workbench.gui.mplcanvas import ChartCanvas
+from workbench.gui.mplcanvas import BackgroundChart
+from workbench.metrics.charts import characterise_and_draw
 from workbench.resource_dir import RESOURCES
-from workbench.sensor.cfa import cfa_layout, channel_qe
-from workbench.sensor.emva import characterize, draw_photon_transfer
+from workbench.sensor.cfa import cfa_layout
+from workbench.sensor.charts import CHANNEL_COLOURS, draw_qe
+from workbench.sensor.emva import draw_photon_transfer
 from workbench.sensor.params import SENSOR_PRESETS, SensorParams
-from workbench.spectra import load_spectrum_csv
-
-CHANNEL_COLOURS = {"R": "#d62728", "G": "#2ca02c", "B": "#1f77b4", "C": "#b0b0b0", "W": "#f2f2f2",
-                   "M": "#808080"}
-QE_WAVELENGTHS_NM = np.arange(350.0, 1101.0, 5.0)
 
 
 def spectrum_files() -> list[str]:
@@ -30,29 +37,6 @@ def spectrum_files() -> list[str]:
 def qe_inputs(params: SensorParams) -> tuple:
     """The fields the QE chart depends on: a change elsewhere (gain, exposure, noise) keeps the chart."""
     return (params.cfa_pattern, params.filter_file, params.photodiode_qe_file, params.ir_cut_file)
-
-
-def draw_qe(fig, params: SensorParams, wavelengths_nm: np.ndarray = QE_WAVELENGTHS_NM) -> None:
-    """Effective QE per CFA channel (solid), the colour filters (dotted), the photodiode QE and the
-    IR-cut transmittance (dashed)."""
-    ax = fig.add_subplot()
-    _, names = cfa_layout(params.cfa_pattern)
-    qe = channel_qe(params, wavelengths_nm)
-    for k, ch in enumerate(names):
-        ax.plot(wavelengths_nm, qe[:, k], color=CHANNEL_COLOURS[ch] if ch != "W" else "k", label=ch)
-    if params.filter_file is not None:
-        filters, filter_names = load_spectrum_csv(params.filter_file, wavelengths_nm)
-        for ch in names:
-            if ch in filter_names:
-                ax.plot(wavelengths_nm, filters[:, filter_names.index(ch)], ":", lw=0.9,
-                        color=CHANNEL_COLOURS[ch] if ch != "W" else "k", label=f"{ch} filter")
-    for name, label in ((params.photodiode_qe_file, "photodiode QE"), (params.ir_cut_file, "IR cut")):
-        if name is not None:
-            ax.plot(wavelengths_nm, load_spectrum_csv(name, wavelengths_nm)[0][:, 0], "--", lw=0.8,
-                    color="0.4" if label == "IR cut" else "0.7", label=label)
-    ax.set(xlabel="wavelength (nm)", ylabel="QE / transmittance", ylim=(0, 1.02),
-           title=f"{params.cfa_pattern}: effective channel QE")
-    ax.legend(fontsize=6, loc="upper right", ncol=2)
 
 
 def emva_summary(result: dict) -> str:
@@ -140,13 +124,14 @@ class SensorEditor(QWidget):
         scroll.setWidgetResizable(True)
         scroll.setWidget(self.form)
 
-        self.qe_chart = ChartCanvas(self)
+        self.qe_chart = BackgroundChart("the sensor's effective channel QE", self)
         self.emva_button = QPushButton("Characterise (EMVA 1288)", self)
-        self.emva_button.setToolTip("photon-transfer measurement of this sensor on a background thread")
+        self.emva_button.setToolTip("photon-transfer measurement of this sensor in a background process")
         self.emva_button.clicked.connect(self.run_emva)
         self.emva_status = QLabel("not run", self)
         self.emva_status.setWordWrap(True)
-        self.emva_chart = ChartCanvas(self, figsize=(9, 3))
+        self.emva_chart = BackgroundChart("Characterise: the photon-transfer curve and SNR against signal "
+                                          "appear here", self)
         emva = QWidget(self)
         ev = QVBoxLayout(emva)
         top = QHBoxLayout()
@@ -181,7 +166,7 @@ class SensorEditor(QWidget):
                              f"{' bit' if p.bit_depth else ''}")
         if qe_inputs(p) != self._qe_key:
             self._qe_key = qe_inputs(p)
-            self.qe_chart.redraw_when_seen(lambda fig: draw_qe(fig, p))
+            self.qe_chart.set_draw(functools.partial(draw_qe, params=p))
 
     def _form_edited(self, changes: dict) -> None:
         self._params = self.form.params()
@@ -201,7 +186,8 @@ class SensorEditor(QWidget):
 
     # ----------------------------------------------------------------------------------------
     def run_emva(self) -> None:
-        """Characterise the shown sensor on a worker thread; the plot appears when it returns."""
+        """Characterise the shown sensor in the window's side process (a worker thread waits for it);
+        the result and its chart appear when it returns."""
         if self._worker is not None:
             return
         params = self._params
@@ -209,17 +195,18 @@ class SensorEditor(QWidget):
             params = params.updated(noise_flag=2)
         self.emva_button.setEnabled(False)
         self.emva_status.setText("measuring the photon-transfer curve…")
-        self._worker = create_worker(characterize, params, seed=self._seed, size_px=128,
-                                     _start_thread=False, _ignore_errors=True)
+        self._worker = create_worker(side_process.run, characterise_and_draw, params, self._seed, 128,
+                                     self.emva_chart.size_px(), _start_thread=False, _ignore_errors=True)
         self._worker.returned.connect(self._emva_returned)
         self._worker.errored.connect(self._emva_errored)
         self._worker.finished.connect(self._emva_finished)
         self._worker.start()
 
-    def _emva_returned(self, result: dict) -> None:
+    def _emva_returned(self, result_and_chart: tuple) -> None:
+        result, rgba = result_and_chart
         self.emva_result = result
         self.emva_status.setText(emva_summary(result))
-        self.emva_chart.redraw(lambda fig: draw_photon_transfer(result, fig))
+        self.emva_chart.set_image(functools.partial(draw_photon_transfer, result), rgba)
         self.emva_finished.emit(result)
 
     def _emva_errored(self, exc: Exception) -> None:

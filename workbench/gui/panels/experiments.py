@@ -4,6 +4,7 @@ result folders — its own or ones produced headless elsewhere — as the paper'
 paired differences that decide them (workbench.experiments.results)."""
 from __future__ import annotations
 
+import functools
 import os
 import re
 import sys
@@ -12,14 +13,32 @@ from pathlib import Path
 
 import psutil
 from PySide6.QtCore import QProcess, QProcessEnvironment, Qt, QTimer, Signal
-from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QHBoxLayout, QLabel, QLineEdit,
-                               QPlainTextEdit, QProgressBar, QPushButton, QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPlainTextEdit,
+    QProgressBar,
+    QPushButton,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.detection import PROFILES
-from workbench.experiments.results import KINDS, draw_results, read_results, result_folders
-from workbench.gui.mplcanvas import ChartCanvas
+from workbench.experiments.results import (
+    KINDS,
+    draw_results,
+    read_results,
+    result_folders,
+)
+from workbench.gui.mplcanvas import BackgroundChart
 from workbench.project import save_project
+
 _COUNT = re.compile(r"(\d+)\s*/\s*(\d+)")
 KILL_GRACE_MS = 3000
 EXPERIMENT_NICE = 10     # the experiment process yields the cores to the window's threads, as the
@@ -123,7 +142,7 @@ class ExperimentsPanel(QWidget):
         self.log = QPlainTextEdit(self)
         self.log.setReadOnly(True)
         self.log.setMaximumBlockCount(LOG_LINES)
-        self.chart = ChartCanvas(self, figsize=(8, 4))
+        self.chart = BackgroundChart("the results' charts appear here", self)
 
         grid = QGridLayout()
         grid.addWidget(QLabel("Experiment", self), 0, 0)
@@ -186,7 +205,7 @@ class ExperimentsPanel(QWidget):
         self.doc = doc
         if self._process is None:
             self.kind.setCurrentText(doc["kind"])
-        self.chart.redraw(lambda fig: draw_results(fig, doc))
+        self.chart.set_draw(functools.partial(draw_results, doc=doc), "drawing the results…")
         runs = len(doc.get("runs", []))
         self.status.setText(f"{folder}: {doc['kind']} experiment, {runs} run(s)"
                             f"{'' if doc.get('complete', True) else ', incomplete'}")

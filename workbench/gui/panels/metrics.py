@@ -1,7 +1,8 @@
 """Metrics panel: the current frame's read-outs (exposure, gain, electrons per channel, clipping,
 scene dynamic range, SNR at the road users) and the camera's measurements on test charts (system
-MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit in a measuring
-process (kept alive; a worker thread waits for it, so its Python never holds the window's GIL),
+MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit in the window's side
+process (gui.side_process: kept alive; a worker thread waits for it, so its Python never holds the
+window's GIL),
 with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
 current design B and the change, the charts draw both, and an A | B | B − A strip compares the
 sRGB frames on one colour scale.
@@ -10,14 +11,13 @@ Measurements run one at a time; an edit during a measurement queues one more run
 project (older requests are dropped), so results never arrive out of order."""
 from __future__ import annotations
 
-from concurrent.futures.process import BrokenProcessPool
-
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (QCheckBox, QHBoxLayout, QLabel, QPushButton, QSplitter, QTableWidget,
                                QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
 from superqt.utils import create_worker
 
+from workbench.gui import side_process
 from workbench.gui.mplcanvas import ChartImage, render_rgba
 
 DEBOUNCE_MS = 300
@@ -49,51 +49,10 @@ def flat_readouts(readouts: dict | None) -> dict:
     return out
 
 
-_POOL = None
-
-
-def _measure_process():
-    """The panel's measuring process (one, kept alive, spawned on first use, one thread for
-    numpy): camera_metrics runs there, so its Python never holds the window's GIL."""
-    global _POOL
-    if _POOL is None:
-        import multiprocessing
-        import os
-        from concurrent.futures import ProcessPoolExecutor
-        _POOL = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                                    initializer=_start_measuring_process, initargs=(os.getpid(),))
-    return _POOL
-
-
-def _start_measuring_process(parent_pid: int) -> None:
-    import os
-
-    from workbench.compute.local import apply_thread_budget, exit_with_parent
-    # not die_with_parent: Linux's parent-death signal follows the *thread* that started the
-    # process, here a pool thread of the window that Qt retires after 30 s idle — which killed the
-    # kept process and failed the next measurement with BrokenProcessPool
-    exit_with_parent(parent_pid)
-    apply_thread_budget(1)
-    os.nice(10)                  # the window's threads first when the cores are busy
-
-
-def shutdown_measuring_process() -> None:
-    """Stop the measuring process (the window is closing)."""
-    global _POOL
-    if _POOL is not None:
-        _POOL.shutdown(wait=False, cancel_futures=True)
-        _POOL = None
-
-
 def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
-    """metrics.charts.measure_and_draw in the measuring process; this (worker) thread only waits."""
+    """metrics.charts.measure_and_draw in the window's side process; this (worker) thread only waits."""
     from workbench.metrics.charts import measure_and_draw as job
-    try:
-        return _measure_process().submit(job, project, pinned, chart_px).result()
-    except BrokenProcessPool:
-        global _POOL
-        _POOL = None                          # a crashed process: start a new one next time
-        raise
+    return side_process.run(job, project, pinned, chart_px)
 
 
 def draw_ab(fig, a: np.ndarray, b: np.ndarray) -> None:
@@ -287,7 +246,7 @@ class MetricsPanel(QWidget):
         self.metrics = {**metrics, "seconds": seconds}
         self._measured = project
         self.chart.show_rgba(rgba)
-        self.status.setText(f"measured {project.name} in {seconds:.1f} s (measuring process)")
+        self.status.setText(f"measured {project.name} in {seconds:.1f} s (side process)")
         self._fill_table()
         self.measured.emit(self.metrics)
 
@@ -338,8 +297,7 @@ class MetricsPanel(QWidget):
         self.table.setColumnHidden(2, self.pinned is None)
 
     def shutdown(self) -> None:
-        """The window is closing: no new measurement starts, the measuring process stops."""
+        """The window is closing: no new measurement starts (the window stops the side process)."""
         self._timer.stop()
         self._queued = None
         self._ab_queued = False
-        shutdown_measuring_process()

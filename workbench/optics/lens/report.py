@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.errors import WorkbenchError
 from workbench.optics.lens.analysis import (axial_color, distortion, lateral_color, ray_fan, real_fov_deg,
                                             relative_illumination, spot_diagram)
 from workbench.optics.lens.glass import LINE_C_NM, LINE_D_NM, LINE_F_NM
@@ -283,6 +284,23 @@ CHARTS = {"layout": (draw_layout, (9, 5)), "spots": (draw_spots, (12.8, 3.4)),
           "mtf": (draw_mtf, (6, 4)), "distortion": (draw_distortion, (5, 4)),
           "relative_illumination": (draw_relative_illumination, (5, 4))}
 """Chart name → (draw function, figure size in inches)."""
+LENS_ERRORS = (WorkbenchError, ValueError, TypeError, KeyError, ZeroDivisionError)
+"""What tracing or analysing a malformed or untraceable lens raises."""
+
+
+def draw_chart(fig, name: str, lens: Lens, max_field: float) -> None:
+    """Chart `name` of CHARTS for `lens` up to field `max_field` (deg) on `fig`; a lens that
+    cannot be traced draws why."""
+    draw, _size = CHARTS[name]
+    try:
+        draw(fig, lens, field_angles(lens, min(max_field, max_field_deg(lens))))
+    except LENS_ERRORS as exc:
+        fig.clear()
+        fig.text(0.5, 0.5, f"{name}: {exc}", ha="center", va="center", wrap=True)
+
+
+def draw_no_lens(fig) -> None:
+    fig.text(0.5, 0.5, "no lens: first-order optics", ha="center")
 
 
 def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Path]:

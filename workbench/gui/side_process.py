@@ -1,0 +1,52 @@
+"""The window's side process: one kept-alive, niced, one-thread worker process (spawned on first
+use) for the Python-heavy jobs of its panels — camera metrics, the EMVA characterisation and their
+charts — so their Python never holds the window's GIL. A worker thread calls run() and only waits.
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures.process import BrokenProcessPool
+
+SIDE_NICE = 10           # the window's threads first when the cores are busy
+
+_POOL = None
+
+
+def side_process():
+    """The side process's executor (one worker, started on first use)."""
+    global _POOL
+    if _POOL is None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        _POOL = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                    initializer=_start, initargs=(os.getpid(),))
+    return _POOL
+
+
+def _start(parent_pid: int) -> None:
+    from workbench.compute.local import apply_thread_budget, exit_with_parent
+    # not die_with_parent: Linux's parent-death signal follows the *thread* that started the
+    # process, here a pool thread of the window that Qt retires after 30 s idle — which killed the
+    # kept process and failed the next job with BrokenProcessPool
+    exit_with_parent(parent_pid)
+    apply_thread_budget(1)
+    os.nice(SIDE_NICE)
+
+
+def run(fn, *args, **kwargs):
+    """fn(*args, **kwargs) in the side process (fn and its arguments picklable, Qt-free); blocks,
+    so call it from a worker thread. A crashed process fails this job; the next starts a new one."""
+    global _POOL
+    try:
+        return side_process().submit(fn, *args, **kwargs).result()
+    except BrokenProcessPool:
+        _POOL = None
+        raise
+
+
+def shutdown() -> None:
+    """Stop the side process (the window is closing)."""
+    global _POOL
+    if _POOL is not None:
+        _POOL.shutdown(wait=False, cancel_futures=True)
+        _POOL = None
