@@ -12,6 +12,8 @@
   frame, and the longest GUI stall while both render (in the render worker process); "Colour by
   class" switched on and off.
 * 3-D view frames per second with the full city of the city sample while orbiting the view.
+* First views: every dock and every tab inside it shown once (a lens file, so the lens charts
+  compute), the longest GUI stall and the longest wait for a chart to be on screen.
 With --load N, N busy processes (one core each) run during every measurement.
 """
 from __future__ import annotations
@@ -171,6 +173,39 @@ def camera_moves(app, win, n: int) -> list[dict]:
     return rows
 
 
+def first_views(app, win) -> dict:
+    """Show every dock and every tab inside it once, as a new user does: the longest GUI tick gap
+    of any first view (which view), and the longest wait for a chart to be on screen."""
+    from PySide6.QtWidgets import QTabWidget
+
+    from workbench.gui.mplcanvas import BackgroundChart
+
+    def shown_chart(widget):
+        return next((c for c in widget.findChildren(BackgroundChart) if c.isVisible()), None)
+    steps = []
+    for title, dock in win.docks.items():
+        steps.append((title, lambda d=dock: (d.raise_(), shown_chart(d.widget()))[1]))
+        for tabs in dock.widget().findChildren(QTabWidget):
+            for i in range(tabs.count()):
+                steps.append((f"{title} / {tabs.tabText(i)}", lambda t=tabs, i=i: (
+                    t.setCurrentIndex(i), t.widget(i) if isinstance(t.widget(i), BackgroundChart) else shown_chart(t.widget(i)))[1]))
+    ticks = TickRecorder()
+    gaps, chart_s = [], []
+    for name, show in steps:
+        ticks.start()
+        t0 = time.perf_counter()
+        chart = show()
+        if chart is not None and chart._draw is not None:
+            _wait(app, chart.is_current, 60)
+            chart_s.append(time.perf_counter() - t0)
+        _wait(app, lambda: False, 0.5)
+        gaps.append((ticks.stop()["max_gap_ms"], name))
+    worst = max(gaps)
+    return {"measure": "first view of every dock and tab (a lens file: its charts)", "max_stall_ms": worst[0],
+            "goal_stall_ms": 100, "worst_view": worst[1], "views": len(steps),
+            "slowest_chart_on_screen_s": round(max(chart_s), 2) if chart_s else None}
+
+
 def cpu_hogs(n: int) -> list:
     """n busy processes (one core each): the load the window must stay responsive under."""
     import subprocess
@@ -212,8 +247,18 @@ def _measure(app, quick: bool) -> dict:
     rows = []
     notes = []
 
-    # -- edit-to-pane latency at 640×480 ---------------------------------------------------
+    # -- first views of the docks, tabs and charts, at 1280×800 ---------------------------------
     paper = load_project("paper_camera")
+    win = _window(paper.updated(optics=paper.optics.updated(lens_file="automotive.2.4mm.json")))
+    win.resize(1280, 800)
+    if not _wait(app, lambda: _full_frame(win), 120):
+        raise TimeoutError("the first frame with a lens file did not arrive")
+    rows.append(first_views(app, win))
+    win.document.undo_stack.setClean()
+    win.close()
+    app.processEvents()
+
+    # -- edit-to-pane latency at 640×480 ---------------------------------------------------
     win = _window(paper)
     if not _wait(app, lambda: _full_frame(win), 120):
         raise TimeoutError("the paper camera's first frame did not arrive")
