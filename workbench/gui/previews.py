@@ -8,7 +8,8 @@ and unit under the cursor (irradiance integrated over wavelength in photons/s/m�
 photons/s/m²/nm; DN and
 the pixel's CFA colour for raw, channel values for linear and sRGB); clipped pixels (raw at the
 largest code) can be highlighted in red on the raw, linear and sRGB panes. The images are painted
-as soon as a frame arrives; the histograms follow HISTOGRAM_DELAY_MS after the last frame.
+as soon as a frame arrives; the histograms follow HISTOGRAM_DELAY_MS after the last frame, one
+pane at a time.
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ CLIP_RGBA = (255, 0, 0, 200)
 # The histograms follow the images this long after the newest frame (restarted by each frame), so
 # the new pixels are painted first and a burst of edits recomputes each histogram once.
 HISTOGRAM_DELAY_MS = 60
+HISTOGRAM_STEP_MS = 10    # then one pane's histogram at a time, this far apart
 
 
 @contextmanager
@@ -309,7 +311,7 @@ class PreviewPanes(QWidget):
                 combo.addItem(f"{wl:g} nm")
             combo.blockSignals(False)
         self._refresh_inspectors()
-        self._histogram_timer.start()
+        self._histogram_timer.start(HISTOGRAM_DELAY_MS)
         self.frames_shown += 1
 
     def refresh_histograms(self) -> None:
@@ -325,11 +327,18 @@ class PreviewPanes(QWidget):
         the GUI thread and repaint the window while the next frame is on its way."""
         self._histograms_held = hold
         if not hold and any(pane._histogram_stale for pane in self.panes.values()):
-            self._histogram_timer.start()
+            self._histogram_timer.start(HISTOGRAM_DELAY_MS)
 
     def _histogram_timer_fired(self) -> None:
-        if not self._histograms_held:
-            self.refresh_histograms()
+        """One pane's histogram a tick (a histogram and its repaint take ~7 ms, four at once
+        stalled the GUI 50–90 ms under a CPU hog), the next HISTOGRAM_STEP_MS later."""
+        stale = [pane for pane in self.panes.values() if pane._histogram_stale]
+        if self._histograms_held or not stale:
+            return
+        with painted_together([(stale[0], stale[0].histogram)]):
+            stale[0].refresh_histogram()
+        if len(stale) > 1:
+            self._histogram_timer.start(HISTOGRAM_STEP_MS)
 
     def clipped_mask(self) -> np.ndarray | None:
         if self.frame is None:

@@ -1,6 +1,7 @@
 """Screenshots for the README (`python -m workbench.gui.screenshots docs/ [--results FOLDER]`):
-the main window on the city sample, the lens editor, the exposure-sweep panel after a sweep, and
-the experiments panel on a result folder. Runs on a private Xvfb when there is no display."""
+the default layout at 1280×800 on the paper camera and on the city sample, the main window on the
+city sample, the lens editor, the exposure-sweep panel after a sweep, and the experiments panel
+on a result folder. Runs on a private Xvfb when there is no display."""
 from __future__ import annotations
 
 import argparse
@@ -45,7 +46,8 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
     from workbench.gui.main_window import MainWindow
     from workbench.project import load_project
     out.mkdir(parents=True, exist_ok=True)
-    written = []
+    written = [_default_layout(app, load_project("paper_camera"), out / "window-paper-1280x800.png"),
+               _default_layout(app, load_project("city_paper_camera"), out / "window-city-1280x800.png")]
 
     city = load_project("city_paper_camera")
     city = city.updated(sensor=city.sensor.updated(rows=size[0], cols=size[1]))
@@ -69,7 +71,8 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
         lens.resize(1300, 900)
         lens.set_project(auto)
         lens.show()
-        _settle(app, 15.0)
+        _wait(app, lambda: all(v.is_current() for v in lens.chart_views.values() if v.isVisible()), 300)
+        _settle(app, 1.0)
         written.append(_save(lens, out / "lens-editor.png"))
 
     sweep = win.editors.get("Exposure sweep")
@@ -94,7 +97,8 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
         experiments.set_project(city)
         if not experiments.open_folder(results):
             raise FileNotFoundError(f"no experiment results under {results}")
-        _settle(app, 2.0)
+        _wait(app, experiments.chart.is_current, 120)
+        _settle(app, 1.0)
         written.append(_save(experiments, out / "experiments-panel.png"))
     written += _metrics_shots(app, out)
     win.document.undo_stack.setClean()
@@ -104,6 +108,27 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
             w.close()
     app.processEvents()
     return written
+
+
+def _default_layout(app, project, path: Path) -> Path:
+    """The window as it first opens on `project` at 1280×800 (default layout), its full frame shown."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    win = MainWindow(Document(project))
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    win.resize(1280, 800)
+    win.show()
+    _wait(app, lambda: win.previews.frame is not None and not win.previews.frame.preview and not win.live.busy, 900)
+    if win.city_view is not None and win.city_view.view is not None:
+        _wait(app, win.city_view.view.is_current, 60)
+    _settle(app, 1.5)
+    shot = _save(win, path)
+    win.document.undo_stack.setClean()
+    win.close()
+    app.processEvents()
+    return shot
 
 
 def _metrics_shots(app, out: Path) -> list[Path]:
