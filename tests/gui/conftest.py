@@ -110,3 +110,15 @@ def grab_array(widget):
 def grab():
     """grab(widget) → the widget's pixels as an H×W×3 uint8 array."""
     return grab_array
+
+
+@pytest.fixture
+def shown(qtbot):
+    """shown(widget, width, height) → the widget, owned by the test, at that size and on screen."""
+    def show(widget, width: int, height: int):
+        qtbot.addWidget(widget)
+        widget.resize(width, height)
+        widget.show()
+        qtbot.waitExposed(widget)
+        return widget
+    return show

@@ -33,18 +33,14 @@ def results_doc(kind: str) -> dict:
             "contrasts": contrasts, "per_ev_is_upper_bound": True}
 
 
-def make_panel(qtbot):
-    panel = ExperimentsPanel()
-    qtbot.addWidget(panel)
-    panel.resize(900, 700)
-    panel.show()
-    qtbot.waitExposed(panel)
+def make_panel(shown):
+    panel = shown(ExperimentsPanel(), 900, 700)
     panel.set_project(Project())
     return panel
 
 
-def test_output_split_across_reads_is_logged_as_whole_lines(qtbot):
-    panel = make_panel(qtbot)
+def test_output_split_across_reads_is_logged_as_whole_lines(qtbot, shown):
+    panel = make_panel(shown)
     for chunk in ("PID-OF", "-CHILD", " 42\nisp:  0%| | 0/9\risp: 11%| | 1", "/9 [00:01]\rdone\n"):
         panel._take_output(chunk)
     assert panel.log.toPlainText().splitlines() == ["PID-OF-CHILD 42", "done"]
@@ -58,11 +54,11 @@ def test_parse_progress():
 
 
 @pytest.mark.parametrize("kind", ["isp", "exposure"])
-def test_opens_headless_result_folder_and_draws_chart(qtbot, grab, tmp_path, kind):
+def test_opens_headless_result_folder_and_draws_chart(qtbot, grab, tmp_path, kind, shown):
     folder = tmp_path / "gpu-run" / f"experiment-{kind}"
     folder.mkdir(parents=True)
     (folder / "results.json").write_text(json.dumps(results_doc(kind)))
-    panel = make_panel(qtbot)
+    panel = make_panel(shown)
     with qtbot.waitSignal(panel.results_shown):
         assert panel.open_folder(tmp_path / "gpu-run")          # finds the folder below
     assert panel.doc["kind"] == kind
@@ -75,8 +71,8 @@ def test_opens_headless_result_folder_and_draws_chart(qtbot, grab, tmp_path, kin
         assert len([l for l in panel.chart.figure().axes[0].lines if len(l.get_xdata()) == 5]) == 3
 
 
-def test_bad_folder_shows_the_error(qtbot, tmp_path):
-    panel = make_panel(qtbot)
+def test_bad_folder_shows_the_error(qtbot, tmp_path, shown):
+    panel = make_panel(shown)
     assert not panel.open_folder(tmp_path)
     assert "results.json" in panel.status.text() and panel.doc is None
 
@@ -92,8 +88,8 @@ FAKE_RUN = textwrap.dedent("""
 """)
 
 
-def test_runs_a_command_with_progress_and_shows_its_results(qtbot, tmp_path):
-    panel = make_panel(qtbot)
+def test_runs_a_command_with_progress_and_shows_its_results(qtbot, tmp_path, shown):
+    panel = make_panel(shown)
     out = tmp_path / "out"
     with qtbot.waitSignal(panel.run_finished, timeout=30_000) as sig:
         panel.run_argv([sys.executable, "-c", FAKE_RUN, str(out), json.dumps(results_doc("isp"))], out)
@@ -114,8 +110,8 @@ TREE = textwrap.dedent("""
 """)
 
 
-def test_cancel_kills_the_process_tree(qtbot, tmp_path):
-    panel = make_panel(qtbot)
+def test_cancel_kills_the_process_tree(qtbot, tmp_path, shown):
+    panel = make_panel(shown)
     panel.run_argv([sys.executable, "-c", TREE], tmp_path / "none")
     qtbot.waitUntil(lambda: "PID-OF-CHILD " in panel.log.toPlainText(), timeout=60_000)
     child = int(panel.log.toPlainText().split("PID-OF-CHILD ")[-1].split()[0])
@@ -134,8 +130,8 @@ def test_cancel_kills_the_process_tree(qtbot, tmp_path):
     assert panel.doc is None and "cancelled" in panel.status.text()
 
 
-def test_experiment_argv(qtbot, tmp_path):
-    panel = make_panel(qtbot)
+def test_experiment_argv(qtbot, tmp_path, shown):
+    panel = make_panel(shown)
     panel.kind.setCurrentText("exposure")
     panel.data_dir.setText(str(tmp_path / "data"))
     panel.out_dir.setText(str(tmp_path / "out"))
@@ -144,10 +140,10 @@ def test_experiment_argv(qtbot, tmp_path):
                         "--profile", "standard", "--out", str(tmp_path / "out")]
 
 
-def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_path, monkeypatch):
+def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_path, monkeypatch, shown):
     """The panel's argv reaches `workbench experiment` (a missing data set fails fast, naming it)."""
     monkeypatch.chdir(tmp_path)
-    panel = make_panel(qtbot)
+    panel = make_panel(shown)
     panel.data_dir.setText(str(tmp_path / "no-data"))
     with qtbot.waitSignal(panel.run_finished, timeout=120_000) as sig:
         panel.run_experiment()
@@ -158,11 +154,11 @@ def test_the_real_experiment_command_is_started_on_the_shown_project(qtbot, tmp_
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "setpriority"), reason="no process niceness here")
-def test_the_experiment_process_runs_below_the_windows_priority(qtbot, tmp_path):
+def test_the_experiment_process_runs_below_the_windows_priority(qtbot, tmp_path, shown):
     import os
 
     from workbench.gui.panels.experiments import EXPERIMENT_NICE
-    panel = make_panel(qtbot)
+    panel = make_panel(shown)
     script = "import os, time; time.sleep(0.5); print('NICE', os.nice(0), flush=True)"
     with qtbot.waitSignal(panel.run_finished, timeout=30_000):
         panel.run_argv([sys.executable, "-c", script], tmp_path / "none")

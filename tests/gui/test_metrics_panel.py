@@ -22,13 +22,8 @@ def frame_of(project):
     return FrameBuilder().build(Pipeline(project), project, preview=False, submitted_at=0.0)
 
 
-def make_panel(qtbot):
-    panel = MetricsPanel()
-    qtbot.addWidget(panel)
-    panel.resize(700, 800)
-    panel.show()
-    qtbot.waitExposed(panel)
-    return panel
+def make_panel(shown):
+    return shown(MetricsPanel(), 700, 800)
 
 
 def table(panel) -> dict[str, list[str]]:
@@ -36,8 +31,8 @@ def table(panel) -> dict[str, list[str]]:
     return {t.verticalHeaderItem(i).text(): [t.item(i, j).text() for j in range(3)] for i in range(t.rowCount())}
 
 
-def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small):
-    panel = make_panel(qtbot)
+def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
+    panel = make_panel(shown)
     frame = frame_of(small)
     with qtbot.waitSignal(panel.measured, timeout=60_000) as got:
         panel.set_project(small)
@@ -67,8 +62,8 @@ def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small):
     assert panel.table.isColumnHidden(0) and panel.pinned is None
 
 
-def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small):
-    panel = make_panel(qtbot)
+def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small, shown):
+    panel = make_panel(shown)
     designs = [small.updated(sensor=small.sensor.updated(read_noise_V=v)) for v in (0.001, 0.002, 0.003, 0.004)]
     seen = []
     panel.measured.connect(lambda m: seen.append(m["summary"]["read_noise_e"]))

@@ -43,13 +43,8 @@ def test_the_8_bit_copy_draws_the_pixels_pyqtgraph_draws_from_the_floats(qtbot, 
 
 
 @pytest.fixture
-def panes(qtbot):
-    widget = PreviewPanes()
-    qtbot.addWidget(widget)
-    widget.resize(900, 700)
-    widget.show()
-    qtbot.waitExposed(widget)
-    return widget
+def panes(shown):
+    return shown(PreviewPanes(), 900, 700)
 
 
 def small_frame():

@@ -10,17 +10,12 @@ from workbench.project import Project
 from workbench.sensor.params import SENSOR_PRESETS
 
 
-def make_editor(qtbot):
-    editor = SensorEditor()
-    qtbot.addWidget(editor)
-    editor.resize(700, 800)
-    editor.show()
-    qtbot.waitExposed(editor)
-    return editor
+def make_editor(shown):
+    return shown(SensorEditor(), 700, 800)
 
 
-def test_set_project_shows_values_and_emits_nothing(qtbot):
-    editor = make_editor(qtbot)
+def test_set_project_shows_values_and_emits_nothing(qtbot, shown):
+    editor = make_editor(shown)
     emitted = []
     editor.edited.connect(lambda *a: emitted.append(a))
     project = Project(sensor=SENSOR_PRESETS["auto_rccc"])
@@ -30,8 +25,8 @@ def test_set_project_shows_values_and_emits_nothing(qtbot):
     assert editor.cfa.pattern == "RCCC"
 
 
-def test_form_edit_and_preset_emit_sensor_changes(qtbot):
-    editor = make_editor(qtbot)
+def test_form_edit_and_preset_emit_sensor_changes(qtbot, shown):
+    editor = make_editor(shown)
     editor.set_project(Project())
     with qtbot.waitSignal(editor.edited) as sig:
         combo = editor.form.fields["cfa_pattern"].combo
@@ -47,8 +42,8 @@ def test_form_edit_and_preset_emit_sensor_changes(qtbot):
     assert "cfa_pattern" not in changes          # already RGGB: only the differing fields
 
 
-def test_cfa_tile_and_qe_chart_draw(qtbot, grab):
-    editor = make_editor(qtbot)
+def test_cfa_tile_and_qe_chart_draw(qtbot, grab, shown):
+    editor = make_editor(shown)
     editor.set_project(Project())
     tile = grab(editor.cfa)
     assert tile.reshape(-1, 3).std(axis=0).max() > 20
@@ -58,8 +53,8 @@ def test_cfa_tile_and_qe_chart_draw(qtbot, grab):
     assert len(np.unique(chart.reshape(-1, 3), axis=0)) > 20
 
 
-def test_emva_runs_in_background_and_plots(qtbot, grab):
-    editor = make_editor(qtbot)
+def test_emva_runs_in_background_and_plots(qtbot, grab, shown):
+    editor = make_editor(shown)
     editor.set_project(Project())
     editor.tabs.setCurrentIndex(2)
     with qtbot.waitSignal(editor.emva_finished, timeout=60_000) as sig:
@@ -77,10 +72,10 @@ def test_emva_runs_in_background_and_plots(qtbot, grab):
     assert len(np.unique(grab(editor.emva_chart).reshape(-1, 3), axis=0)) > 20
 
 
-def test_a_hidden_qe_chart_is_built_when_it_is_seen(qtbot, grab):
+def test_a_hidden_qe_chart_is_built_when_it_is_seen(qtbot, grab, shown):
     """A CFA edit behind the 'Parameters' tab draws no chart; the QE tab then shows the new
     pattern's curves, drawn off the GUI thread."""
-    editor = make_editor(qtbot)
+    editor = make_editor(shown)
     editor.set_project(Project())
     assert not editor.qe_chart.isVisible()
     editor.set_project(Project(sensor=SENSOR_PRESETS["auto_rccc"]))
