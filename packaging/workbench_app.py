@@ -31,4 +31,8 @@ def main() -> int:
 
 
 if __name__ == "__main__":
+    # the window's worker processes (render worker, side process) are spawned: in the bundle a
+    # spawned child runs this executable, which must become that child, not a second window
+    import multiprocessing
+    multiprocessing.freeze_support()
     sys.exit(main())
