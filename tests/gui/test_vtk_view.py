@@ -74,6 +74,8 @@ def test_mouse_moves_queued_while_the_thread_is_busy_are_merged(view, qtbot):
     from PySide6.QtCore import QPoint
     from PySide6.QtTest import QTest
     busy, gate, moves = threading.Event(), threading.Event(), []
+    qtbot.waitExposed(view)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)   # the window's own first commands (a resize)
     view.call(lambda pl: pl.iren.interactor.AddObserver("MouseMoveEvent",
                                                         lambda o, _e: moves.append(o.GetEventPosition())))
     view.call(lambda pl: (busy.set(), gate.wait(10)))
