@@ -45,8 +45,8 @@ class ChartImage(QLabel):
 
 class BackgroundChart(ChartImage):
     """A chart drawn by draw(fig) at the widget's size in the window's side process, shown as an
-    image: matplotlib's Python (0.13–0.8 s a chart here, lens analysis included) never holds the
-    window's GIL. draw must pickle: a Qt-free module-level function or a functools.partial of one.
+    image: matplotlib's Python (an Agg draw took 0.13–0.6 s here; a lens chart's first view stalled
+    the window up to 0.8 s) never holds the window's GIL. draw must pickle: a Qt-free module-level function or a functools.partial of one.
 
     set_draw(draw) draws when the chart is on screen — at once, or when it is next shown (a tab
     not in front costs nothing) — and again after a resize; one job at a time, the newest draw

@@ -5,22 +5,25 @@ charts — so their Python never holds the window's GIL. A worker thread calls r
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures.process import BrokenProcessPool
 
 SIDE_NICE = 10           # the window's threads first when the cores are busy
 
 _POOL = None
+_POOL_LOCK = threading.Lock()   # run() is called from several worker threads at once
 
 
 def side_process():
     """The side process's executor (one worker, started on first use)."""
     global _POOL
-    if _POOL is None:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-        _POOL = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
-                                    initializer=_start, initargs=(os.getpid(),))
-    return _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+            _POOL = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                        initializer=_start, initargs=(os.getpid(),))
+        return _POOL
 
 
 def _start(parent_pid: int) -> None:
@@ -37,16 +40,20 @@ def run(fn, *args, **kwargs):
     """fn(*args, **kwargs) in the side process (fn and its arguments picklable, Qt-free); blocks,
     so call it from a worker thread. A crashed process fails this job; the next starts a new one."""
     global _POOL
+    pool = side_process()
     try:
-        return side_process().submit(fn, *args, **kwargs).result()
+        return pool.submit(fn, *args, **kwargs).result()
     except BrokenProcessPool:
-        _POOL = None
+        with _POOL_LOCK:
+            if _POOL is pool:             # not one another thread has started since
+                _POOL = None
         raise
 
 
 def shutdown() -> None:
     """Stop the side process (the window is closing)."""
     global _POOL
-    if _POOL is not None:
-        _POOL.shutdown(wait=False, cancel_futures=True)
-        _POOL = None
+    with _POOL_LOCK:
+        pool, _POOL = _POOL, None
+    if pool is not None:
+        pool.shutdown(wait=False, cancel_futures=True)

@@ -2,8 +2,8 @@
 library), its surface table (an edited lens is saved as ISETCam JSON in the user's lens library,
 workbench.optics.lens.io.user_lens_dir, and named in optics.lens_file), paraxial read-outs, the
 optics parameters with the level of detail (and what the automatic selector picks, and why), and
-the layout / spot / ray-fan / PSF / MTF / distortion / relative-illumination charts, built on a
-worker thread (workbench.optics.lens.report)."""
+the layout / spot / ray-fan / PSF / MTF / distortion / relative-illumination charts, computed and
+drawn in the window's side process when seen (workbench.optics.lens.report.draw_chart)."""
 from __future__ import annotations
 
 import functools
@@ -30,7 +30,6 @@ from workbench.optics.lens.report import CHARTS, LENS_ERRORS, draw_chart, draw_n
 from workbench.optics.params import OpticsParams, fov_deg
 
 NO_LENS = "(no lens: first-order optics)"
-CHARTS_BY_INDEX = list(CHARTS)
 COLUMNS = ("radius (mm)", "thickness (mm)", "material", "semi-aperture (mm)", "stop")
 
 
@@ -395,18 +394,18 @@ class LensEditor(QWidget):
         self._set_charts()
 
     def _set_charts(self) -> None:
-        """Every chart of the shown lens, each computed and drawn on a worker when it is seen."""
+        """Every chart of the shown lens, each computed and drawn in the side process when it is seen."""
         lens = self.used_lens()
         if lens is None:
             for view in self.chart_views.values():
                 view.set_draw(draw_no_lens)
             return
         try:
-            half_diagonal = paraxial(lens).fov_deg(self._sensor_mm()[2]) / 2 if self._project else 30.0
+            half_diagonal_deg = paraxial(lens).fov_deg(self._sensor_mm()[2]) / 2 if self._project else 30.0
         except LENS_ERRORS:
-            half_diagonal = 30.0
+            half_diagonal_deg = 30.0
         for name, view in self.chart_views.items():
-            view.set_draw(functools.partial(draw_chart, name=name, lens=lens, max_field=half_diagonal),
+            view.set_draw(functools.partial(draw_chart, name=name, lens=lens, field_limit_deg=half_diagonal_deg),
                           f"computing the {name.replace('_', ' ')} chart…")
 
     def run_selector(self) -> None:

@@ -1,21 +1,14 @@
 """Sensor editor: every SensorParams field (form generator), presets, the CFA tile, the QE curves
-and an EMVA 1288 characterisation run on a background thread."""
+and an EMVA 1288 characterisation; the charts and the characterisation run in the window's side
+process (gui.side_process)."""
 from __future__ import annotations
 
 import functools
 
 from PySide6.QtCore import QRectF, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QPainter
-from PySide6.QtWidgets import (
-    QComboBox,
-    QHBoxLayout,
-    QLabel,
-    QPushButton,
-    QScrollArea,
-    QTabWidget,
-    QVBoxLayout,
-    QWidget,
-)
+from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QPushButton, QScrollArea, QTabWidget,
+                               QVBoxLayout, QWidget)
 from superqt.utils import create_worker
 
 from workbench.gui import side_process

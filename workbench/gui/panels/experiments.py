@@ -13,36 +13,19 @@ from pathlib import Path
 
 import psutil
 from PySide6.QtCore import QProcess, QProcessEnvironment, Qt, QTimer, Signal
-from PySide6.QtWidgets import (
-    QComboBox,
-    QFileDialog,
-    QGridLayout,
-    QHBoxLayout,
-    QLabel,
-    QLineEdit,
-    QPlainTextEdit,
-    QProgressBar,
-    QPushButton,
-    QSplitter,
-    QVBoxLayout,
-    QWidget,
-)
+from PySide6.QtWidgets import (QComboBox, QFileDialog, QGridLayout, QHBoxLayout, QLabel, QLineEdit,
+                               QPlainTextEdit, QProgressBar, QPushButton, QSplitter, QVBoxLayout, QWidget)
 
 from workbench.errors import WorkbenchError
 from workbench.experiments.detection import PROFILES
-from workbench.experiments.results import (
-    KINDS,
-    draw_results,
-    read_results,
-    result_folders,
-)
+from workbench.experiments.results import KINDS, draw_results, read_results, result_folders
 from workbench.gui.mplcanvas import BackgroundChart
 from workbench.project import save_project
 
 _COUNT = re.compile(r"(\d+)\s*/\s*(\d+)")
 KILL_GRACE_MS = 3000
 EXPERIMENT_NICE = 10     # the experiment process yields the cores to the window's threads, as the
-# render worker and the metrics process do (under a CPU hog: GUI gaps 9–35 → 8–18 ms while one ran)
+# render worker and the window's side process do (under a CPU hog: GUI gaps 9–35 → 8–18 ms while one ran)
 LOG_LINES = 500
 
 

@@ -288,12 +288,12 @@ LENS_ERRORS = (WorkbenchError, ValueError, TypeError, KeyError, ZeroDivisionErro
 """What tracing or analysing a malformed or untraceable lens raises."""
 
 
-def draw_chart(fig, name: str, lens: Lens, max_field: float) -> None:
-    """Chart `name` of CHARTS for `lens` up to field `max_field` (deg) on `fig`; a lens that
-    cannot be traced draws why."""
+def draw_chart(fig, name: str, lens: Lens, field_limit_deg: float) -> None:
+    """Chart `name` of CHARTS for `lens` at field angles up to field_limit_deg (or as far as the
+    lens traces) on `fig`; a lens that cannot be traced draws why."""
     draw, _size = CHARTS[name]
     try:
-        draw(fig, lens, field_angles(lens, min(max_field, max_field_deg(lens))))
+        draw(fig, lens, field_angles(lens, min(field_limit_deg, max_field_deg(lens))))
     except LENS_ERRORS as exc:
         fig.clear()
         fig.text(0.5, 0.5, f"{name}: {exc}", ha="center", va="center", wrap=True)
