@@ -1,9 +1,12 @@
 """Boxes of the detection study, and the one rule that says which of them count (numpy only).
 
 Boxes are (x0, y0, x1, y1) in image pixels with pixel edges at integers. A box of a detector
-class is either *kept* (a training target and ground truth) or *ignored* (neither: no positive
-and no negative training target under it, and a detection on it is dropped before scoring,
-VOC's 'difficult' rule). The rule (`keep_box`), KITTI's 'moderate' level scaled to the image:
+class is either *kept* (a training target and ground truth) or *ignored* (neither). One rule says
+what an ignored box does, by the point a detection is centred on (`centres_inside`): a detection
+of its class centred inside it and matched to no kept box is neither a true nor a false positive
+(workbench.detect.evaluate), and the output cells of its class whose centre lies inside it carry
+no training loss (workbench.detect.centernet.ignore_map). The rule for which boxes are kept
+(`keep_box`), KITTI's 'moderate' level scaled to the image:
 
     visible height ≥ MIN_BOX_HEIGHT_FRAC of the image rows (25 px of 375: 16 px at 240 rows),
     width ≥ MIN_BOX_WIDTH_PX, occlusion ≤ MAX_OCCLUSION, truncation ≤ MAX_TRUNCATION.
@@ -46,6 +49,15 @@ def box_iou(a, b) -> np.ndarray:
     union = area_a[:, None] + area_b[None, :] - inter
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(union > 0, inter / union, 0.0)
+
+
+def centres_inside(points_xy, boxes) -> np.ndarray:
+    """N×M: whether point i (x, y in pixels) lies in box j, half-open [x0, x1) × [y0, y1) as the
+    pixel-edge convention has it (a point on a box's right or bottom edge is in the next pixel)."""
+    p = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    x, y = p[:, 0, None], p[:, 1, None]
+    return (b[None, :, 0] <= x) & (x < b[None, :, 2]) & (b[None, :, 1] <= y) & (y < b[None, :, 3])
 
 
 def mirror_boxes(boxes: np.ndarray, width_px: int) -> np.ndarray:
@@ -103,21 +115,3 @@ def crop_corner(boxes: np.ndarray, image_hw: tuple[int, int], crop_hw: tuple[int
     r0 = 2 * int(rng.integers((lo_r + 1) // 2, hi_r // 2 + 1)) if hi_r >= lo_r + 1 else 2 * (hi_r // 2)
     c0 = 2 * int(rng.integers((lo_c + 1) // 2, hi_c // 2 + 1)) if hi_c >= lo_c + 1 else 2 * (hi_c // 2)
     return r0, c0
-
-
-def drop_ignored_detections(boxes, scores, classes, gt_boxes, gt_classes, ignored_boxes, ignored_classes,
-                            iou: float = 0.5):
-    """Detections that overlap an ignored box of their class (IoU ≥ iou) and no kept one are
-    removed before scoring; returns the rest as (boxes, scores, classes)."""
-    boxes, scores, classes = np.asarray(boxes), np.asarray(scores), np.asarray(classes)
-    if len(boxes) == 0 or len(ignored_boxes) == 0:
-        return boxes, scores, classes
-    same_ign = classes[:, None] == np.asarray(ignored_classes)[None, :]
-    hits_ignored = ((box_iou(boxes, ignored_boxes) >= iou) & same_ign).any(axis=1)
-    if len(gt_boxes):
-        same_gt = classes[:, None] == np.asarray(gt_classes)[None, :]
-        hits_kept = ((box_iou(boxes, gt_boxes) >= iou) & same_gt).any(axis=1)
-    else:
-        hits_kept = np.zeros(len(boxes), bool)
-    keep = ~(hits_ignored & ~hits_kept)
-    return boxes[keep], scores[keep], classes[keep]

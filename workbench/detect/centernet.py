@@ -6,8 +6,9 @@ A network returns, at output stride 4 in ORIGINAL image pixels (h = ceil(H/4), w
     offset   B×2×h×w  (dx, dy) of the true centre inside its cell, in cells (0…1)
 The loss is the penalty-reduced focal loss on the heat-map (α = 2, β = 4) plus L1 on size
 (weight 0.1) and offset (weight 1), read only at the object centres. Ignored boxes (see
-workbench.detect.boxes) are no target at all: the heat-map cells of their class that they touch
-carry no negative loss (the `ignore` map), and they have no centre. Decoding keeps the 3×3
+workbench.detect.boxes) are no target at all: they have no centre, and the heat-map cells of
+their class whose centre point lies inside one carry no negative loss (the `ignore` map) —
+exactly the cells where a detection would be dropped by evaluation's rule. Decoding keeps the 3×3
 max-pool peaks of sigmoid(heatmap). Everything here runs on the tensors' own device.
 
 Boxes are (x1, y1, x2, y2) in image pixels with pixel edges at integers: a box covering pixel
@@ -22,6 +23,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from workbench.detect.boxes import centres_inside
 from workbench.errors import ParameterError
 
 OUTPUT_STRIDE_PX = 4
@@ -73,12 +75,17 @@ def _draw_gaussian(heatmap: np.ndarray, cx: int, cy: int, radius: int) -> None:
 
 def ignore_map(boxes_xyxy, classes, num_classes: int, out_hw: tuple[int, int], stride: int = OUTPUT_STRIDE_PX
                ) -> np.ndarray:
-    """K×h×w float32: 1 in the output cells of class k that an ignored box of class k touches."""
-    out = np.zeros((num_classes, *out_hw), dtype=np.float32)
-    for (x0, y0, x1, y1), k in zip(np.asarray(boxes_xyxy, np.float64).reshape(-1, 4), np.asarray(classes).reshape(-1)):
-        c0, r0 = max(int(np.floor(x0 / stride)), 0), max(int(np.floor(y0 / stride)), 0)
-        c1, r1 = min(int(np.ceil(x1 / stride)), out_hw[1]), min(int(np.ceil(y1 / stride)), out_hw[0])
-        out[int(k), r0:r1, c0:c1] = 1.0
+    """K×h×w float32: 1 in the output cells of class k whose centre point lies inside an ignored
+    box of class k (boxes.centres_inside). Cell (r, c) decodes to box centres (c + dx, r + dy)·stride,
+    offsets in [0, 1) (`decode`); its centre point is ((c + ½)·stride, (r + ½)·stride)."""
+    h, w = out_hw
+    rows, cols = np.meshgrid((np.arange(h) + 0.5) * stride, (np.arange(w) + 0.5) * stride, indexing="ij")
+    points = np.stack([cols.ravel(), rows.ravel()], axis=1)
+    boxes = np.asarray(boxes_xyxy, np.float64).reshape(-1, 4)
+    labels = np.asarray(classes, np.int64).reshape(-1)
+    out = np.zeros((num_classes, h, w), dtype=np.float32)
+    for k in np.unique(labels):
+        out[k] = centres_inside(points, boxes[labels == k]).any(axis=1).reshape(h, w)
     return out
 
 

@@ -5,9 +5,11 @@ AdamW with a linear warm-up, then a cosine decay to zero over a fixed number of 
 epoch = every training frame once, as a crop_hw window when given). A run records its loss
 curve (the total and the three CenterNet parts, per epoch) and a train-mAP curve: mAP@0.5 of the
 network on a fixed subset of its own training frames (whole frames, no augmentation, at the
-middle training EV) at `curve_points` evenly spaced epochs. `last_quarter_gain` (train mAP at the
-end minus at ¾ of the budget) says whether more training would still have helped: a run is
-called converged when it is below CONVERGED_GAIN.
+middle training EV) at `curve_points` evenly spaced epochs, always including the one at half the
+budget. `convergence` reads that curve: a run is converged when its train mAP at the end is at
+least CONVERGED_FLOOR (it learned something) and gained less than CONVERGED_GAIN over the second
+half of the budget (more training would not have helped); it says which test failed, and is None
+when the curve has no end and half-way points.
 
 Checkpoints at every epoch end, written atomically and read weights-only, so a killed run
 resumes at its last finished epoch with the same data order and sensor noise (cancel is checked
@@ -33,7 +35,11 @@ from workbench.errors import InputFileError, ParameterError
 log = logging.getLogger(__name__)
 
 ORDER_TAG = 0x6F7264              # 'ord': the batch order's stream
-CONVERGED_GAIN = 0.03             # train-mAP gain over the last quarter below which a run is converged
+CONVERGED_GAIN = 0.03             # train-mAP gain over the second half below which a run has stopped climbing
+CONVERGED_FLOOR = 0.2             # end train mAP below which a flat curve is stuck, not converged: an
+                                  # untrained net reads ≈ 0 (6-epoch quick runs: 0.000), one that fits its
+                                  # own frames ≥ 0.8 (the learnable synthetic set; 0.948 after 60 epochs);
+                                  # below a fifth of that it has not fit the frames it trains on
 
 
 @dataclass(frozen=True)
@@ -98,19 +104,35 @@ def learning_rate(peak: float, progress: float, warmup_fraction: float) -> float
 
 def curve_epochs(epochs: int, points: int) -> list[int]:
     """The epochs (1-based, ascending, the last one included) after which the train-mAP curve is
-    measured: `points` of them, evenly spaced."""
+    measured: `points` of them, evenly spaced, plus the half-way epoch (epochs // 2, the last at
+    or before half the budget) when points ≥ 2 and it is not among them."""
     if points == 0:
         return []
-    return sorted({max(1, round(epochs * (k + 1) / points)) for k in range(points)})
+    chosen = {max(1, round(epochs * (k + 1) / points)) for k in range(points)}
+    if points >= 2 and epochs >= 2:
+        chosen.add(epochs // 2)
+    return sorted(chosen)
 
 
-def last_quarter_gain(curve: list[dict], epochs: int) -> float | None:
-    """Train mAP at the end minus at the last curve point at or before ¾ of the budget (None when
-    the curve has no such pair)."""
-    early = [c for c in curve if c["epoch"] <= 0.75 * epochs and c["train_map"] is not None]
-    if not curve or not early or curve[-1]["train_map"] is None or curve[-1]["epoch"] != epochs:
-        return None
-    return float(curve[-1]["train_map"] - early[-1]["train_map"])
+def convergence(curve: list[dict], epochs: int) -> dict:
+    """train_map_half (the last curve point at or before epochs / 2), train_map_end (the point at
+    the last epoch), half_gain (end − half), converged and the reason in words; the numbers and
+    converged are None when the curve has no such pair."""
+    half = [c for c in curve if c["epoch"] <= epochs / 2 and c["train_map"] is not None]
+    end = curve[-1] if curve and curve[-1]["epoch"] == epochs and curve[-1]["train_map"] is not None else None
+    if not half or end is None:
+        return {"train_map_half": None, "train_map_end": None, "half_gain": None, "converged": None,
+                "convergence": "unknown: no train mAP at half the budget and at its end"}
+    at_half, at_end = float(half[-1]["train_map"]), float(end["train_map"])
+    gain = at_end - at_half
+    if at_end < CONVERGED_FLOOR:
+        verdict, why = False, f"stuck: train mAP {at_end:.3f} < floor {CONVERGED_FLOOR:g}"
+    elif gain >= CONVERGED_GAIN:
+        verdict, why = False, f"still climbing: {gain:+.3f} after half the budget"
+    else:
+        verdict, why = True, f"converged: {gain:+.3f} after half the budget"
+    return {"train_map_half": at_half, "train_map_end": at_end, "half_gain": gain, "converged": verdict,
+            "convergence": why}
 
 
 def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: str) -> dict:
@@ -125,7 +147,7 @@ def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: 
 class TrainResult:
     """What a finished training reports (plain numbers): budget used, speed (ms per training
     image: all of it, the network step alone, sensor + ISP alone), the loss curve (history, one
-    entry per epoch) and the train-mAP curve with its last-quarter gain."""
+    entry per epoch) and the train-mAP curve with its reading (engine.convergence)."""
 
     epochs: int
     steps: int
@@ -137,8 +159,11 @@ class TrainResult:
     final_loss: float
     history: list = field(default_factory=list)
     curve: list = field(default_factory=list)
-    last_quarter_gain: float | None = None
+    train_map_half: float | None = None
+    train_map_end: float | None = None
+    half_gain: float | None = None
     converged: bool | None = None
+    convergence: str = ""
     autocast: str = "fp32"                 # what the run computed in: 'bf16' (autocast) or 'fp32'
 
 
@@ -258,13 +283,11 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
         if cancel is not None:
             cancel.check()
     model.eval()
-    gain = last_quarter_gain(curve, config.epochs)
     sensor_ms = 1e3 * sensor_isp_s / sensor_items if sensor_items else None
     return model, TrainResult(epochs=epoch, steps=step, images=images, seconds=elapsed_s,
                               train_ms_per_image=1e3 * elapsed_s / max(images, 1),
                               step_ms_per_image=1e3 * step_s / max(images, 1),
                               sensor_isp_ms_per_image=sensor_ms,
                               final_loss=history[-1]["loss"] if history else float("nan"), history=history,
-                              curve=curve, last_quarter_gain=gain,
-                              converged=None if gain is None else gain < CONVERGED_GAIN,
+                              curve=curve, **convergence(curve, config.epochs),
                               autocast="bf16" if amp_dtype is not None else "fp32")

@@ -7,21 +7,29 @@
     maps = table.mean_ap(bootstrap_weights(len(ground_truth), 1000))        # 1000 resampled mAPs
 
 detections: one dict per image with boxes N×4 (x1, y1, x2, y2 in pixels), scores N, classes N
-(ints indexing class_names); ground_truth: one dict per image with boxes and classes.
+(ints indexing class_names); ground_truth: one dict per image with boxes and classes, and
+optionally its ignored boxes (ignored_boxes M×4, ignored_classes M: never ground truth).
 
 Matching (one rule for both methods, COCO's): per image and class, detections in descending score
 (ties keep their given order) each take the still-unmatched ground-truth box of highest IoU ≥ the
 threshold (equal IoUs: the later box); the VOC devkit differs only in counting a detection whose
-best box is already taken as false even when another box ≥ 0.5 is free. Over the data set the
-detections are ranked by score (ties: image order, then rank in the image) into a
-precision–recall curve, integrated by `method`:
+best box is already taken as false even when another box ≥ 0.5 is free. Ignored boxes come
+second, as COCO's crowd boxes do: a detection left unmatched whose centre lies inside an ignored
+box of its class (boxes.centres_inside) is dropped, neither true nor false positive; a detection
+matched to a real box stays a true positive wherever its centre is. Training masks the same
+cells (centernet.ignore_map). Over the data set the remaining detections are ranked by score
+(ties: image order, then rank in the image) into a precision–recall curve, integrated by `method`:
     'voc'      all-point interpolation (VOC 2010+): Σ (r_i − r_{i−1}) · max_{j ≥ i} p_j over
                every recall step — the area under the monotone precision envelope;
     'coco101'  COCO's: the envelope sampled at the 101 recalls 0, 0.01, …, 1 (first rank whose
                recall reaches each), averaged; 0 beyond the highest recall.
 The two differ by design (sampling), so the cross-check compares like with like: 'coco101' with
-max_detections = M equals pycocotools' AP@0.5 with maxDets M to 1e-9 (tests), and 'voc' is held
-against closed-form cases.
+max_detections = M equals pycocotools' AP@0.5 with maxDets M to 1e-9 (tests; max_detections cuts
+before ignored detections are dropped, as maxDets does), and 'voc' is held against closed-form
+cases. pycocotools_ap50 passes ignored boxes as iscrowd = 1, and COCO drops a detection whose
+area lies ≥ 50 % inside one (IoA) rather than one centred in it: the two agree where every
+detection is wholly inside an ignored box or clear of all (tests), and the ignore rule is
+otherwise held against a per-detection reimplementation.
 
 A class without ground-truth boxes has AP NaN and is left out of the mean (as COCO does); a class
 with ground truth and no detections has AP 0. mean_ap is NaN when no class has ground truth.
@@ -42,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from workbench.detect.boxes import box_iou
+from workbench.detect.boxes import box_iou, centres_inside
 from workbench.errors import ParameterError
 
 METHODS = ("voc", "coco101")
@@ -73,21 +81,23 @@ class MapResult:
                 "notes": self.notes}
 
 
-def _match_image(det_boxes: np.ndarray, gt_boxes: np.ndarray, iou_threshold: float) -> np.ndarray:
-    """True-positive flag of each detection (already in rank order) under the module's matching rule."""
+def _match_image(det_boxes: np.ndarray, gt_boxes: np.ndarray, ignored_boxes: np.ndarray,
+                 iou_threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """(true-positive flag, dropped flag) of each detection (already in rank order) under the
+    module's matching rule: real boxes first, then the ignored boxes' centre rule."""
     tp = np.zeros(len(det_boxes), dtype=bool)
-    if len(gt_boxes) == 0 or len(det_boxes) == 0:
-        return tp
-    ious = box_iou(det_boxes, gt_boxes)
-    taken = np.zeros(len(gt_boxes), dtype=bool)
-    for d in range(len(det_boxes)):
-        best, match = min(iou_threshold, 1 - 1e-10), -1
-        for g in range(len(gt_boxes)):
-            if not taken[g] and ious[d, g] >= best:
-                best, match = ious[d, g], g
-        if match >= 0:
-            taken[match], tp[d] = True, True
-    return tp
+    if len(gt_boxes) and len(det_boxes):
+        ious = box_iou(det_boxes, gt_boxes)
+        taken = np.zeros(len(gt_boxes), dtype=bool)
+        for d in range(len(det_boxes)):
+            best, match = min(iou_threshold, 1 - 1e-10), -1
+            for g in range(len(gt_boxes)):
+                if not taken[g] and ious[d, g] >= best:
+                    best, match = ious[d, g], g
+            if match >= 0:
+                taken[match], tp[d] = True, True
+    centres = 0.5 * (det_boxes[:, :2] + det_boxes[:, 2:])
+    return tp, ~tp & centres_inside(centres, ignored_boxes).any(axis=1)
 
 
 def _class_arrays(item: dict, cls: int, need_scores: bool):
@@ -104,17 +114,25 @@ def _class_arrays(item: dict, cls: int, need_scores: bool):
     return boxes[on], scores[on]
 
 
+def _ignored_boxes(item: dict, cls: int) -> np.ndarray:
+    """The ignored boxes of class `cls` in a ground-truth entry (none when it names none)."""
+    ignored = {"boxes": item.get("ignored_boxes", np.zeros((0, 4))), "classes": item.get("ignored_classes", [])}
+    return _class_arrays(ignored, cls, need_scores=False)[0]
+
+
 def precision_recall(detections: list[dict], ground_truth: list[dict], cls: int, iou_threshold: float = 0.5,
                      max_detections: int | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """(recall, precision) at every rank of class `cls`'s detections over the data set, and the
-    number of ground-truth boxes; max_detections keeps each image's best M of this class (COCO's maxDets)."""
+    number of ground-truth boxes; max_detections keeps each image's best M of this class (COCO's
+    maxDets), before detections on ignored boxes are dropped."""
     scores_all, tp_all, n_gt = [], [], 0
     for det, gt in zip(detections, ground_truth):
         gt_boxes, _ = _class_arrays(gt, cls, need_scores=False)
         boxes, scores = _class_arrays(det, cls, need_scores=True)
         order = np.argsort(-scores, kind="mergesort")[:max_detections]
-        scores_all.append(scores[order])
-        tp_all.append(_match_image(boxes[order], gt_boxes, iou_threshold))
+        tp, dropped = _match_image(boxes[order], gt_boxes, _ignored_boxes(gt, cls), iou_threshold)
+        scores_all.append(scores[order][~dropped])
+        tp_all.append(tp[~dropped])
         n_gt += len(gt_boxes)
     scores = np.concatenate(scores_all) if scores_all else np.zeros(0)
     tp = np.concatenate(tp_all) if tp_all else np.zeros(0, dtype=bool)
@@ -171,7 +189,8 @@ def evaluate_map(detections: list[dict], ground_truth: list[dict], class_names: 
 def pycocotools_ap50(detections: list[dict], ground_truth: list[dict], class_names: list[str],
                      max_detections: int = 100) -> dict:
     """AP@0.5 per class and their mean from pycocotools' COCOeval (area range 'all', maxDets
-    max_detections) on the same data: {"ap": {name: AP or NaN}, "mean_ap": …}.
+    max_detections) on the same data, ignored boxes as iscrowd = 1 (COCO's IoA rule for them, not
+    this module's centre rule): {"ap": {name: AP or NaN}, "mean_ap": …}.
 
     When no image has any detection, pycocotools cannot load the empty result list; every class
     with ground truth then has AP 0, which is what COCOeval gives for a class without detections."""
@@ -181,15 +200,17 @@ def pycocotools_ap50(detections: list[dict], ground_truth: list[dict], class_nam
     images, annotations, results = [], [], []
     for i, (det, gt) in enumerate(zip(detections, ground_truth)):
         images.append({"id": i})
-        for box, cls in zip(np.asarray(gt["boxes"], dtype=float).reshape(-1, 4), np.asarray(gt["classes"]).reshape(-1)):
-            w, h = box[2] - box[0], box[3] - box[1]
-            annotations.append({"id": len(annotations) + 1, "image_id": i, "category_id": int(cls),
-                                "bbox": [box[0], box[1], w, h], "area": w * h, "iscrowd": 0})
+        for prefix, crowd in (("", 0), ("ignored_", 1)):
+            for box, cls in zip(np.asarray(gt.get(prefix + "boxes", np.zeros((0, 4))), dtype=float).reshape(-1, 4),
+                                np.asarray(gt.get(prefix + "classes", [])).reshape(-1)):
+                w, h = box[2] - box[0], box[3] - box[1]
+                annotations.append({"id": len(annotations) + 1, "image_id": i, "category_id": int(cls),
+                                    "bbox": [box[0], box[1], w, h], "area": w * h, "iscrowd": crowd})
         for box, cls, score in zip(np.asarray(det["boxes"], dtype=float).reshape(-1, 4),
                                    np.asarray(det["classes"]).reshape(-1), np.asarray(det["scores"]).reshape(-1)):
             results.append({"image_id": i, "category_id": int(cls), "score": float(score),
                             "bbox": [box[0], box[1], box[2] - box[0], box[3] - box[1]]})
-    has_gt = {int(a["category_id"]) for a in annotations}
+    has_gt = {int(a["category_id"]) for a in annotations if not a["iscrowd"]}
     ap = {name: (0.0 if k in has_gt else math.nan) for k, name in enumerate(class_names)}
     if results:
         with contextlib.redirect_stdout(io.StringIO()):
@@ -221,8 +242,9 @@ def bootstrap_weights(n_images: int, resamples: int, seed: int = BOOTSTRAP_SEED)
 
 @dataclass
 class MatchTable:
-    """Every detection of a test set, ranked by score per class, with its true-positive flag under
-    the module's matching rule, and the ground-truth count of every image and class."""
+    """Every detection of a test set that the ignore rule keeps, ranked by score per class, with its
+    true-positive flag under the module's matching rule, and the ground-truth count of every image
+    and class."""
 
     classes: np.ndarray          # D int: class of each detection
     images: np.ndarray           # D int: image of each detection
@@ -255,7 +277,7 @@ class MatchTable:
 
 def match_table(detections: list[dict], ground_truth: list[dict], num_classes: int,
                 iou: float = 0.5) -> MatchTable:
-    """The MatchTable of a test set (same matching and ranking as evaluate_map)."""
+    """The MatchTable of a test set (same matching, dropping and ranking as evaluate_map)."""
     if len(detections) != len(ground_truth):
         raise ParameterError("detections", len(detections), f"one entry per image ({len(ground_truth)} images)")
     classes, images, tp, scores = [], [], [], []
@@ -266,7 +288,9 @@ def match_table(detections: list[dict], ground_truth: list[dict], num_classes: i
             boxes, sc = _class_arrays(det, k, need_scores=True)
             n_gt[i, k] = len(gt_boxes)
             order = np.argsort(-sc, kind="mergesort")
-            tp.append(_match_image(boxes[order], gt_boxes, iou))
+            flags, dropped = _match_image(boxes[order], gt_boxes, _ignored_boxes(gt, k), iou)
+            order = order[~dropped]
+            tp.append(flags[~dropped])
             scores.append(sc[order])
             classes.append(np.full(len(order), k))
             images.append(np.full(len(order), i))

@@ -1,5 +1,5 @@
 """Testing a detector on a data view: VOC AP@0.5 per class and mAP (ignored boxes handled by the
-rule of workbench.detect.boxes), pycocotools' AP@0.5 as a cross-check, and test-set bootstrap
+rule of workbench.detect.evaluate), pycocotools' AP@0.5 as a cross-check, and test-set bootstrap
 resamples of the mAP for paired comparisons between runs."""
 from __future__ import annotations
 
@@ -11,11 +11,10 @@ import numpy as np
 
 def detect_view(model, view, *, device: str = "cpu", batch_size: int = 16, workers: int = 0,
                 precision: str = "auto"):
-    """(detections, truths, infer_s, sensor_isp_s) of a view, with detections on ignored boxes
-    dropped (inference under devices.autocast_dtype(device, precision), decoding in float32)."""
+    """(detections, truths, infer_s, sensor_isp_s) of a view, truths with their ignored boxes for
+    evaluate's rule (inference under devices.autocast_dtype(device, precision), decoding in float32)."""
     import torch
 
-    from workbench.detect.boxes import drop_ignored_detections
     from workbench.detect.centernet import decode
     from workbench.detect.devices import autocast, autocast_dtype, prepare_input
     from workbench.detect.data import batches, iterate_batches
@@ -34,11 +33,10 @@ def detect_view(model, view, *, device: str = "cpu", batch_size: int = 16, worke
                 torch.cuda.synchronize()
             infer_s += time.perf_counter() - t0
             for det, tgt in zip(dets, targets):
-                boxes, scores, classes = drop_ignored_detections(
-                    det["boxes"], det["scores"], det["classes"], tgt["boxes_xyxy"].numpy(), tgt["classes"].numpy(),
-                    tgt["ignored_xyxy"].numpy(), tgt["ignored_classes"].numpy())
-                detections.append({"boxes": boxes, "scores": scores, "classes": classes})
-                truths.append({"boxes": tgt["boxes_xyxy"].numpy(), "classes": tgt["classes"].numpy()})
+                detections.append(det)
+                truths.append({"boxes": tgt["boxes_xyxy"].numpy(), "classes": tgt["classes"].numpy(),
+                               "ignored_boxes": tgt["ignored_xyxy"].numpy(),
+                               "ignored_classes": tgt["ignored_classes"].numpy()})
     return detections, truths, infer_s, sensor_isp_s
 
 
@@ -46,10 +44,10 @@ def evaluate_detector(model, view, class_names, *, device: str = "cpu", batch_si
                       with_curves: bool = False, workers: int = 0, precision: str = "auto",
                       bootstrap: int = 0) -> dict:
     """mAP (None where no class has ground truth), AP per class and ground-truth counts, COCO
-    AP@0.5 (None without pycocotools), inference and sensor + ISP ms per image; with_curves:
-    each class's precision–recall curve (≤ 50 points); bootstrap > 0: that many test-set
-    resamples of the mAP ('bootstrap_map', float list; evaluate.bootstrap_weights, the same
-    resamples for every run on this view)."""
+    AP@0.5 (ignored boxes as COCO crowd boxes; None without pycocotools), inference and sensor +
+    ISP ms per image; with_curves: each class's precision–recall curve (≤ 50 points);
+    bootstrap > 0: that many test-set resamples of the mAP ('bootstrap_map', float list;
+    evaluate.bootstrap_weights, the same resamples for every run on this view)."""
     from workbench.detect.evaluate import bootstrap_weights, evaluate_map, match_table, pycocotools_ap50
 
     detections, truths, infer_s, sensor_isp_s = detect_view(model, view, device=device, batch_size=batch_size,

@@ -160,7 +160,7 @@ def result_rows(runs: list[dict]) -> list[dict]:
                          "train_evs": " ".join(f"{e:+g}" for e in run["config"]["train_evs"]), "test_ev": test["ev"],
                          "map": test["map"], **{f"ap_{c}": test["ap"].get(c) for c in run["classes"]},
                          "coco_ap50": test.get("coco_ap50"), "train_map": train.get("train_map"),
-                         "last_quarter_gain": train.get("last_quarter_gain"), "converged": train.get("converged"),
+                         "half_gain": train.get("half_gain"), "converged": train.get("converged"),
                          "autocast": train.get("autocast"),
                          "final_loss": train.get("final_loss"), "train_images": train["images"],
                          "train_ms_per_image": train["train_ms_per_image"],
