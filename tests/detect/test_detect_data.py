@@ -6,7 +6,7 @@ import shutil
 import numpy as np
 import pytest
 
-from workbench.detect.boxes import drop_ignored_detections, keep_box
+from workbench.detect.boxes import keep_box
 from workbench.detect.data import TEST_FRACTION, DetectionDataset, DetectionView, split_of
 from workbench.errors import InputFileError, ParameterError
 from workbench.sensor import irradiance_to_signal_rate
@@ -123,12 +123,15 @@ def test_crop_windows_hold_the_centre_of_a_kept_box():
     assert len(corners) > 50
 
 
-def test_split_is_a_fixed_function_of_the_frame_seeds():
-    rng = np.random.default_rng(0)
-    seeds = [{"arrangement": int(a), "pose": int(p)} for a, p in rng.integers(0, 2 ** 62, size=(3000, 2))]
+def test_split_puts_every_third_city_in_the_test_set():
+    seeds = [{"index": i, "city": i // 6} for i in range(612)]
     splits = [split_of(s) for s in seeds]
-    assert splits == [split_of(s) for s in seeds]
-    assert abs(splits.count("test") / len(splits) - TEST_FRACTION) < 0.03
+    for c in range(102):                                           # a city is wholly train or test
+        assert len(set(splits[6 * c:6 * c + 6])) == 1
+    assert splits.count("test") == 204 and splits.count("train") == 408
+    assert [split_of({"index": c, "city": c}) for c in range(6)] == ["train", "train", "test"] * 2
+    for n in range(1, 300):                                        # exactly ⌊n·f⌋ of the first n cities
+        assert sum(split_of({"index": c}) == "test" for c in range(n)) == int(n * TEST_FRACTION + 1e-9)
 
 
 def test_split_and_stats_of_a_data_set(synthetic_dir):
@@ -147,16 +150,6 @@ def test_label_rule():
     assert not keep_box({"bbox": [0, 0, 3, 40], "occlusion": 0.0, "truncation": 0.0}, rows)   # too narrow
     assert not keep_box({"bbox": [0, 0, 9, 40], "occlusion": 0.85, "truncation": 0.0}, rows)
     assert not keep_box({"bbox": [0, 0, 9, 40], "occlusion": 0.0, "truncation": 0.6}, rows)
-
-
-def test_detections_on_ignored_objects_are_dropped_not_counted():
-    gt = np.array([[0, 0, 10, 10]], np.float32)
-    ignored = np.array([[50, 50, 60, 60]], np.float32)
-    dets = np.array([[0, 0, 10, 10], [50, 50, 60, 60], [50, 50, 60, 60], [80, 80, 90, 90]], np.float32)
-    boxes, scores, classes = drop_ignored_detections(dets, np.array([0.9, 0.8, 0.7, 0.6]), np.array([0, 0, 1, 0]),
-                                                     gt, np.array([0]), ignored, np.array([0]))
-    assert scores.tolist() == pytest.approx([0.9, 0.7, 0.6])      # only the same-class hit on the ignored box
-    assert classes.tolist() == [0, 1, 0]
 
 
 def _copy(src, tmp_path):

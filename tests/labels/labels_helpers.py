@@ -31,3 +31,21 @@ def tiny_renderer(project, seeds):
     labels = render_labels(scene, table, W, H)
     return FrameData(film.channels_to_radiance(channels).astype(np.float32),
                      film.output_wavelengths_nm, labels, {"shift_m": shift})
+
+
+def session_renderer(project, seeds, session=None):
+    """A stand-in frame that records which session made it (a number given to each new session)
+    and how many frames that session had made before."""
+    from itertools import count
+
+    from workbench.render.labels import Labels
+    global _SESSIONS
+    _SESSIONS = globals().get("_SESSIONS") or count()
+    if not hasattr(session, "test_id"):
+        session.test_id, session.test_frames = next(_SESSIONS), 0
+    made = session.test_frames
+    session.test_frames += 1
+    depth = np.ones((H, W), np.float32)
+    labels = Labels(depth, depth, np.zeros((H, W), np.int32), np.zeros((H, W), np.int32), [], {})
+    return FrameData(np.ones((H, W, 2), np.float32), np.array([500.0, 600.0]), labels,
+                     {"session": session.test_id, "frame_in_session": made})

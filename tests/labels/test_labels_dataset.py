@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from labels_helpers import tiny_renderer
+from labels_helpers import session_renderer, tiny_renderer
 
 from workbench.compute.local import JobFailed, run_jobs
 from workbench.errors import OutputPathError, ParameterError
 from workbench.jobs import CancelToken, JobCancelled, run_job
 from workbench.project import Project
+from workbench.scene.city.recipe import PoseParams
 from workbench.render.city_frame import FrameData, frame_optical_image, frame_seeds
 from workbench.datasets.dataset import (FLOAT16_REL_ERROR, FRAME_FORMAT, dataset_fingerprint,
                                       decode_irradiance, encode_irradiance, frame_path, read_frame,
@@ -205,7 +206,7 @@ def test_run_killed_with_sigkill_resumes_to_the_same_frames(tmp_path):
 
     here = Path(__file__).resolve().parent
     script = (f"import sys; sys.path.insert(0, {str(here)!r})\n"
-              "from labels_helpers import tiny_renderer\n"
+              "from labels_helpers import session_renderer, tiny_renderer\n"
               "from workbench.project import Project\n"
               "from workbench.datasets.dataset import run_dataset\n"
               f"for p in run_dataset(Project(seed=5), 4, {str(tmp_path / 'k')!r}, workers=0,\n"
@@ -240,3 +241,33 @@ def test_stored_frame_becomes_an_optical_image(tmp_path):
     np.testing.assert_array_equal(oi.irradiance_photons, irr)
     with pytest.raises(ValueError, match="lacks"):
         frame_optical_image(FrameData(irr, np.array([500.0, 600.0]), labels, {}))
+
+
+def test_frames_of_a_city_share_its_arrangement_and_nothing_else():
+    seeds = [frame_seeds(7, i, 3) for i in range(9)]
+    assert [s.city for s in seeds] == [0, 0, 0, 1, 1, 1, 2, 2, 2]
+    for c in range(3):
+        group = seeds[3 * c:3 * c + 3]
+        assert len({s.arrangement for s in group}) == 1
+        assert len({s.pose for s in group}) == 3 and len({s.render for s in group}) == 3
+        assert group[0].arrangement == frame_seeds(7, 3 * c).arrangement     # its first frame's
+    assert len({s.arrangement for s in seeds}) == 3
+    assert [frame_seeds(7, i, 3).pose for i in range(9)] == [frame_seeds(7, i).pose for i in range(9)]
+    with pytest.raises(ValueError, match="poses_per_arrangement"):
+        frame_seeds(0, 0, 0)
+
+
+def test_a_city_job_renders_its_frames_through_one_session(tmp_path):
+    project = Project(seed=3, pose=PoseParams(poses_per_arrangement=3))
+    result = drive_until(run_dataset(project, 7, tmp_path, workers=0, renderer=session_renderer))
+    assert sorted(result.rendered) == list(range(7))
+    heads = [read_frame(frame_path(tmp_path, i), irradiance=False)[1] for i in range(7)]
+    sessions = [h["meta"]["session"] for h in heads]
+    assert sessions[0] == sessions[1] == sessions[2] != sessions[3]
+    assert sessions[3] == sessions[4] == sessions[5] != sessions[6]
+    assert [h["seeds"]["city"] for h in heads] == [0, 0, 0, 1, 1, 1, 2]
+    assert [h["meta"]["frame_in_session"] for h in heads] == [0, 1, 2, 0, 1, 2, 0]
+    frame_path(tmp_path, 4).unlink()                          # a resumed city renders only what is missing
+    again = drive_until(run_dataset(project, 7, tmp_path, workers=0, renderer=session_renderer))
+    assert again.rendered == [4]
+    assert read_frame(frame_path(tmp_path, 4), irradiance=False)[1]["meta"]["frame_in_session"] == 0

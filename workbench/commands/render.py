@@ -59,7 +59,7 @@ def cmd_render(args) -> int:
     from workbench.jobs import tqdm_progress
     from workbench.previews import irradiance_preview, save_image, save_png
     from workbench.project import load_project
-    from workbench.render.city_frame import frame_seeds, render_city_frame
+    from workbench.render.city_frame import project_frame_seeds, render_city_frame
     from workbench.datasets.dataset import FRAME_FORMAT, FRAME_VERSION, write_frame
     from workbench.render.labels import labels_to_coco
 
@@ -72,7 +72,7 @@ def cmd_render(args) -> int:
     out = prepare_output_folder(args.out)
     if long_render_note(project):
         print(long_render_note(project), file=sys.stderr, flush=True)
-    seeds = frame_seeds(project.seed, args.frame)
+    seeds = project_frame_seeds(project, args.frame)
     progress = tqdm_progress(f"render frame {args.frame}")
     try:
         frame = render_city_frame(project, seeds, on_progress=progress)

@@ -228,9 +228,9 @@ def camera_tile(project, index: int, renderer: Callable | None = None, keep: Kee
     render_city_frame), then exposed by the project's sensor (temporal noise seeded by the frame's
     render seed) and developed by its ISP to sRGB, with its caption and record."""
     from workbench.isp import sensor_image_to_srgb
-    from workbench.render.city_frame import frame_optical_image, frame_seeds, render_city_frame
+    from workbench.render.city_frame import frame_optical_image, project_frame_seeds, render_city_frame
     from workbench.sensor import irradiance_to_sensor_image
-    seeds = frame_seeds(project.seed, index)
+    seeds = project_frame_seeds(project, index)
     t0 = time.perf_counter()
     data = (renderer or render_city_frame)(project, seeds)
     render_s = time.perf_counter() - t0

@@ -42,7 +42,7 @@ from workbench.errors import InputFileError, InvalidValueError, OutputPathError,
 from workbench.files import atomic_write_bytes, parse_json
 from workbench.jobs import CancelToken, Progress
 from workbench.render import city_frame
-from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, frame_seeds, render_city_frame
+from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
 
 DATASET_FORMAT = "camera-workbench-dataset"
@@ -167,18 +167,23 @@ def atomic_write_json(path: Path, obj) -> None:
 
 
 @dataclass(frozen=True)
-class FrameJob:
-    """Everything a worker needs to make one frame (picklable plain data)."""
+class CityJob:
+    """Everything a worker needs to make the missing frames of one city arrangement (picklable
+    plain data): they render one after the other through one CitySceneSession, so the city is
+    built and loaded once."""
 
-    index: int
-    seeds: FrameSeeds
+    seeds: tuple[FrameSeeds, ...]
     project: object
     fingerprint: str
     irradiance_dtype: str
     renderer: Callable
 
+    @property
+    def indices(self) -> list[int]:
+        return [s.index for s in self.seeds]
+
     def __repr__(self) -> str:
-        return f"frame {self.index}"
+        return f"city {self.seeds[0].city} (frames {', '.join(map(str, self.indices))})"
 
 
 @dataclass(frozen=True)
@@ -191,19 +196,37 @@ class FramePayload:
     seconds: float
 
 
-def render_frame_job(job: FrameJob) -> FramePayload:
-    """Worker function: render frame job.index and encode its file (the driver writes it). A
-    renderer that takes on_progress reports its samples per pixel to the driver as it goes."""
-    t0 = time.perf_counter()
-    if "on_progress" in inspect.signature(job.renderer).parameters:
-        data = job.renderer(job.project, job.seeds,
-                            on_progress=lambda step: report_progress(*_steps(step)))
-    else:
-        data = job.renderer(job.project, job.seeds)
-    header = {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": job.index,
-              "fingerprint": job.fingerprint, "seeds": asdict(job.seeds)}
-    payload = encode_frame(data, header, job.irradiance_dtype)
-    return FramePayload(job.index, payload, len(data.labels.objects), time.perf_counter() - t0)
+def render_city_job(job: CityJob) -> list[FramePayload]:
+    """Worker function: render the frames of job and encode their files (the driver writes them).
+    A renderer that takes `session` gets one CitySceneSession for all of them; one that takes
+    on_progress reports the job's progress (frames done + this frame's fraction) to the driver."""
+    from workbench.render.city_frame import CitySceneSession
+    params = inspect.signature(job.renderer).parameters
+    session = CitySceneSession() if "session" in params else None
+    out = []
+    for k, seeds in enumerate(job.seeds):
+        t0 = time.perf_counter()
+        kwargs = {"session": session} if session is not None else {}
+        if "on_progress" in params:
+            kwargs["on_progress"] = lambda step, k=k: report_progress(k + step.done / step.total, len(job.seeds))
+        data = job.renderer(job.project, seeds, **kwargs)
+        header = {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": seeds.index,
+                  "fingerprint": job.fingerprint, "seeds": asdict(seeds)}
+        payload = encode_frame(data, header, job.irradiance_dtype)
+        out.append(FramePayload(seeds.index, payload, len(data.labels.objects), time.perf_counter() - t0))
+    return out
+
+
+def city_jobs(project, frames: int, done: set[int], fingerprint: str, irradiance_dtype: str,
+              renderer: Callable):
+    """The CityJobs of the frames < `frames` not in `done`, city by city in order (lazily)."""
+    from workbench.render.city_frame import project_frame_seeds
+    per_city = project.pose.poses_per_arrangement if project.pose is not None else 1
+    for first in range(0, frames, per_city):
+        todo = tuple(project_frame_seeds(project, i) for i in range(first, min(first + per_city, frames))
+                     if i not in done)
+        if todo:
+            yield CityJob(todo, project, fingerprint, irradiance_dtype, renderer)
 
 
 def _steps(step) -> tuple[float, float]:
@@ -266,22 +289,22 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
             yield Progress(len(reused), frames, f"checked frame {i}")
         if len(reused) < frames:
             remove_index(out)
-        done = set(reused)
-        todo = (FrameJob(i, frame_seeds(project.seed, i), project, fingerprint, irradiance_dtype, renderer)
-                for i in range(frames) if i not in done)
+        todo = city_jobs(project, frames, set(reused), fingerprint, irradiance_dtype, renderer)
         rendered, running = [], {}
-        for item in run_jobs(render_frame_job, todo, compute, cancel, task_progress=True):
-            if isinstance(item, Progress):          # a frame still rendering: overall + per frame
-                running[item.source.index] = item.fraction
+        for item in run_jobs(render_city_job, todo, compute, cancel, task_progress=True):
+            if isinstance(item, Progress):          # a city still rendering: frames done in it so far
+                job = item.source
+                running[job.seeds[0].city] = item.done
                 yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
-                               "rendering " + ", ".join(f"frame {i} {100 * f:.0f} %" for i, f in sorted(running.items())))
+                               "rendering " + ", ".join(f"city {c}: {d:.1f} frames" for c, d in sorted(running.items())))
                 continue
-            job, rec = item
-            atomic_write_bytes(frame_path(out, job.index), rec.payload)
-            rendered.append(job.index)
-            running.pop(job.index, None)
-            yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
-                           f"frame {job.index}: {rec.objects} objects, {rec.seconds:.1f} s")
+            job, records = item
+            running.pop(job.seeds[0].city, None)
+            for rec in records:
+                atomic_write_bytes(frame_path(out, rec.index), rec.payload)
+                rendered.append(rec.index)
+                yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
+                               f"frame {rec.index}: {rec.objects} objects, {rec.seconds:.1f} s")
         result = yield from write_index(out, project, frames, fingerprint, irradiance_dtype, renderer)
     return DatasetResult(out, frames, rendered, reused, *result)
 

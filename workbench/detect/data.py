@@ -10,9 +10,15 @@ current's share (10 e⁻/s here, < 0.1 e⁻ at these millisecond exposures) woul
 Noise: frame f in epoch e of a view with seed s is exposed with the generator
 default_rng([s, f, e, round(1000·EV)]): a run is reproducible, every epoch a new capture.
 Test views use epoch 0 and a fixed seed, so every network is tested on the same captures.
+Mirror and crop come from their own generator, default_rng([s, f, e, AUGMENT_TAG]), which does
+not read the EV or the representation: runs of one seed see every frame with the same mirror and
+window in every epoch whatever their condition (paired augmentation).
 
-Split (`split_of`): a frame is a test frame when u < 0.3, u uniform from its own render seeds
-(SeedSequence([arrangement, pose, SPLIT_TAG])): fixed per frame, so growing a set keeps the split.
+Split (`split_of`): the frames of one city arrangement (FrameSeeds.city, K consecutive frames
+with pose.poses_per_arrangement = K) are all train or all test, so no city is seen in both: city
+c is a test city when ⌊(c + 1)·f⌋ > ⌊c·f⌋, f = TEST_FRACTION = ⅓ (every third city, 2, 5, 8, …):
+exactly ⌊n·f⌋ of the first n cities, fixed per city, so growing a set keeps the split. Frames
+written before cities were numbered count as one city each (their index).
 
 Labels: classes car, pedestrian, bus and truck (a class is used only when the training frames
 hold a kept box of it); which boxes are kept and which ignored is the rule of
@@ -28,6 +34,7 @@ the window.
 """
 from __future__ import annotations
 
+import math
 import time
 import zipfile
 from collections import OrderedDict
@@ -42,16 +49,16 @@ from workbench.errors import InputFileError, ParameterError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
-TEST_FRACTION = 0.3
-SPLIT_TAG = 0x73706C74                 # 'splt': separates the split draw from other seed uses
+TEST_FRACTION = 1.0 / 3.0
+AUGMENT_TAG = 0x61756700                # 'aug': the mirror and crop stream, the same at every EV
 TEST_NOISE_SEED = 0x74657374           # 'test': the seed of every test view's captures
 RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDER`"
 
 
 def split_of(seeds: dict, test_fraction: float = TEST_FRACTION) -> str:
-    """'test' or 'train' for a frame, from its render seeds only (see the module docstring)."""
-    word = np.random.SeedSequence([int(seeds["arrangement"]), int(seeds["pose"]), SPLIT_TAG]).generate_state(1)[0]
-    return "test" if word / 2.0 ** 32 < test_fraction else "train"
+    """'test' or 'train' for a frame, from its city number only (see the module docstring)."""
+    city = int(seeds.get("city", seeds["index"]))
+    return "test" if math.floor((city + 1) * test_fraction) > math.floor(city * test_fraction) else "train"
 
 
 def _check_same_frames(project, rendered, manifest_path: Path) -> None:
@@ -315,17 +322,18 @@ class DetectionView:
             self._exposure[rec.index] = float(auto_exposure(rates[0], self.sensor))
         exposure_s = min(self._exposure[rec.index] * 2.0 ** ev, self.sensor.max_exposure_s)
         rng = np.random.default_rng([self.seed, rec.index, epoch, int(round(1000 * ev)) & 0xFFFFFFFF])
+        augment_rng = np.random.default_rng([self.seed, rec.index, epoch, AUGMENT_TAG])
         h, w = self.dataset.image_hw
         boxes, classes = rec.boxes_xyxy, rec.classes
         ignored, ignored_cls = rec.ignored_xyxy, rec.ignored_classes
-        mirrored = bool(self.augment and rng.random() < 0.5)
+        mirrored = bool(self.augment and augment_rng.random() < 0.5)
         rate = rates[int(mirrored)]
         if mirrored:
             boxes, ignored = mirror_boxes(boxes, w), mirror_boxes(ignored, w)
         r0 = c0 = 0
         if self.crop_hw is not None:
             ch, cw = self.crop_hw
-            r0, c0 = crop_corner(boxes, (h, w), (ch, cw), rng)
+            r0, c0 = crop_corner(boxes, (h, w), (ch, cw), augment_rng)
             rate = rate[r0:r0 + ch, c0:c0 + cw]
             ignored, ignored_cls = clip_boxes(ignored, ignored_cls, r0, c0, ch, cw)
             boxes, classes, _, lost, lost_cls = crop_boxes(boxes, classes, rec.truncation, r0, c0, ch, cw, h)

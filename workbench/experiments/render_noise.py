@@ -71,7 +71,8 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
     rows = []
     for k, rec in enumerate(records):
         t0 = time.perf_counter()
-        seeds = FrameSeeds(**{k: int(rec.seeds[k]) for k in ("index", "arrangement", "pose", "render")})
+        seeds = FrameSeeds(**{k: int(rec.seeds[k]) for k in ("index", "arrangement", "pose", "render")},
+                           city=int(rec.seeds.get("city", rec.seeds["index"])))
         seeds = replace(seeds, render=int(np.random.SeedSequence([seeds.render, REFERENCE_SEED_TAG])
                                           .generate_state(1)[0]))
         job = city_scene_job(inputs, seeds)

@@ -21,20 +21,42 @@ DATASET_SEED_TAG = 0x6461_7461       # separates data-set seeds from other uses 
 
 @dataclass(frozen=True)
 class FrameSeeds:
-    """The seeds of frame `index`: city arrangement, camera pose and Mitsuba render noise."""
+    """The seeds of frame `index`: city arrangement, camera pose and Mitsuba render noise; `city`
+    numbers the frame's arrangement group (frames city·K … city·K + K − 1 share an arrangement,
+    K = pose.poses_per_arrangement)."""
 
     index: int
     arrangement: int
     pose: int
     render: int
+    city: int = -1
+
+    def __post_init__(self) -> None:
+        if self.city < 0:                       # one arrangement per frame
+            object.__setattr__(self, "city", self.index)
 
 
-def frame_seeds(project_seed: int, index: int) -> FrameSeeds:
-    """Seeds of frame `index`, derived from the project seed (independent streams per frame)."""
+def _seed_words(project_seed: int, index: int) -> np.ndarray:
+    return np.random.SeedSequence([int(project_seed), DATASET_SEED_TAG, int(index)]).generate_state(3)
+
+
+def frame_seeds(project_seed: int, index: int, poses_per_arrangement: int = 1) -> FrameSeeds:
+    """Seeds of frame `index`, derived from the project seed (independent streams per frame). With
+    K = poses_per_arrangement > 1, frame i takes the arrangement of frame K·⌊i/K⌋ (its own pose and
+    render noise): K = 1 gives every frame its own arrangement, as before the option existed."""
     if index < 0:
         raise InvalidValueError(f"frame index must be ≥ 0, got {index}")
-    words = np.random.SeedSequence([int(project_seed), DATASET_SEED_TAG, int(index)]).generate_state(3)
-    return FrameSeeds(int(index), int(words[0] >> 1), int(words[1] >> 1), int(words[2]))
+    if poses_per_arrangement < 1:
+        raise InvalidValueError(f"poses_per_arrangement must be ≥ 1, got {poses_per_arrangement}")
+    city = int(index) // int(poses_per_arrangement)
+    words = _seed_words(project_seed, index)
+    arrangement = words[0] if poses_per_arrangement == 1 else _seed_words(project_seed, city * poses_per_arrangement)[0]
+    return FrameSeeds(int(index), int(arrangement >> 1), int(words[1] >> 1), int(words[2]), city)
+
+
+def project_frame_seeds(project, index: int) -> FrameSeeds:
+    """frame_seeds of frame `index` of a project (its seed and pose.poses_per_arrangement)."""
+    return frame_seeds(project.seed, index, project.pose.poses_per_arrangement if project.pose is not None else 1)
 
 
 @dataclass
@@ -376,10 +398,13 @@ class CitySceneSession:
         return self._coarse[1]
 
 
-def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> CityRender:
-    """Render frame `seeds.index` of a city project (city_scene_job driven to the end)."""
+def render_city_scene(project, seeds: FrameSeeds, on_progress: Callable | None = None,
+                      session: CitySceneSession | None = None) -> CityRender:
+    """Render frame `seeds.index` of a city project (city_scene_job driven to the end; through
+    `session` when given, so a frame of the city it holds reuses the loaded scene)."""
     from workbench.jobs import run_job
-    return run_job(city_scene_job(city_scene_inputs(project), seeds), on_progress)
+    inputs = city_scene_inputs(project)
+    return run_job(session.job(inputs, seeds) if session is not None else city_scene_job(inputs, seeds), on_progress)
 
 
 def sensor_matched_error(inputs: CitySceneInputs, render: CityRender, shot_noise_ratio: float) -> float:
@@ -412,10 +437,11 @@ def city_optical_image(render: CityRender, optics, adjust_illuminance_lux: float
     return scale_to_mean_illuminance(oi, adjust_illuminance_lux, in_place=True)      # its own new array
 
 
-def render_city_frame(project, seeds: FrameSeeds, on_progress: Callable | None = None) -> FrameData:
+def render_city_frame(project, seeds: FrameSeeds, on_progress: Callable | None = None,
+                      session: CitySceneSession | None = None) -> FrameData:
     """Render frame `seeds.index` of a city project to sensor irradiance with its labels
-    (render_city_scene, then city_optical_image)."""
-    render = render_city_scene(project, seeds, on_progress)
+    (render_city_scene, then city_optical_image); `session` keeps the loaded city between frames."""
+    render = render_city_scene(project, seeds, on_progress, session)
     oi = city_optical_image(render, project.optics, project.scene.adjust_illuminance_lux)
     meta = {**render.meta, "optics_model": oi.meta.get("model", project.optics.model),
             "sample_spacing_m": oi.sample_spacing_m, "focal_length_m": oi.focal_length_m,

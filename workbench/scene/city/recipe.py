@@ -192,6 +192,10 @@ class PoseParams(Params):
     manual_tilt_deg: float = Field(0.0, ge=-90.0, le=90.0, description="tilt, up positive (deg); manual pose")
     manual_roll_deg: float = Field(0.0, ge=-180.0, le=180.0, description="roll (deg); manual pose")
     seed: int = Field(0, ge=0, description="pose sampling seed (a data-set frame derives its own); camera poses")
+    poses_per_arrangement: int = Field(1, ge=1, le=64, description=(
+        "consecutive data-set frames that share one city arrangement, each from its own camera pose: a worker "
+        "keeps the loaded city and renders the next pose without building the scene again; a city is all "
+        "train or all test frames; data-set frames"))
 
     @model_validator(mode="after")
     def _check_ranges(self) -> "PoseParams":
