@@ -4,8 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.experiments.analysis import claims, contrasts, summarise
-from workbench.experiments.paired import Interval, paired_difference, percentile_interval, t_interval
+from scipy import stats
+
+from workbench.experiments.analysis import claims, contrasts, holm, summarise
+from workbench.experiments.paired import (one_sided_p, p_key, paired_difference, percentile_interval, t_interval,
+                                          two_level_draws)
 
 
 def test_paired_difference_by_hand():
@@ -19,16 +22,39 @@ def test_paired_difference_by_hand():
     assert iv.mean == pytest.approx(0.06) and iv.sd == pytest.approx(sd) and iv.n == 3
     assert (iv.t_low, iv.t_high) == pytest.approx((0.06 - half, 0.06 + half), rel=1e-6)
     assert (iv.boot_low, iv.boot_high) == pytest.approx((0.06 - 0.095, 0.06 + 0.095))   # 2.5 / 97.5 % of u
-    assert iv.side() == 0                                      # both intervals hold 0
-    assert Interval(0.1, 3, 0.01, 0.05, 0.15, 0.06, 0.14).side() == 1
-    assert Interval(-0.1, 3, 0.01, -0.15, -0.05, -0.14, -0.01).side() == -1
-    assert Interval(0.1, 3, 0.01, 0.05, 0.15, -0.01, 0.2).side() == 0          # one interval holds 0
-    assert Interval(-0.02, 3, 0.01, -0.04, 0.0, -0.03, -0.01).side_of(-0.05) == 1
+    assert iv.h_low < iv.boot_low and iv.h_high > iv.boot_high     # seeds and test set vary: wider
+
+
+def test_two_level_draws_reduce_to_each_level():
+    u = np.linspace(-0.1, 0.1, 1000)
+    test_set_only = two_level_draws(0.06 + np.repeat(u[None, :], 4, axis=0))       # every seed the same
+    assert percentile_interval(test_set_only) == pytest.approx((0.06 - 0.095, 0.06 + 0.095), abs=0.003)
+    d = np.array([0.05, 0.03, 0.10, 0.02, 0.06])
+    seeds_only = two_level_draws(np.repeat(d[:, None], 50, axis=1))               # no test-set variation
+    # widened to the t-interval: sd of the draws t(0.975, 4)/z(0.975) · sd/√n (within 3 % MC error)
+    want = stats.t.ppf(0.975, 4) / stats.norm.ppf(0.975) * d.std(ddof=1) / np.sqrt(5)
+    assert seeds_only.mean() == pytest.approx(d.mean(), abs=0.002) and seeds_only.std() == pytest.approx(want, rel=0.03)
+    constant = two_level_draws(np.full((3, 40), 0.25))
+    assert constant.size == 4000
+    assert one_sided_p(constant, 0.1, 1) == pytest.approx(1 / 4001) and one_sided_p(constant, 0.1, -1) == 1.0
+    assert one_sided_p(constant, 0.25, 1) == 1.0                    # on the bound counts against
+    iv = paired_difference([0.3, 0.3, 0.3], [0.1, 0.1, 0.1], np.full((3, 40), 0.3), np.full((3, 40), 0.1),
+                           bounds=(0.0, 0.15))
+    assert iv.to_dict()[p_key(1, 0.15)] == pytest.approx(1 / 4001) and iv.to_dict()[p_key(-1, 0.0)] == 1.0
+
+
+def test_holm_by_hand():
+    # sorted 0.005, 0.01, 0.03, 0.04 → ×4, ×3, ×2, ×1 = 0.02, 0.03, 0.06, 0.04 → running max
+    assert holm([0.01, 0.04, 0.03, 0.005]) == pytest.approx([0.03, 0.06, 0.06, 0.02])
+    assert holm([0.6, 0.9]) == [1.0, 1.0]
 
 
 def test_intervals_need_enough_values():
     assert t_interval([0.4])[1:] == (None, None, None)
     assert percentile_interval(np.arange(10.0)) == (None, None)
+    assert two_level_draws(np.zeros((1, 50))).size == 0 and one_sided_p(np.zeros(0), 0.0, 1) is None
+    iv = paired_difference([0.4], [0.3], np.zeros((1, 50)), np.zeros((1, 50)), bounds=(0.0,))
+    assert iv.h_low is None and iv.to_dict()[p_key(1, 0.0)] is None
     with pytest.raises(ValueError):
         paired_difference([0.1, 0.2], [0.1, 0.2], np.zeros((3, 50)), np.zeros((3, 50)))
 
@@ -70,16 +96,56 @@ def test_contrasts_are_paired_differences_and_claims_follow_them():
     # mean relative drop over EV ±1, ±2 (the under-exposed side lifted by asym): mobile 0.419, resnet18 0.194
     assert get[("relative drop resnet18 − mobile", "both", "all")]["mean"] == pytest.approx(-0.225, abs=0.005)
     assert get[("under − over", "resnet18", 2.0)]["mean"] == pytest.approx(0.05)
-    isp = [{"contrast": "raw − srgb", "net": "resnet18", "test_ev": 0.0, "mean": -0.01, "n": 4, "sd": 0.01,
-            "t_low": -0.03, "t_high": 0.01, "boot_low": -0.04, "boot_high": 0.02},
-           {"contrast": "(raw − srgb) mobile − resnet18", "both": 0, "net": "both", "test_ev": 0.0, "mean": -0.05,
-            "n": 4, "sd": 0.01, "t_low": -0.07, "t_high": -0.03, "boot_low": -0.09, "boot_high": -0.01}]
+    isp = [_row("raw − srgb", "resnet18", -0.01, above=0.2, below=0.8, above_margin=0.001, below_margin=0.999),
+           _row("(raw − srgb) mobile − resnet18", "both", -0.05, above=0.999, below=0.001)]
     verdicts = {c["claim"]: c["verdict"] for c in claims(isp, rows)}
     assert verdicts == {1: "supported", 2: "supported", 3: "supported", 4: "supported"}
 
     flat, flat_boots, _ = _exposure_runs(mix_gain=-0.1, asym=0.0, drop_mobile=0.3, drop_resnet=0.6)
     verdicts = {c["claim"]: c["verdict"] for c in claims([], contrasts("exposure", flat, flat_boots, evs))}
     assert verdicts == {1: "not supported", 2: "not supported", 3: "not resolved", 4: "not resolved"}
+
+
+def _row(contrast, net, mean, above, below, above_margin=None, below_margin=None, ev=0.0):
+    """A contrast row as analysis writes it, with the given two-level p-values at 0 and −0.05."""
+    return {"contrast": contrast, "net": net, "test_ev": ev, "mean": mean, "n": 5, "sd": 0.01, "t_low": None,
+            "t_high": None, "boot_low": None, "boot_high": None, "h_low": None, "h_high": None,
+            p_key(1, 0.0): above, p_key(-1, 0.0): below, p_key(1, -0.05): above_margin, p_key(-1, -0.05): below_margin}
+
+
+def _claim2(*p_pairs):
+    """Claim 2's verdict and parts from (p above 0 over EV ≠ 0, p above −0.05 at EV 0) per net."""
+    rows = []
+    for net, (p_all, p_ev0) in zip(("mobile", "resnet18"), p_pairs):
+        rows += [_row("ev_mix − ev0_trained", net, 0.0, p_all, 1 - p_all, ev="all"),
+                 _row("ev_mix − ev0_trained", net, 0.0, 0.5, 0.5, p_ev0, 1 - p_ev0)]
+    claim = next(c for c in claims([], rows) if c["claim"] == 2)
+    return claim["verdict"], [p["verdict"] for p in claim["parts"]]
+
+
+def test_claim_of_several_parts():
+    # an intersection: every part at ALPHA = 0.025, no correction
+    assert _claim2((0.02, 0.02), (0.024, 0.001)) == ("supported", ["supported"] * 4)
+    # one part unresolved is not evidence against: not resolved, never not supported
+    assert _claim2((0.001, 0.001), (0.001, 0.3)) == ("not resolved", ["supported"] * 3 + ["not resolved"])
+    # evidence against, Holm over the 4 parts: p_against 0.005 → 0.02 rejects, 0.01 → 0.04 does not
+    assert _claim2((0.001, 0.001), (0.001, 0.995))[0] == "not supported"
+    assert _claim2((0.001, 0.001), (0.001, 0.99)) == ("not resolved", ["supported"] * 3 + ["not resolved"])
+    older = {k: v for k, v in _row("relative drop resnet18 − mobile", "both", -0.2, 0.9, 0.1, ev="all").items()
+             if not k.startswith("p_")}                                    # results written before p-values
+    claim1 = claims([], [older])[0]
+    assert claim1["verdict"] == "not resolved" and "p-value" in claim1["parts"][0]["why"]
+
+
+def test_two_sided_part_is_holm_over_its_directions():
+    def claim4(p_below):
+        rows = [_row("under − over", "mobile", 0.03, 1 - p_below, p_below, ev="all")]
+        part = next(c for c in claims([], rows) if c["claim"] == 4)["parts"][0]
+        return part["verdict"], part["p"]
+    assert claim4(0.01) == ("supported", pytest.approx(0.02))
+    assert claim4(0.02) == ("not resolved", pytest.approx(0.04))     # a one-sided 0.02 is not enough
+    assert claim4(0.999)[0] == "supported"                            # either direction
+    assert claim4(0.5)[0] == "not resolved"                           # never not supported
 
 
 def test_summary_means_with_both_intervals():

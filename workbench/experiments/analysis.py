@@ -6,7 +6,9 @@ Inputs are the finished runs of a results document and their test-set bootstrap 
 Every interval is a paired one (workbench.experiments.paired): conditions are compared on the
 same seeds and the same test captures.
 
-Contrasts (rows of `contrasts`, each with both 95 % intervals):
+Contrasts (rows of `contrasts`, each with the two-level 95 % interval h_low, h_high that verdicts
+read, its one-sided p-values above and below each CLAIM_BOUNDS bound (keys paired.p_key), and the
+descriptive seed t and test-set intervals):
     isp        raw − srgb and linear − srgb mAP per net (EV 0)
     exposure   per net and test EV: ev_mix − ev0_trained; per_ev − ev0_trained (at the EVs with
                a per-EV run); relative drop 1 − mAP(EV)/mAP(0) of the EV-0-trained net, and
@@ -16,15 +18,23 @@ Contrasts (rows of `contrasts`, each with both 95 % intervals):
 Claims (the paper's, `claims`), each supported / not supported / not resolved:
     1 heavier net degrades less       resnet18 − mobile relative drop, averaged over EV ≠ 0, < 0
     2 EV mix flattens the curve at a  ev_mix − ev0_trained averaged over EV ≠ 0 > 0, and at EV 0
-      small cost at EV 0              > −EQUIVALENCE_MARGIN
+      small cost at EV 0              > −EQUIVALENCE_MARGIN (per net)
     3 raw not much worse than sRGB    resnet18 raw − srgb > −EQUIVALENCE_MARGIN, and
       for the heavier net; the light  (raw − srgb)_mobile − (raw − srgb)_resnet18 < 0
       net loses more on raw
     4 under- and over-exposure        mAP(−k) − mAP(+k) of the EV-0-trained net, averaged over
       behave differently              k = 1…4, ≠ 0 (per net)
-A part is supported when both intervals lie on its side of its bound, not supported when both lie
-on the other side, and not resolved otherwise; a claim is supported when all its parts are, not
-supported when any is not, and not resolved otherwise.
+Tests, per claim (the family: its parts), at one-sided level ALPHA = 0.025 (that of a two-sided
+95 % interval), with p the part's two-level p-value of lying on its side of its bound:
+    supported      every part has p ≤ ALPHA. Each claim is the intersection of its parts, so this
+                   intersection-union test holds the false-"supported" rate of the claim at ALPHA
+                   without correction (Holm here would only cost power).
+    not supported  the evidence is against it: some part's p of lying on the wrong side of its
+                   bound (p_against) is ≤ ALPHA after Holm over the claim's parts, which are
+                   alternative ways for the claim to fail. An unresolved part is not evidence.
+    not resolved   otherwise.
+A part of claim 4 is itself two alternatives (above or below 0): Holm over them, p = min(1,
+2·min(p_above, p_below)); nothing can show a difference of exactly 0, so it is never not supported.
 """
 from __future__ import annotations
 
@@ -32,9 +42,11 @@ import math
 
 import numpy as np
 
-from workbench.experiments.paired import Interval, paired_difference, t_interval, percentile_interval
+from workbench.experiments.paired import Interval, p_key, paired_difference, percentile_interval, t_interval
 
 EQUIVALENCE_MARGIN = 0.05         # mAP: "not much worse" means within this of the other condition
+CLAIM_BOUNDS = (0.0, -EQUIVALENCE_MARGIN)
+ALPHA = 0.025                     # one-sided level of each claim's tests (module docstring)
 REPRESENTATION_ORDER = ("raw", "linear", "srgb")
 CONDITIONS = ("ev0_trained", "ev_mix", "per_ev")
 
@@ -79,7 +91,8 @@ def _paired(a, b) -> Interval | None:
         return None
     ia, ib = [sa.index(s) for s in common], [sb.index(s) for s in common]
     with_boot = ba is not None and bb is not None
-    return paired_difference(va[ia], vb[ib], ba[ia] if with_boot else None, bb[ib] if with_boot else None)
+    return paired_difference(va[ia], vb[ib], ba[ia] if with_boot else None, bb[ib] if with_boot else None,
+                             CLAIM_BOUNDS)
 
 
 def _zero(values) -> tuple:
@@ -205,18 +218,37 @@ def _difference(a, b):
 VERDICTS = ("supported", "not supported", "not resolved")
 
 
+def holm(p_values: list[float]) -> list[float]:
+    """Holm–Bonferroni adjusted p-values (step-down, monotone, capped at 1), in the given order."""
+    k = len(p_values)
+    adjusted, running = [1.0] * k, 0.0
+    for rank, i in enumerate(np.argsort(p_values, kind="stable")):
+        running = max(running, min(1.0, (k - rank) * p_values[i]))
+        adjusted[i] = running
+    return adjusted
+
+
 def _part(row: dict | None, direction: int, bound: float, text: str) -> dict:
-    """One part of a claim: row's intervals against `bound` in `direction` (+1: above, −1: below)."""
+    """One part of a claim: row's two-level p-values of lying beyond `bound` in `direction` (+1:
+    above, −1: below), 'p', and of lying beyond it the other way, 'p_against'."""
     if row is None:
-        return {"text": text, "verdict": "not resolved", "why": "no runs for it yet"}
-    side = Interval(**{k: row[k] for k in ("mean", "n", "sd", "t_low", "t_high", "boot_low", "boot_high")}).side_of(bound)
-    verdict = "supported" if side == direction else "not supported" if side == -direction else "not resolved"
-    return {"text": text, "verdict": verdict, "contrast": row["contrast"], "net": row["net"],
-            "test_ev": row["test_ev"], "mean": row["mean"], "t_low": row["t_low"], "t_high": row["t_high"],
-            "boot_low": row["boot_low"], "boot_high": row["boot_high"], "bound": bound}
+        return {"text": text, "p": None, "p_against": None, "why": "no runs for it yet"}
+    part = {"text": text, "contrast": row["contrast"], "net": row["net"], "test_ev": row["test_ev"],
+            "mean": row["mean"], "bound": bound, **{k: row.get(k) for k in (
+                "h_low", "h_high", "t_low", "t_high", "boot_low", "boot_high")},
+            "p": row.get(p_key(direction, bound)), "p_against": row.get(p_key(-direction, bound))}
+    if part["p"] is None:
+        part["why"] = "no two-level p-value (under 2 seeds with test-set resamples, or results older than it)"
+    return part
 
 
 def _claim(number: int, text: str, parts: list[dict]) -> dict:
+    """The verdicts of a claim that is the intersection of its parts (module docstring)."""
+    against = holm([1.0 if p["p_against"] is None else p["p_against"] for p in parts])
+    for part, adjusted in zip(parts, against):
+        part["p_against_holm"] = adjusted
+        part["verdict"] = ("supported" if part["p"] is not None and part["p"] <= ALPHA
+                           else "not supported" if adjusted <= ALPHA else "not resolved")
     verdicts = [p["verdict"] for p in parts]
     verdict = ("supported" if parts and all(v == "supported" for v in verdicts)
                else "not supported" if "not supported" in verdicts else "not resolved")
@@ -253,8 +285,8 @@ def claims(isp_contrasts: list[dict], exposure_contrasts: list[dict]) -> list[di
 
 
 def _two_sided(row: dict | None, text: str) -> dict:
-    """Supported when both intervals exclude 0 (either side); not supported never (a difference of
-    exactly 0 cannot be shown), not resolved otherwise."""
+    """A part 'differs from 0': Holm over its two directions, p = min(1, 2·min(p_above, p_below));
+    no p_against (a difference of exactly 0 cannot be shown)."""
     up, down = _part(row, 1, 0.0, text), _part(row, -1, 0.0, text)
-    verdict = "supported" if "supported" in (up["verdict"], down["verdict"]) and row is not None else "not resolved"
-    return {**up, "verdict": verdict}
+    p = None if up["p"] is None or down["p"] is None else min(holm([up["p"], down["p"]]))
+    return {**up, "p": p, "p_against": None}

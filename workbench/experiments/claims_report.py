@@ -5,16 +5,22 @@ from __future__ import annotations
 from pathlib import Path
 
 from workbench.errors import InputFileError
-from workbench.experiments.analysis import EQUIVALENCE_MARGIN, claims
+from workbench.experiments.analysis import ALPHA, EQUIVALENCE_MARGIN, claims
 from workbench.experiments.results import read_results
 
 
 def _interval(part: dict) -> str:
+    """The mean with the two-level interval the verdict reads, then the descriptive ones."""
     if part.get("mean") is None:
         return "—"
-    t = ("" if part.get("t_low") is None else f"seeds [{part['t_low']:+.3f}, {part['t_high']:+.3f}]")
-    b = ("" if part.get("boot_low") is None else f"test set [{part['boot_low']:+.3f}, {part['boot_high']:+.3f}]")
-    return f"{part['mean']:+.3f} ({'; '.join(x for x in (t, b) if x)})"
+    shown = [(name, part.get(f"{key}_low"), part.get(f"{key}_high"))
+             for name, key in (("**both**", "h"), ("seeds", "t"), ("test set", "boot"))]
+    return f"{part['mean']:+.3f} (" + "; ".join(f"{name} [{lo:+.3f}, {hi:+.3f}]" for name, lo, hi in shown
+                                                if lo is not None) + ")"
+
+
+def _p(value) -> str:
+    return "—" if value is None else f"{value:.4f}"
 
 
 def claims_of(isp_dir: str | Path, exposure_dir: str | Path) -> list[dict]:
@@ -28,15 +34,21 @@ def claims_of(isp_dir: str | Path, exposure_dir: str | Path) -> list[dict]:
 
 def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
     """One table row per part of each claim: what is tested, the paired mean difference with its
-    seed and test-set 95 % intervals, and the verdict."""
-    lines = ["| claim (paper) | tested as | paired difference (95 % intervals) | verdict |",
-             "|---|---|---|---|"]
+    two-level 95 % interval (the one the verdict reads) and the descriptive seed and test-set ones,
+    the part's p-value, its p-value against (Holm-adjusted over the claim's parts), and the verdict."""
+    lines = ["| claim (paper) | tested as | paired difference (95 % intervals) | p | p against (Holm) | verdict |",
+             "|---|---|---|---|---|---|"]
     for claim in claims_of(isp_dir, exposure_dir):
         for k, part in enumerate(claim["parts"]):
             head = f"{claim['claim']}. {claim['text']} — **{claim['verdict']}**" if k == 0 else ""
-            lines.append(f"| {head} | {part['text']} | {_interval(part)} | {part['verdict']} |")
+            against = None if part["p_against"] is None else part["p_against_holm"]
+            lines.append(f"| {head} | {part['text']} | {_interval(part)} | {_p(part['p'])} | {_p(against)} "
+                         f"| {part['verdict']} |")
     lines.append("")
-    lines.append(f"A part is supported when both intervals lie on its side of its bound, not supported when both "
-                 f"lie on the other side, not resolved otherwise. \"Not much worse\" and \"small cost\" mean "
-                 f"within {EQUIVALENCE_MARGIN} mAP.")
+    lines.append(f"Verdicts read the two-level interval (\"both\": seeds and test frames resampled together) "
+                 f"and its one-sided p-values at level {ALPHA}. A part is supported when p ≤ {ALPHA}, and a claim "
+                 f"when all its parts are; a part is not supported when its p-value of lying on the wrong side, "
+                 f"Holm-adjusted over the claim's parts, is ≤ {ALPHA}; otherwise not resolved. A \"≠ 0\" part's p "
+                 f"is Holm over its two directions. \"Not much worse\" and \"small cost\" mean within "
+                 f"{EQUIVALENCE_MARGIN} mAP.")
     return "\n".join(lines) + "\n"
