@@ -126,7 +126,7 @@ def test_a_hostile_results_file_is_refused_naming_it(tmp_path):
     folder = tmp_path / "res"
     folder.mkdir()
     for text in (_deep(), '{"format": "camera-workbench-experiment", "format": "x"}', "[1, 2]",
-                 json.dumps({"format": "camera-workbench-experiment", "schema_version": 2, "kind": "isp",
+                 json.dumps({"format": "camera-workbench-experiment", "schema_version": 3, "kind": "isp",
                              "summary": [], "contrasts": [], "runs": "notalist"})):
         (folder / "results.json").write_text(text)
         with pytest.raises(InputFileError, match="results.json"):

@@ -42,6 +42,11 @@ def _drive(job, cancel=None, cancel_after=None):
                 cancel.cancel()
 
 
+def _scores(run: dict) -> list:
+    """A run's test scores (not its timings): EV, mAP and AP per class."""
+    return [(t["ev"], t["map"], t["ap"]) for t in run["tests"]]
+
+
 def _check_outputs(out: Path, kind: str, n_runs: int):
     doc = json.loads((out / "results.json").read_text())
     keys = [r["key"] for r in doc["runs"]]
@@ -59,11 +64,12 @@ def test_isp_experiment_runs_end_to_end(synthetic_dir, tmp_path):
     result = _drive(job)
     doc = _check_outputs(tmp_path, "isp", 6)
     assert doc["complete"] and len(result.trained) == 6
-    reps = [(s["representation"], s["n"]) for s in doc["summary"]]
-    assert reps == [("raw", 2), ("linear", 2), ("srgb", 2)]
+    reps = [(s["representation"], s["n"], s["test_ev"]) for s in doc["summary"]]
+    assert reps == [("raw", 2, 0.0), ("linear", 2, 0.0), ("srgb", 2, 0.0)]     # sRGB runs carry every EV
     by_key = {r["key"]: r for r in doc["runs"]}
     for s in doc["summary"]:
-        maps = [r["tests"][0]["map"] for r in doc["runs"] if r["role"]["representation"] == s["representation"]]
+        maps = [next(t["map"] for t in r["tests"] if t["ev"] == 0.0) for r in doc["runs"]
+                if r["role"]["representation"] == s["representation"]]
         assert s["mean_map"] == pytest.approx(sum(maps) / 2)
     assert sorted(r["contrast"] for r in doc["contrasts"]) == ["linear − srgb", "raw − srgb"]
     boots = read_bootstraps(tmp_path)
@@ -71,6 +77,10 @@ def test_isp_experiment_runs_end_to_end(synthetic_dir, tmp_path):
     for run in doc["runs"]:
         assert "bootstrap_map" not in run["tests"][0]                # resamples live in bootstrap.npz
         assert 0.0 <= run["train"]["train_map"] <= 1.0 and run["train"]["curve"]
+        assert run["machine"]["cpu"] and run["machine"]["wall_s"] > 0 and run["machine"]["threads"] >= 1
+        assert run["train"]["convergence"]
+    assert json.loads((tmp_path / "project.json").read_text())["name"] == _project().name
+    assert doc["dataset"]["folder"] == synthetic_dir.name and doc["code_version"]
     assert (tmp_path / "contrasts.csv").read_text().startswith("contrast,")
 
 
@@ -122,7 +132,7 @@ def test_experiments_sharing_checkpoints_train_the_ev0_srgb_run_once(synthetic_d
     ev0 = next(r for r in exposure["runs"] if r["role"]["condition"] == "ev0_trained")
     assert ev0["key"] == isp_srgb["key"] and (ckpt / f"{ev0['key']}.pt").stat().st_mtime_ns == stamp
     assert [t["ev"] for t in ev0["tests"]] == [-1.0, 0.0, 1.0]
-    assert next(t for t in ev0["tests"] if t["ev"] == 0.0)["map"] == isp_srgb["tests"][0]["map"]
+    assert _scores(ev0) == _scores(isp_srgb)                       # the isp run was tested at every EV too
 
 
 def test_killed_experiment_resumes_without_duplicates(synthetic_dir, tmp_path):
@@ -164,3 +174,61 @@ def test_command_line_names_a_missing_data_set(tmp_path):
     from workbench.cli import main
     assert main(["experiment", "isp", "city_detection_quick", "--data", str(tmp_path / "nothing"),
                  "--out", str(tmp_path / "out")]) == 2
+
+
+def test_a_resumed_experiment_on_a_re_rendered_data_set_ends_as_an_uninterrupted_one(tmp_path):
+    """What a later sitting does: the data set and checkpoints are gone, the result folder is
+    kept; the set is made again (same fingerprint) and only the missing runs train."""
+    import shutil
+
+    from workbench.detect.synthetic import make_synthetic_dataset
+    make_synthetic_dataset(tmp_path / "set", frames=14)
+    full = _drive(run_experiment("isp", _project(), tmp_path / "set", tmp_path / "full", seeds=1,
+                                 profile_override=TINY, checkpoints=tmp_path / "ck_full"))
+    cancel = CancelToken()
+    with pytest.raises(JobCancelled):
+        _drive(run_experiment("isp", _project(), tmp_path / "set", tmp_path / "out", seeds=1, profile_override=TINY,
+                              cancel=cancel, checkpoints=tmp_path / "ck"), cancel, cancel_after=1)
+    shutil.rmtree(tmp_path / "set")
+    shutil.rmtree(tmp_path / "ck")
+    make_synthetic_dataset(tmp_path / "again", frames=14)
+    resumed = _drive(run_experiment("isp", _project(), tmp_path / "again", tmp_path / "out", seeds=1,
+                                    profile_override=TINY, checkpoints=tmp_path / "ck"))
+    assert len(resumed.reused) == 1 and len(resumed.trained) == 2
+    a, b = (json.loads((tmp_path / d / "results.json").read_text()) for d in ("full", "out"))
+    assert b["complete"] and a["dataset"]["fingerprint"] == b["dataset"]["fingerprint"]
+    assert {r["key"]: _scores(r) for r in b["runs"]} == {r["key"]: _scores(r) for r in a["runs"]}
+    assert len(full.trained) == 3
+    assert a["summary"] == b["summary"] and a["contrasts"] == b["contrasts"]
+
+
+def test_processes_filling_one_folder_by_net_merge_their_runs(synthetic_dir, tmp_path):
+    prof = replace(TINY, nets=("mobile", "resnet18"))
+    first = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=prof,
+                                  nets=("mobile",)))
+    assert len(first.trained) == 3 and not json.loads((tmp_path / "results.json").read_text())["complete"]
+    second = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=prof,
+                                   nets=("resnet18",)))
+    assert len(second.trained) == 3 and len(second.reused) == 3
+    doc = _check_outputs(tmp_path, "isp", 6)
+    assert doc["complete"] and {s["net"] for s in doc["summary"]} == {"mobile", "resnet18"}
+
+
+def test_budget_study_lends_its_runs_to_the_isp_experiment(synthetic_dir, tmp_path):
+    budget = _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path / "budget", seeds=2,
+                                   profile_override=TINY))
+    doc = _check_outputs(tmp_path / "budget", "budget", 4)
+    assert len(budget.trained) == 4 and doc["complete"]
+    epochs = sorted((r["role"]["budget_factor"], r["config"]["epochs"]) for r in doc["runs"])
+    assert epochs == [(1, 1), (1, 1), (2, 2), (2, 2)]
+    verdict = doc["budget_enough"]["mobile"]
+    gains = [next(t["map"] for t in r["tests"] if t["ev"] == 0.0) * (1 if r["role"]["budget_factor"] == 2 else -1)
+             for r in doc["runs"]]
+    assert verdict["gain"] == pytest.approx(sum(gains) / 2) and verdict["enough"] == (verdict["gain"] < 0.01)
+    isp = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path / "isp", seeds=2, profile_override=TINY,
+                                reuse_from=(tmp_path / "budget",)))
+    assert len(isp.trained) == 4 and len(isp.reused) == 2                  # the two sRGB runs are lent
+    runs = json.loads((tmp_path / "isp" / "results.json").read_text())["runs"]
+    lent = [r for r in runs if r["role"]["representation"] == "srgb"]
+    assert all("budget_factor" not in r["role"] for r in lent) and len(lent) == 2
+    assert set(read_bootstraps(tmp_path / "isp")) == {r["key"] for r in runs}

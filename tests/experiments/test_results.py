@@ -35,7 +35,7 @@ def make_doc(kind: str, nets=("mobile",), seeds=3) -> dict:
             d = 0.01 * (k + 1) * (1 if net == "mobile" else -1)
             contrasts.append({"contrast": name, "net": net, "test_ev": ev, "mean": d, "n": seeds, "sd": 0.01,
                               "t_low": d - 0.02, "t_high": d + 0.02, "boot_low": d - 0.03, "boot_high": d + 0.03})
-    return {"format": "camera-workbench-experiment", "schema_version": 2, "kind": kind, "project": "test",
+    return {"format": "camera-workbench-experiment", "schema_version": 3, "kind": kind, "project": "test",
             "profile": "quick", "complete": True, "settings": {"seeds": seeds}, "runs": [], "summary": summary,
             "contrasts": contrasts, "per_ev_is_upper_bound": False}
 

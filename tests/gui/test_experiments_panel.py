@@ -28,7 +28,7 @@ def results_doc(kind: str) -> dict:
     evs = [0.0, 0.0] if kind == "isp" else [-4.0, -2.0, 0.0, 2.0, 4.0]
     contrasts = [{"contrast": n, "net": "mobile", "test_ev": ev, "mean": 0.02, "n": 3, "sd": 0.01, "t_low": 0.0,
                   "t_high": 0.04, "boot_low": -0.01, "boot_high": 0.05} for n, ev in zip(names, evs)]
-    return {"format": "camera-workbench-experiment", "schema_version": 2, "kind": kind, "project": "city",
+    return {"format": "camera-workbench-experiment", "schema_version": 3, "kind": kind, "project": "city",
             "profile": "standard", "complete": True, "settings": {"seeds": 3}, "runs": [], "summary": summary,
             "contrasts": contrasts, "per_ev_is_upper_bound": True}
 

@@ -14,8 +14,9 @@ def register(sub) -> None:
     from workbench.experiments.detection import PROFILES
     p = sub.add_parser("experiment", help="train and test detectors: ISP stage or exposure bias (resumable); "
                                           "or the paper's claims against two result folders")
-    p.add_argument("kind", choices=("isp", "exposure", "claims"),
-                   help="isp: raw/linear/sRGB; exposure: EV bias sweep; claims: read --isp and --exposure results")
+    p.add_argument("kind", choices=("isp", "exposure", "budget", "claims"),
+                   help="isp: raw/linear/sRGB; exposure: EV bias sweep; budget: is the profile's training budget "
+                        "enough (B against 2B epochs, 2 seeds); claims: read --isp and --exposure results")
     p.add_argument("project", nargs="?", help="project file (or sample name) whose sensor, ISP and EV list are used")
     p.add_argument("--data", help="the project's rendered data set (`workbench dataset` folder)")
     p.add_argument("--profile", choices=tuple(PROFILES), default="standard",
@@ -26,6 +27,12 @@ def register(sub) -> None:
     p.add_argument("--checkpoints", default=None,
                    help="folder of training checkpoints (default OUT/checkpoints); give both experiments the "
                         "same one and they share the EV-0 sRGB runs")
+    p.add_argument("--nets", nargs="+", default=None,
+                   help="train only these of the profile's nets (another process may fill the same --out "
+                        "with the others: the folder is merged under its lock after every run)")
+    p.add_argument("--reuse", nargs="+", default=(), metavar="DIR",
+                   help="result folders of the same data set whose finished runs of the same configuration are "
+                        "taken instead of trained (the sRGB EV-0 runs are shared by isp, exposure and budget)")
     p.add_argument("--isp", help="claims: the isp experiment's result folder")
     p.add_argument("--exposure", help="claims: the exposure experiment's result folder")
     p.add_argument("--workers", type=int, default=0,
@@ -87,7 +94,8 @@ def cmd_experiment(args) -> int:
         project = load_project(args.project)
         compute = compute_spec(args, gpus_per_task=1.0 if args.profile == "paper" else 0.0)
         job = run_experiment(args.kind, project, args.data, out, profile=args.profile, seeds=args.seeds,
-                             cancel=cancel, compute=compute, checkpoints=args.checkpoints)
+                             cancel=cancel, compute=compute, checkpoints=args.checkpoints,
+                             nets=tuple(args.nets) if args.nets else None, reuse_from=tuple(args.reuse))
         result = _drive(job, args.kind, "run")
     except (KeyboardInterrupt, JobCancelled):
         cancel.cancel()

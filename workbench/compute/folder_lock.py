@@ -19,8 +19,9 @@ LOCK_NAME = ".workbench.lock"
 
 
 @contextmanager
-def hold_folder_lock(folder: str | os.PathLike, what: str):
-    """Hold the folder's lock for the body; OutputPathError naming the holder if another has it."""
+def hold_folder_lock(folder: str | os.PathLike, what: str, wait: bool = False):
+    """Hold the folder's lock for the body; OutputPathError naming the holder if another has it
+    (wait=True: wait until it is free instead, for short turns such as a merge of records)."""
     path = Path(folder) / LOCK_NAME
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
@@ -28,7 +29,7 @@ def hold_folder_lock(folder: str | os.PathLike, what: str):
         raise OutputPathError(folder, f"cannot make its lock file ({exc.strerror or exc})") from None
     try:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fd, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             raise OutputPathError(folder, f"is in use by {_holder(fd)}; wait for it to finish or stop "
                                           "it (its finished work is kept)") from None

@@ -91,3 +91,14 @@ def prepare_input(x, device: str):
     """A batch on `device` in the model's memory order (prepare_model)."""
     import torch
     return x.to(device, non_blocking=True).contiguous(memory_format=torch.channels_last)
+
+
+def cpu_model(cpuinfo: str | None = None) -> str:
+    """The CPU's model name as /proc/cpuinfo gives it ('unknown' where it cannot be read)."""
+    if cpuinfo is None:
+        try:
+            cpuinfo = Path("/proc/cpuinfo").read_text(errors="replace")
+        except OSError:
+            return "unknown"
+    return next((line.split(":", 1)[1].strip() for line in cpuinfo.splitlines() if line.startswith("model name")),
+                "unknown")

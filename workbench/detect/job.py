@@ -32,13 +32,19 @@ class DetectionJob:
 
 def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     """Train (or resume) and test one run; return a plain dict: key, config, train figures (loss
-    and train-mAP curves, train mAP on every training frame at the curve EV) and one entry per
-    test EV (mAP, AP per class, COCO AP@0.5, bootstrap mAPs, inference ms per image)."""
+    and train-mAP curves, train mAP on every training frame at the curve EV), one entry per test
+    EV (mAP, AP per class, COCO AP@0.5, bootstrap mAPs, inference ms per image) and where it ran
+    (machine: CPU model, bf16 in hardware, threads, wall and CPU seconds of the whole run, code
+    version; a run resumed from a checkpoint counts only its last process)."""
+    import torch
+
+    from workbench.datasets.dataset import code_version
     from workbench.detect.data import DetectionDataset, DetectionView
-    from workbench.detect.devices import pick_device
+    from workbench.detect.devices import cpu_has_native_bf16, cpu_model, pick_device
     from workbench.detect.engine import train_detector
     from workbench.detect.inference import evaluate_detector
 
+    wall0, cpu0 = time.perf_counter(), time.process_time()
     dataset = DetectionDataset(job.dataset_dir)
     model, tr = train_detector(dataset, job.config, job.checkpoint, cancel)
     device = pick_device(job.config.device)
@@ -57,5 +63,8 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     train.update(train_map=train_test["map"], train_map_ev=cfg.curve_ev)
     tests = [test(dataset.indices("test"), ev, with_curves=job.with_curves, bootstrap=job.bootstrap)
              for ev in job.test_evs]
+    machine = {"cpu": cpu_model(), "bf16_native": cpu_has_native_bf16(), "threads": torch.get_num_threads(),
+               "wall_s": time.perf_counter() - wall0, "cpu_s": time.process_time() - cpu0,
+               "code_version": code_version()}
     return {"key": job.key, "config": json.loads(cfg.to_json()), "train": train, "tests": tests,
-            "classes": list(dataset.class_names), "device": device}
+            "classes": list(dataset.class_names), "device": device, "machine": machine}

@@ -45,6 +45,14 @@ def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
             lines.append(f"| {head} | {part['text']} | {_interval(part)} | {_p(part['p'])} | {_p(against)} "
                          f"| {part['verdict']} |")
     lines.append("")
+    stuck = [(folder, run) for folder in (isp_dir, exposure_dir) for run in read_results(folder)["runs"]
+             if run["train"].get("converged") is not True]
+    if stuck:
+        lines.append("Runs that did not converge (engine.convergence), read in the contrasts above: " + "; ".join(
+            f"{run['key']} ({run['train'].get('convergence') or 'no convergence record'})" for _, run in stuck) + ".")
+    else:
+        lines.append("Every run read here converged (train mAP ≥ the floor, < 0.03 gained over the second half).")
+    lines.append("")
     lines.append(f"Verdicts read the two-level interval (\"both\": seeds and test frames resampled together) "
                  f"and its one-sided p-values at level {ALPHA}. A part is supported when p ≤ {ALPHA}, and a claim "
                  f"when all its parts are; a part is not supported when its p-value of lying on the wrong side, "

@@ -2,6 +2,9 @@
 
 ISP stage ('isp'): each network is trained and tested on raw, linear and sRGB captures at EV 0
 (the paper's Fig. 5), one run per (network, representation, seed).
+Budget ('budget'): is the profile's training budget B enough? Per network, seeds 0 and 1 train
+on sRGB at EV 0 for B and for 2B epochs; B is enough for a net when its test mAP@0.5 at EV 0
+gains less than BUDGET_TOLERANCE from B to 2B (mean over the seeds), else the budget must grow.
 Exposure bias ('exposure', on sRGB, the paper's Fig. 7): per (network, seed)
     ev0_trained   trained at EV 0, tested at every EV of the project's experiment.ev_biases;
     ev_mix        trained on the EV mix (each EV an equal share of every epoch), tested at every EV;
@@ -13,17 +16,24 @@ at EV 0 would favour EV 0). The per-EV curve is called an upper bound only where
 it is at least the EV-0-trained and EV-mix curves at its EV (`per_ev_is_upper_bound`).
 
 Seeds vary network initialisation, batch order, augmentation and training-capture noise; the
-split and the test captures are the same for every run. What the runs say is read by paired
+split and the test captures are the same for every run. Every sRGB run trained at EV 0 for the
+budget B (one configuration, one key, in all three experiments) is tested at every EV of the
+project, so its record serves each experiment: `reuse_from` folders lend finished records
+to another experiment, and a run is never trained twice, in one sitting or the next. What the runs say is read by paired
 statistics (workbench.experiments.analysis): means with a seed t-interval and a test-set bootstrap
 interval, paired contrasts, and the paper's claims with a verdict each.
 
 Output folder: results.json (workbench.experiments.results' schema), runs.csv (one row per run and
 test EV), summary.csv, contrasts.csv, bootstrap.npz (each run's test-set resamples), a chart
-(isp.png or exposure.png). Checkpoints go to --checkpoints (default OUT/checkpoints), one file per
-training configuration and data set: the two experiments given one folder share the EV-0 sRGB
-runs (trained once, tested by each). Everything is rewritten atomically after every finished run,
-so a killed experiment resumes without retraining finished runs and never holds a run twice; a
-half-trained run resumes from its last epoch checkpoint.
+(isp.png, exposure.png or budget.png) and project.json (the project the runs read). Each run
+records where it ran (CPU model, threads, wall and CPU seconds, code version). Checkpoints go to
+--checkpoints (default OUT/checkpoints), one file per training configuration and data set; they
+need not outlive a sitting: the folder is what is kept (a few MB), and a later sitting re-renders
+the data set (same fingerprint), points the experiment at the folder and trains only what is
+missing. After every finished run the folder is merged and rewritten atomically under its lock:
+the records on disk and this process's, by key, so several processes (one per net, say) can fill
+one folder, a killed experiment resumes without retraining finished runs, and no run is held
+twice; a half-trained run resumes from its last epoch checkpoint while that exists.
 """
 from __future__ import annotations
 
@@ -46,7 +56,10 @@ from workbench.experiments.results import (BOOTSTRAP_FILE, RESULTS_FORMAT, RESUL
                                            read_results)
 from workbench.jobs import CancelToken, Progress
 
-EXPERIMENTS = ("isp", "exposure")
+EXPERIMENTS = ("isp", "exposure", "budget")
+BUDGET_TOLERANCE = 0.01            # test mAP gain from B to 2B epochs below which budget B is enough
+BUDGET_SEEDS = 2
+PROJECT_FILE = "project.json"
 
 
 @dataclass(frozen=True)
@@ -84,11 +97,13 @@ PROFILES = {
     "standard": Profile(
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 40}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
-        per_ev_biases=(-4.0, -2.0, 2.0, 4.0), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
+        per_ev_biases=(), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
         curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16_native"},
-        note="standard profile: trained to convergence on a CPU: 320×240 frames (≥ 400 train, ≥ 200 test), "
-             "both nets on 160×128 windows, 5 seeds, one thread per run; resnet18 under bf16 autocast where the "
-             "CPU computes bf16 (AVX-512 BF16/AMX: half the time of float32), float32 where it would emulate it"),
+        note="standard profile: sized to the paper's four claims on a CPU: 320×240 frames (≥ 400 train, "
+             "≥ 200 test), both nets (resnet18 22× mobile's parameters) on 160×128 windows, 5 seeds, the EV-0 "
+             "and EV-mix conditions (no per-EV nets: they only draw a reference curve; the paper profile has "
+             "them), one thread per run; resnet18 under bf16 autocast where the CPU computes bf16 (AVX-512 "
+             "BF16/AMX), float32 where it would emulate it; `experiment budget` checks the epochs"),
     "paper": Profile(
         name="paper", image_hw=(480, 640), nets=("mobile", "resnet18"), seeds=5,
         epochs={"mobile": 60, "resnet18": 60}, batch_size=32, crop_hw=None, lr=2e-3,
@@ -113,7 +128,7 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
     if kind not in EXPERIMENTS:
         raise ParameterError("experiment", kind, f"one of {', '.join(EXPERIMENTS)}")
     evs = tuple(float(e) for e in dataset.project.experiment.ev_biases)
-    if kind == "exposure" and 0.0 not in evs:
+    if 0.0 not in evs:
         raise ParameterError("experiment.ev_biases", list(evs), "a list of EV biases that includes 0")
     missing = [e for e in profile.per_ev_biases if e not in evs] if kind == "exposure" else []
     if missing:
@@ -127,6 +142,10 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
         jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
                                         with_curves=kind == "isp")))
 
+    def add_srgb_ev0(role: dict, config: TrainConfig) -> None:
+        """The sRGB EV-0 run at the profile's budget: the same key in every experiment, tested at every EV."""
+        add({**role, "representation": "srgb", "condition": "ev0_trained"}, config, evs)
+
     for net in profile.nets:
         if net not in profile.epochs:
             raise ParameterError("profile.epochs", profile.epochs, f"a budget for net '{net}'")
@@ -134,15 +153,25 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
                            crop_hw=profile.crop_hw, threads=profile.threads, device=profile.device,
                            loader_workers=profile.loader_workers, cache_mb=profile.cache_mb,
                            curve_points=profile.curve_points, precision=profile.precision.get(net, "auto"))
+        if kind == "budget":
+            for seed in range(min(seeds, BUDGET_SEEDS)):
+                role = {"net": net, "seed": seed, "budget_factor": 1}
+                add_srgb_ev0(role, replace(base, seed=seed))
+                add({**role, "representation": "srgb", "condition": "ev0_trained", "budget_factor": 2},
+                    replace(base, seed=seed, epochs=2 * base.epochs), (0.0,))
+            continue
         for seed in range(seeds):
             role = {"net": net, "seed": seed}
             if kind == "isp":
                 for rep in REPRESENTATION_ORDER:
-                    add({**role, "representation": rep, "condition": "ev0_trained"},
-                        replace(base, representation=rep, seed=seed), (0.0,))
+                    if rep == "srgb":
+                        add_srgb_ev0(role, replace(base, seed=seed))
+                    else:
+                        add({**role, "representation": rep, "condition": "ev0_trained"},
+                            replace(base, representation=rep, seed=seed), (0.0,))
                 continue
             srgb = {**role, "representation": "srgb"}
-            add({**srgb, "condition": "ev0_trained"}, replace(base, seed=seed), evs)
+            add_srgb_ev0(role, replace(base, seed=seed))
             add({**srgb, "condition": "ev_mix"}, replace(base, seed=seed, train_evs=evs), evs)
             for ev in profile.per_ev_biases:
                 add({**srgb, "condition": "per_ev", "train_ev": float(ev)},
@@ -154,20 +183,22 @@ def result_rows(runs: list[dict]) -> list[dict]:
     """One flat row per run and test EV (the CSV's rows)."""
     rows = []
     for run in runs:
-        role, train = run["role"], run["train"]
+        role, train, machine = run["role"], run["train"], run.get("machine", {})
         for test in run["tests"]:
             rows.append({**{k: role[k] for k in ("net", "representation", "condition", "seed")},
-                         "train_evs": " ".join(f"{e:+g}" for e in run["config"]["train_evs"]), "test_ev": test["ev"],
+                         "train_evs": " ".join(f"{e:+g}" for e in run["config"]["train_evs"]),
+                         "epochs": run["config"]["epochs"], "test_ev": test["ev"],
                          "map": test["map"], **{f"ap_{c}": test["ap"].get(c) for c in run["classes"]},
                          "coco_ap50": test.get("coco_ap50"), "train_map": train.get("train_map"),
-                         "half_gain": train.get("half_gain"), "converged": train.get("converged"),
-                         "autocast": train.get("autocast"),
+                         "train_map_half": train.get("train_map_half"), "half_gain": train.get("half_gain"),
+                         "converged": train.get("converged"), "autocast": train.get("autocast"),
                          "final_loss": train.get("final_loss"), "train_images": train["images"],
                          "train_ms_per_image": train["train_ms_per_image"],
                          "step_ms_per_image": train["step_ms_per_image"],
                          "train_sensor_isp_ms_per_image": train.get("sensor_isp_ms_per_image"),
                          "test_sensor_isp_ms_per_image": test.get("sensor_isp_ms_per_image"),
-                         "infer_ms_per_image": test.get("infer_ms_per_image"), "key": run["key"]})
+                         "infer_ms_per_image": test.get("infer_ms_per_image"), "cpu": machine.get("cpu"),
+                         "run_wall_s": machine.get("wall_s"), "run_cpu_s": machine.get("cpu_s"), "key": run["key"]})
     return rows
 
 
@@ -217,10 +248,12 @@ def plot_results(doc: dict, path_png: Path) -> None:
     atomic_write_bytes(path_png, buf.getvalue())
 
 
-def write_outputs(doc: dict, boots: dict, out_dir: Path) -> None:
-    """results.json, runs.csv, summary.csv, contrasts.csv, bootstrap.npz and the chart, each
-    written atomically."""
+def write_outputs(doc: dict, boots: dict, out_dir: Path, project=None) -> None:
+    """results.json, runs.csv, summary.csv, contrasts.csv, bootstrap.npz, the chart and (given
+    the project) project.json, each written atomically."""
     from workbench.files import atomic_write_bytes, atomic_write_text
+    if project is not None:
+        atomic_write_text(out_dir / PROJECT_FILE, project.model_dump_json(indent=1) + "\n")
     atomic_write_text(out_dir / "results.json", json.dumps(doc, indent=1, default=float) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
@@ -240,6 +273,27 @@ def _load_previous(out: Path, kind: str, fingerprint: str, profile: str) -> tupl
         raise OutputPathError(out, f"holds results of another experiment ({doc['kind']}, profile "
                                    f"{doc['profile']}, another data set or project); choose another --out")
     return doc["runs"], read_bootstraps(out)
+
+
+def borrowed_runs(folders, jobs, fingerprint: str) -> tuple[list[dict], dict]:
+    """Finished records of `jobs` in other result folders (same data set; a record serves a job
+    of the same key whose test EVs it covers), with their bootstrap resamples, each cut to the
+    job's test EVs; the role is set by the caller."""
+    wanted = {job.key: set(job.test_evs) for _, job in jobs}
+    runs, boots = [], {}
+    for folder in folders:
+        doc = read_results(folder)
+        if doc["dataset"]["fingerprint"] != fingerprint:
+            raise OutputPathError(folder, "holds results of another data set (fingerprint "
+                                          f"{doc['dataset']['fingerprint'][:12]}… ≠ {fingerprint[:12]}…)")
+        theirs = read_bootstraps(folder)
+        for run in doc["runs"]:
+            evs = wanted.get(run["key"])
+            if evs is None or run["key"] in boots or not evs <= {float(t["ev"]) for t in run["tests"]}:
+                continue
+            runs.append({**run, "tests": [t for t in run["tests"] if float(t["ev"]) in evs]})
+            boots[run["key"]] = {ev: v for ev, v in theirs.get(run["key"], {}).items() if ev in evs}
+    return runs, boots
 
 
 def _split_bootstrap(result: dict) -> dict:
@@ -262,23 +316,43 @@ class ExperimentResult:
 
 
 def _analysis(kind: str, runs: list[dict], boots: dict, evs) -> dict:
-    return {"summary": summarise(kind, runs, boots), "contrasts": contrasts(kind, runs, boots, evs),
-            "per_ev_is_upper_bound": per_ev_is_upper_bound(runs) if kind == "exposure" else None}
+    """Summary and contrasts of the runs; the ISP and budget experiments read EV 0 only (their
+    sRGB runs carry every EV for the exposure experiment)."""
+    if kind == "budget":
+        from workbench.experiments.budget import budget_analysis
+        return budget_analysis(runs, boots, BUDGET_TOLERANCE)
+    if kind == "isp":
+        runs = [{**r, "tests": [t for t in r["tests"] if float(t["ev"]) == 0.0]} for r in runs]
+    summary = summarise(kind, runs, boots)
+    for row in summary:                    # how many of the runs behind a mean converged
+        behind = [r for r in runs if all(r["role"].get(k) == row[k] for k in ("net", "representation", "condition"))
+                  and (row["condition"] != "per_ev" or r["role"].get("train_ev") == row["test_ev"])]
+        row["converged"] = f"{sum(r['train'].get('converged') is True for r in behind)}/{len(behind)}"
+    return {"summary": summary, "contrasts": contrasts(kind, runs, boots, evs),
+            "per_ev_is_upper_bound": per_ev_is_upper_bound(runs) if kind == "exposure" else None,
+            "not_converged": [{"key": r["key"], "convergence": r["train"].get("convergence")} for r in runs
+                              if r["train"].get("converged") is not True]}
+
 
 
 def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path, *, profile: str = "quick",
                    seeds: int | None = None, workers: int = 0, cancel: CancelToken | None = None,
                    profile_override: Profile | None = None, compute: ComputeSpec | None = None,
-                   checkpoints: str | Path | None = None) -> Generator[Progress, None, ExperimentResult]:
-    """Run (or resume) experiment `kind` ('isp' | 'exposure') of `project` on the data set in
-    data_dir (rendered from the same project's scene, city, pose, optics and render settings; its
-    sensor, ISP and experiment settings are the project's). A long job: yields Progress, returns
-    an ExperimentResult. workers: 0 = runs in this process (cancellable inside a run), ≥ 1 =
-    that many processes (cancellable between runs); compute, when given, says where instead (e.g.
-    one Ray task per training run, each with its CPUs as thread budget and, for the paper
-    profile, a GPU). checkpoints: the folder of training checkpoints (default OUT/checkpoints).
-    profile_override replaces the named profile (tests use tiny ones)."""
+                   checkpoints: str | Path | None = None, nets: tuple[str, ...] | None = None,
+                   reuse_from: tuple[str | Path, ...] = ()) -> Generator[Progress, None, ExperimentResult]:
+    """Run (or resume) experiment `kind` ('isp' | 'exposure' | 'budget') of `project` on the data
+    set in data_dir (rendered from the same project's scene, city, pose, optics and render
+    settings; its sensor, ISP and experiment settings are the project's). A long job: yields
+    Progress, returns an ExperimentResult. workers: 0 = runs in this process (cancellable inside a
+    run), ≥ 1 = that many processes (cancellable between runs); compute, when given, says where
+    instead (e.g. one Ray task per training run, each with its CPUs as thread budget and, for the
+    paper profile, a GPU). checkpoints: the folder of training checkpoints (default
+    OUT/checkpoints). nets: train only these of the profile's nets (another process may fill the
+    same folder with the others). reuse_from: result folders of the same data set whose finished
+    runs of the same key are taken instead of trained. profile_override replaces the named
+    profile (tests use tiny ones)."""
     from workbench.compute import run_jobs
+    from workbench.compute.folder_lock import hold_folder_lock
     from workbench.detect.data import DetectionDataset
     from workbench.detect.job import run_detection_job
     from workbench.datasets.dataset import code_version
@@ -289,6 +363,9 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     seeds = prof.seeds if seeds is None else seeds
     if not isinstance(seeds, int) or seeds < 1:
         raise ParameterError("seeds", seeds, "an integer ≥ 1")
+    unknown = [n for n in (nets or ()) if n not in prof.nets]
+    if unknown:
+        raise ParameterError("nets", list(nets), f"nets of the profile ({', '.join(prof.nets)})")
     dataset = DetectionDataset(data_dir, project=project)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
@@ -297,39 +374,57 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     ckpt_dir = Path(checkpoints) if checkpoints is not None else out / "checkpoints"
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     jobs = plan_runs(kind, prof, seeds, dataset, ckpt_dir)
-    runs, boots = _load_previous(out, kind, dataset.fingerprint, prof.name)
-    done = {r["key"] for r in runs}
-    todo = [(role, job) for role, job in jobs if job.key not in done]
-    reused = [job.key for _, job in jobs if job.key in done]
+    role_of = {job.key: role for role, job in jobs}
     evs = [float(e) for e in project.experiment.ev_biases]
-    doc = {"format": RESULTS_FORMAT, "schema_version": RESULTS_SCHEMA_VERSION, "kind": kind, "profile": prof.name,
-           "project": project.name, "dataset": {"folder": str(dataset.folder), "fingerprint": dataset.fingerprint,
-                                                "stats": dataset.stats()},
-           "classes": list(dataset.class_names), "ev_biases": evs,
-           "settings": {**asdict(prof), "seeds": seeds}, "code_version": code_version(),
-           "runs": runs, **_analysis(kind, runs, boots, evs), "complete": not todo,
-           "written_utc": datetime.now(timezone.utc).isoformat()}
-    write_outputs(doc, boots, out)
+    base = {"format": RESULTS_FORMAT, "schema_version": RESULTS_SCHEMA_VERSION, "kind": kind, "profile": prof.name,
+            "project": project.name, "dataset": {"folder": dataset.folder.name, "fingerprint": dataset.fingerprint,
+                                                 "frames": len(dataset.frames), "stats": dataset.stats()},
+            "classes": list(dataset.class_names), "ev_biases": evs, "settings": {**asdict(prof), "seeds": seeds}}
+    mine: list[dict] = []
+    my_boots: dict = {}
+
+    def merge_and_write() -> dict:
+        """The folder's records merged with this process's (by key; role as planned), rewritten."""
+        with hold_folder_lock(out, f"workbench experiment {kind}", wait=True):
+            runs, boots = _load_previous(out, kind, dataset.fingerprint, prof.name)
+            keys = {r["key"] for r in mine}
+            runs = [r for r in runs if r["key"] not in keys] + mine
+            runs = [{**r, "role": role_of.get(r["key"], r["role"])} for r in runs]
+            boots = {**boots, **my_boots}
+            doc = {**base, "code_version": code_version(), "runs": runs, **_analysis(kind, runs, boots, evs),
+                   "complete": all(key in {r["key"] for r in runs} for key in role_of),
+                   "written_utc": datetime.now(timezone.utc).isoformat()}
+            write_outputs(doc, boots, out, project)
+        return doc
+
+    with hold_folder_lock(out, f"workbench experiment {kind}", wait=True):
+        done = {r["key"] for r in _load_previous(out, kind, dataset.fingerprint, prof.name)[0]}
+    lent, lent_boots = borrowed_runs(reuse_from, [(r, j) for r, j in jobs if j.key not in done], dataset.fingerprint)
+    mine += lent
+    my_boots.update(lent_boots)
+    reused = sorted(done | {r["key"] for r in lent})
+    todo = [job for _, job in jobs if job.key not in reused and (nets is None or job.config.net in nets)]
+    doc = merge_and_write()
     h, w = dataset.image_hw
     size_note = "" if (h, w) == tuple(prof.image_hw) else (
         f" (this data set is {w}×{h}, the profile is sized for {prof.image_hw[1]}×{prof.image_hw[0]}: "
         f"expect about {h * w / (prof.image_hw[0] * prof.image_hw[1]):.1f}× the time)")
-    yield Progress(len(reused), len(jobs), f"{prof.note}{size_note}; {len(jobs)} runs, {len(reused)} already done")
-    role_of = {job.key: role for role, job in jobs}
+    yield Progress(len(reused), len(jobs), f"{prof.note}{size_note}; {len(jobs)} runs, {len(reused)} already done"
+                                           f"{f' ({len(lent)} from other folders)' if lent else ''}, "
+                                           f"{len(todo)} to train here")
     compute = compute or ComputeSpec(workers=workers)
     in_process = compute.backend == "local" and compute.workers == 0
     fn = partial(run_detection_job, cancel=cancel) if in_process else run_detection_job
     trained = []
-    for job, result in run_jobs(fn, [job for _, job in todo], compute, cancel):
+    for job, result in run_jobs(fn, todo, compute, cancel):
         result["role"] = role_of[job.key]
-        boots[job.key] = _split_bootstrap(result)
-        runs = [r for r in runs if r["key"] != job.key] + [result]
+        my_boots[job.key] = _split_bootstrap(result)
+        mine = [r for r in mine if r["key"] != job.key] + [result]
         trained.append(job.key)
-        doc.update(runs=runs, **_analysis(kind, runs, boots, evs), complete=len(trained) == len(todo),
-                   written_utc=datetime.now(timezone.utc).isoformat())
-        write_outputs(doc, boots, out)
+        doc = merge_and_write()
         maps = ", ".join(f"EV{t['ev']:+g} {t['map']:.3f}" if t["map"] is not None else f"EV{t['ev']:+g} -"
                          for t in result["tests"])
         yield Progress(len(reused) + len(trained), len(jobs),
-                       f"{job.key}: train mAP {result['train']['train_map'] or 0:.3f}; test mAP {maps}")
+                       f"{job.key}: train mAP {result['train']['train_map'] or 0:.3f} "
+                       f"({result['train'].get('convergence', '')}); test mAP {maps}")
     return ExperimentResult(out, out / "results.json", trained, reused, doc["summary"])

@@ -2,22 +2,27 @@
 on any matplotlib Figure (the GUI's experiments panel and the command line).
 
 A result folder holds `results.json` (this schema), `runs.csv`, `summary.csv`, `contrasts.csv`,
-`bootstrap.npz` (each run's test-set bootstrap resamples of its mAPs) and a chart PNG.
+`bootstrap.npz` (each run's test-set bootstrap resamples of its mAPs), `project.json` (the project
+the runs read) and a chart PNG.
 
-results.json (schema_version 2):
+results.json (schema_version 3):
 
     {
       "format": "camera-workbench-experiment",     # required, exactly this
-      "schema_version": 2,                          # required
-      "kind": "isp" | "exposure",                   # required
+      "schema_version": 3,                          # required
+      "kind": "isp" | "exposure" | "budget",        # required
       "project": str, "profile": "quick" | "standard" | "paper" | str,
       "complete": bool,                             # false while runs are still to come
       "classes": [str, ...], "ev_biases": [float, ...],
       "settings": {"seeds": int, ...},              # the profile used (epochs, image size, nets, …)
-      "dataset": {"folder": str, "fingerprint": str, ...},
-      "runs": [{"key": str, "role": {"net", "representation", "condition", "seed"[, "train_ev"]},
-                "config": {...}, "train": {... "train_map", "curve", "history", "converged" ...},
-                "tests": [{"ev": float, "map": float | null, "ap": {class: float}, ...}, ...]}, ...],
+      "code_version": str,                          # the code that wrote it (git describe)
+      "dataset": {"folder": str (its name), "fingerprint": str, "frames": int, "stats": {...}},
+      "runs": [{"key": str, "role": {"net", "representation", "condition", "seed"[, "train_ev"]
+                                     [, "budget_factor"]},
+                "config": {...}, "train": {... "train_map", "curve", "history", "train_map_half",
+                                          "train_map_end", "half_gain", "converged", "convergence" ...},
+                "tests": [{"ev": float, "map": float | null, "ap": {class: float}, ...}, ...],
+                "machine": {"cpu", "bf16_native", "threads", "wall_s", "cpu_s", "code_version"}}, ...],
       "summary": [                                  # required; what the main charts draw
         {"net": str, "representation": "raw" | "linear" | "srgb",
          "condition": "ev0_trained" | "ev_mix" | "per_ev", "test_ev": float, "n": int,
@@ -26,15 +31,19 @@ results.json (schema_version 2):
          "boot_low", "boot_high": float | null}, ...],  # test-set bootstrap interval of the mean
       "contrasts": [                                # required; paired differences (analysis.py)
         {"contrast": str, "net": str, "test_ev": float | "all", "mean": float, "n": int, "sd",
-         "t_low", "t_high", "boot_low", "boot_high": float | null}, ...],
-      "per_ev_is_upper_bound": bool | null
+         "t_low", "t_high", "boot_low", "boot_high",  # seed t and test-set intervals (descriptive)
+         "h_low", "h_high": float | null,          # two-level interval (seeds, then test frames)
+         "p_above_+0", ...: float | null}, ...],    # its one-sided p-values at the claims' bounds
+      "per_ev_is_upper_bound": bool | null,
+      "budget_enough": {net: {"epochs", "gain", "seeds", "enough", "tolerance"}}   # 'budget' only
     }
 
 Charts: 'isp' → bars of mean mAP per representation per network with both intervals, beside the
 paired differences raw − sRGB and linear − sRGB; 'exposure' → mAP against test EV per network
 (one curve per training condition, seed bands), over the paired differences EV mix − EV-0-trained,
-under − over exposure and (both nets) the relative drop of resnet18 − mobile. In the difference
-panels a thick bar is the seed interval and a thin one the test-set interval.
+under − over exposure and (both nets) the relative drop of resnet18 − mobile; 'budget' → test mAP
+at budget B and 2B per net and seed. In the difference panels a thick bar is the seed interval
+and a thin one the two-level interval (seeds and test frames).
 """
 from __future__ import annotations
 
@@ -47,11 +56,11 @@ from workbench.datasets.files import read_json_object
 from workbench.errors import InputFileError
 
 RESULTS_FORMAT = "camera-workbench-experiment"
-RESULTS_SCHEMA_VERSION = 2
+RESULTS_SCHEMA_VERSION = 3
 RESULTS_FILE = "results.json"
 BOOTSTRAP_FILE = "bootstrap.npz"
 MAX_RESULTS_BYTES = 64 * 2 ** 20
-KINDS = ("isp", "exposure")
+KINDS = ("isp", "exposure", "budget")
 SUMMARY_KEYS = ("net", "representation", "condition", "test_ev", "mean_map", "ci95_low", "ci95_high")
 CONTRAST_KEYS = ("contrast", "net", "test_ev", "mean", "t_low", "t_high", "boot_low", "boot_high")
 REP_COLOURS = {"raw": "tab:gray", "linear": "tab:green", "srgb": "tab:purple"}
@@ -153,14 +162,14 @@ def draw_isp(ax, summary: list[dict]) -> None:
 
 
 def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None = None) -> None:
-    """Paired differences as points with a thick seed interval and a thin test-set interval,
-    coloured by net; x_of(row) places each row; a line at 0."""
+    """Paired differences as points with a thick seed interval and a thin two-level interval (seeds
+    and test frames, the one verdicts read), coloured by net; x_of(row) places each row; a line at 0."""
     ax.axhline(0.0, color="k", lw=0.8)
     for net in sorted({r["net"] for r in rows}):
         mine = [r for r in rows if r["net"] == net]
         xs = np.array([x_of(r) for r in mine], dtype=float)
         colour = NET_COLOURS.get(net, "tab:green")
-        ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "boot_low", "boot_high", "mean"), fmt="none",
+        ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "h_low", "h_high", "mean"), fmt="none",
                     ecolor=colour, elinewidth=0.8, capsize=2, alpha=0.7)
         ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "t_low", "t_high", "mean"), fmt="o", ms=4,
                     color=colour, elinewidth=2.5, capsize=0, label=net)
@@ -197,6 +206,8 @@ def chart_size_in(doc: dict) -> tuple[float, float]:
     """Figure size (inches) that fits the document's chart."""
     if doc["kind"] == "isp":
         return 10.0, 4.0
+    if doc["kind"] == "budget":
+        return 6.0, 4.5
     nets = len({s["net"] for s in doc["summary"]}) or 1
     return max(4.6 * nets, 12.0), 7.5
 
@@ -210,6 +221,10 @@ def draw_results(fig, doc: dict) -> None:
                  f"{seeds} seed(s){state}", fontsize=9)
     if not summary:
         fig.add_subplot().text(0.5, 0.5, "no finished runs yet", ha="center", va="center")
+        return
+    if doc["kind"] == "budget":
+        from workbench.experiments.budget import draw_budget
+        draw_budget(fig, doc)
         return
     if doc["kind"] == "isp":
         left, right = fig.subplots(1, 2, gridspec_kw={"width_ratios": [3, 2]})

@@ -1,4 +1,4 @@
-"""Experiments panel: runs `workbench experiment isp|exposure PROJECT --data DIR --profile P --out DIR`
+"""Experiments panel: runs `workbench experiment isp|exposure|budget PROJECT --data DIR --profile P --out DIR`
 as a background process (progress parsed from its output, Cancel kills the process tree) and shows
 result folders — its own or ones produced headless elsewhere — as the paper's charts beside the
 paired differences that decide them (workbench.experiments.results)."""
@@ -98,7 +98,8 @@ class ExperimentsPanel(QWidget):
 
         self.kind = QComboBox(self)
         self.kind.addItems(KINDS)
-        self.kind.setToolTip("isp: raw / linear / sRGB (the paper's Fig. 5); exposure: mAP against EV (Fig. 7)")
+        self.kind.setToolTip("isp: raw / linear / sRGB (the paper's Fig. 5); exposure: mAP against EV (Fig. 7); "
+                             "budget: is the training budget enough (B against 2B epochs)")
         self.profile = QComboBox(self)
         self.profile.addItems(list(PROFILES))
         self.profile.setCurrentText("standard")
