@@ -1,0 +1,38 @@
+"""The render-noise figures against closed forms: Gaussian render errors of a known size relative
+to the shot noise read back as that ratio at the median, the 90th percentile and on edges."""
+import numpy as np
+import pytest
+
+from workbench.experiments.render_noise import edge_pixels, noise_ratios
+
+
+def test_edge_pixels_of_a_square_are_its_border_and_the_ring_around_it():
+    ids = np.zeros((8, 8), np.int32)
+    ids[2:6, 2:6] = 7
+    edge = edge_pixels(ids)
+    inside = np.zeros((8, 8), bool)
+    inside[2:6, 2:6] = True
+    ring = np.zeros((8, 8), bool)
+    ring[1:7, 2:6] = ring[2:6, 1:7] = True
+    assert np.array_equal(edge, ring & ~(np.pad(np.ones((2, 2), bool), 3)))   # the square's centre 2×2 is not
+    assert edge[inside].sum() == 12 and edge[~inside].sum() == 16 and not edge[0].any()
+
+
+@pytest.mark.parametrize("ratio", [0.2, 0.5])
+def test_gaussian_render_errors_read_back_as_their_ratio_to_the_shot_noise(ratio):
+    rng = np.random.default_rng(3)
+    h, w, t = 400, 500, 2e-3
+    reference = rng.uniform(5e4, 5e5, size=(h, w))                 # e⁻/s: 100–1000 e⁻ at t
+    n = reference * t
+    edges = np.zeros((h, w), bool)
+    edges[:, ::10] = True
+    sigma = ratio * np.sqrt(n) * np.where(edges, 2.0, 1.0)           # edges twice as noisy
+    rate = (n + sigma * rng.standard_normal((h, w))) / t
+    out = noise_ratios(rate, reference, t, edges)
+    assert out["median_ratio"] == pytest.approx(ratio * 1.1, rel=0.05)          # 90 % at 1×, 10 % at 2×
+    assert out["edge_ratio"] == pytest.approx(2 * ratio, rel=0.04)
+    assert abs(out["edge_bias"]) < 4 * 2 * ratio / np.sqrt(n[edges].sum())     # 4 σ of the mean error
+    biased = noise_ratios(reference * np.where(edges, 1.01, 1.0), reference, t, edges)
+    assert biased["edge_bias"] == pytest.approx(0.01) and biased["median_ratio"] == 0.0
+    assert out["power_ratio"] == pytest.approx(ratio * np.sqrt(0.9 + 0.1 * 4), rel=0.03)
+    assert out["p90_ratio"] > out["median_ratio"] and out["edge_pixels"] == edges.sum()
