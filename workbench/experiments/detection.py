@@ -4,7 +4,8 @@ ISP stage ('isp'): each network is trained and tested on raw, linear and sRGB ca
 (the paper's Fig. 5), one run per (network, representation, seed).
 Budget ('budget'): is the profile's training budget B enough? Per network, seeds 0 and 1 train
 on sRGB at EV 0 for B and for 2B epochs; B is enough for a net when its test mAP@0.5 at EV 0
-gains less than BUDGET_TOLERANCE from B to 2B (mean over the seeds), else the budget must grow.
+gains less than BUDGET_TOLERANCE from B to 2B (mean over the seeds), else the budget must grow
+(the 2B runs are tested at every EV too, so they serve as the sRGB EV-0 runs of a budget of 2B).
 Exposure bias ('exposure', on sRGB, the paper's Fig. 7): per (network, seed)
     ev0_trained   trained at EV 0, tested at every EV of the project's experiment.ev_biases;
     ev_mix        trained on the EV mix (each EV an equal share of every epoch), tested at every EV;
@@ -157,8 +158,7 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
             for seed in range(min(seeds, BUDGET_SEEDS)):
                 role = {"net": net, "seed": seed, "budget_factor": 1}
                 add_srgb_ev0(role, replace(base, seed=seed))
-                add({**role, "representation": "srgb", "condition": "ev0_trained", "budget_factor": 2},
-                    replace(base, seed=seed, epochs=2 * base.epochs), (0.0,))
+                add_srgb_ev0({**role, "budget_factor": 2}, replace(base, seed=seed, epochs=2 * base.epochs))
             continue
         for seed in range(seeds):
             role = {"net": net, "seed": seed}
