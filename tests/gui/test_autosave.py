@@ -103,3 +103,35 @@ def test_an_autosave_this_version_cannot_open_is_set_aside_and_reported(qapp, qt
         assert autosave not in find_recoverable() and win.document.project == before
         win.offer_recovery()                                  # never offered again
         assert len(reports) == 1
+
+
+def test_every_unreadable_autosave_is_moved_aside_with_a_message(qapp, qtbot):
+    """Garbage, truncated, empty, a JSON list, a folder and a bad pid: each used to be skipped
+    silently and stay; now each is moved aside once, with a message naming it."""
+    import json
+
+    from workbench.gui.document import Document, find_recoverable
+    from workbench.gui.main_window import MainWindow
+    from workbench.gui.paths import autosave_dir
+    folder = autosave_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    record = json.dumps({"pid": 1, "path": None, "project": None})
+    kinds = {"garbage": b"\x00\xffnot json", "truncated": record[:20].encode(), "empty": b"", "list": b"[1, 2]",
+             "badpid": json.dumps({"pid": "x", "project": None}).encode(), "nopid": b"{}"}
+    for name, data in kinds.items():
+        (folder / f"session-{name}.json").write_bytes(data)
+    (folder / "session-folder.json").mkdir()
+    win = MainWindow(Document(load_project("paper_camera"), None), with_city_view=False)
+    qtbot.addWidget(win)
+    reports = []
+    win.report_rejected_autosave = lambda moved, exc: reports.append((moved, str(exc)))
+    win.ask_recover = lambda _f: False
+    win.offer_recovery()
+    names = sorted([*kinds, "folder"])
+    assert sorted(m.name for m, _ in reports) == sorted(f"rejected-session-{n}.json" for n in names)
+    for moved, text in reports:
+        assert moved.exists() and not (folder / moved.name.removeprefix("rejected-")).exists()
+        assert moved.name.removeprefix("rejected-") in text
+    assert not find_recoverable()
+    win.offer_recovery()                                              # never offered again
+    assert len(reports) == len(names)

@@ -201,15 +201,32 @@ def set_aside(autosave_file: Path) -> Path:
 
 def find_recoverable() -> list[Path]:
     """Autosaves left by sessions whose process is gone (crashed or killed), newest first."""
+    return scan_autosaves()[0]
+
+
+def scan_autosaves() -> tuple[list[Path], list[tuple[Path, str]]]:
+    """(autosaves left by sessions whose process is gone, newest first; (path, why) of the ones
+    that cannot be read as an autosave: not JSON, truncated, empty, not an object, no session pid,
+    a folder). A session writes its autosave whole (atomic replace), so a live session's file is
+    never unreadable."""
     folder = autosave_dir()
     if not folder.is_dir():
-        return []
-    found = []
+        return [], []
+    found, unreadable = [], []
     for f in folder.glob("session-*.json"):
         try:
-            pid = int(json.loads(f.read_text(encoding="utf-8")).get("pid", 0))
-        except (OSError, ValueError, AttributeError):
+            record = json.loads(f.read_text(encoding="utf-8"))
+        except IsADirectoryError:
+            unreadable.append((f, "a folder, not an autosave file"))
             continue
-        if pid and not pid_alive(pid):
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            unreadable.append((f, f"not readable as JSON ({type(exc).__name__}: {exc})"))
+            continue
+        pid = record.get("pid") if isinstance(record, dict) else None
+        if not isinstance(record, dict):
+            unreadable.append((f, f"holds a JSON {type(record).__name__}, not an autosave record"))
+        elif isinstance(pid, bool) or not isinstance(pid, int) or pid <= 0:
+            unreadable.append((f, f"names no session process (pid {pid!r})"))
+        elif not pid_alive(pid):
             found.append(f)
-    return sorted(found, key=lambda f: f.stat().st_mtime, reverse=True)
+    return sorted(found, key=lambda f: f.stat().st_mtime, reverse=True), unreadable

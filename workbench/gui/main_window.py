@@ -13,7 +13,8 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
                                QProgressBar, QPushButton, QTabBar)
 
-from workbench.gui.document import LOAD_ERRORS, Document, find_recoverable, sample_projects, set_aside
+from workbench.errors import InputFileError
+from workbench.gui.document import LOAD_ERRORS, Document, sample_projects, scan_autosaves, set_aside
 from workbench.gui.live import LiveRunner
 from workbench.gui.paths import settings_file
 from workbench.gui.previews import PreviewPanes
@@ -418,8 +419,11 @@ class MainWindow(QMainWindow):
         self.recent_menu.setEnabled(bool(self.recent_files()))
 
     def offer_recovery(self) -> None:
-        """After a crash: offer the newest autosave left by a session that is gone."""
-        found = find_recoverable()
+        """After a crash: move aside (with a message) every autosave that cannot be read, then
+        offer the newest one left by a session that is gone."""
+        found, unreadable = scan_autosaves()
+        for path, why in unreadable:
+            self.report_rejected_autosave(set_aside(path), InputFileError(path, why))
         if not found:
             return
         if not self.ask_recover(found[0]):
@@ -434,7 +438,7 @@ class MainWindow(QMainWindow):
     def report_rejected_autosave(self, moved: Path, error: Exception) -> None:
         """Say that an autosave could not be recovered, why, and where it now lies (tests replace this)."""
         QMessageBox.warning(self, "Unsaved edits could not be recovered",
-                            f"The autosave of an earlier session cannot be opened by this version:\n{error}\n\n"
+                            f"The autosave of an earlier session cannot be recovered:\n{error}\n\n"
                             f"It was moved to {moved} and will not be offered again.")
 
     # -- closing ---------------------------------------------------------------------------
