@@ -162,7 +162,11 @@ def test_frame_readouts_of_a_known_frame():
     assert all(v == pytest.approx(2000.0, rel=0.01) for v in r["mean_electrons"].values())
     assert r["road_users"] == 1
     assert r["road_user_snr_median"] == pytest.approx(float(snr_model(2000.0, sensor, t)))
-    assert r["scene_dynamic_range_dB"] == pytest.approx(0.0, abs=1e-9)
+    assert r["pixel_signal_dynamic_range_dB"] == pytest.approx(0.0, abs=1e-9)
+    assert "scene_dynamic_range_dB" not in r     # simulate's scene dynamic range is another quantity
+    two = np.where(np.arange(96) < 48, 2.0e6, 2.0e4)[None, :].repeat(64, axis=0)     # a 100:1 field
+    r2 = frame_readouts(signal_rate_to_sensor_image(two, sensor, t, np.random.default_rng(0)), two, sensor)
+    assert r2["pixel_signal_dynamic_range_dB"] == pytest.approx(40.0)
 
 
 @pytest.mark.parametrize("tile,shape", [([[0, 1], [1, 2]], (7, 9)), ([[0, 1, 2], [1, 2, 0], [2, 0, 1]], (10, 11)),

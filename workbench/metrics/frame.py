@@ -42,15 +42,17 @@ def _channel_means(values: np.ndarray, tile: np.ndarray, names) -> dict[str, flo
 
 def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) -> dict:
     """Read-outs of one frame (a SensorImage, its noise-free signal e⁻/s and, for a city frame,
-    its labels): module docstring, plus the scene's dynamic range as the sensor sees it (the
-    99.9th over the 0.1th percentile of the pixel signal, in dB)."""
+    its labels): module docstring, plus the pixel signal's dynamic range (the 99.9th over the
+    0.1th percentile of the noise-free signal of the sensor's pixels, each in its own CFA channel,
+    after the optics, in dB): not the scene's luminance dynamic range that `workbench simulate`
+    reports (scene/dynamic_range.py), which reads the radiance before the lens and the CFA."""
     exposure = float(np.mean(image.exposure_s))
     rate = np.asarray(signal_rate_e_per_s, np.float64)
     lo, hi = np.percentile(rate, [0.1, 99.9])
     out = {"exposure_s": exposure, "analog_gain": sensor.analog_gain,
            "clipped_pct": float(100 * np.count_nonzero(image.dn >= image.max_dn) / max(image.dn.size, 1)),
            "mean_electrons": _channel_means(image.electrons, np.asarray(image.cfa_tile), image.channel_names),
-           "scene_dynamic_range_dB": float(20 * np.log10(hi / lo)) if lo > 0 else None}
+           "pixel_signal_dynamic_range_dB": float(20 * np.log10(hi / lo)) if lo > 0 else None}
     if labels is not None:
         snrs = []
         for obj in labels.objects:

@@ -1,5 +1,5 @@
 """Metrics panel: the current frame's read-outs (exposure, gain, electrons per channel, clipping,
-scene dynamic range, SNR at the road users) and the camera's measurements on test charts (system
+pixel signal dynamic range, SNR at the road users) and the camera's measurements on test charts (system
 MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit in the window's side
 process (gui.side_process: kept alive; a worker thread waits for it, so its Python never holds the
 window's GIL),
@@ -25,7 +25,7 @@ DEBOUNCE_MS = 300
 READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
                 ("analog_gain", "analog gain", lambda v: f"{v:.3g}"),
                 ("clipped_pct", "clipped pixels (%)", lambda v: f"{v:.2f}"),
-                ("scene_dynamic_range_dB", "scene dynamic range (dB)", lambda v: f"{v:.1f}"),
+                ("pixel_signal_dynamic_range_dB", "pixel signal dynamic range (dB)", lambda v: f"{v:.1f}"),
                 ("road_users", "road users in view", lambda v: f"{v:d}"),
                 ("road_user_snr_median", "SNR at road users (median)", lambda v: f"{v:.1f}"),
                 ("road_user_low_snr_pct", "road users below SNR 10 (%)", lambda v: f"{v:.0f}"))
