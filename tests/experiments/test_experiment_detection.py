@@ -232,3 +232,31 @@ def test_budget_study_lends_its_runs_to_the_isp_experiment(synthetic_dir, tmp_pa
     lent = [r for r in runs if r["role"]["representation"] == "srgb"]
     assert all("budget_factor" not in r["role"] for r in lent) and len(lent) == 2
     assert set(read_bootstraps(tmp_path / "isp")) == {r["key"] for r in runs}
+
+
+def test_a_run_claimed_by_a_live_process_is_left_to_it_and_a_dead_ones_claim_is_taken(synthetic_dir, tmp_path):
+    import socket
+
+    from workbench.compute.job_claims import claim, release
+    ckpt = tmp_path / "ck"
+    ckpt.mkdir()
+    from workbench.detect.data import DetectionDataset
+    keys = [job.key for _, job in plan_runs("isp", TINY, 1, DetectionDataset(synthetic_dir, project=_project()), ckpt)]
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    try:
+        for key, pid in ((keys[0], live.pid), (keys[1], dead.pid)):
+            (ckpt / f"{key}.claim").write_text(json.dumps({"pid": pid, "host": socket.gethostname()}))
+        result = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path / "out", seeds=1,
+                                       profile_override=TINY, checkpoints=ckpt))
+        assert sorted(result.trained) == sorted(keys[1:])            # the live claim is respected
+        assert not json.loads((tmp_path / "out" / "results.json").read_text())["complete"]
+        assert sorted(p.name for p in ckpt.glob("*.claim")) == [f"{keys[0]}.claim"]
+    finally:
+        live.kill()
+        live.wait()
+    assert claim(ckpt, keys[0])                         # its holder is gone: the claim is taken over
+    assert not claim(ckpt, keys[0])                     # and now this live process holds it
+    release(ckpt, keys[0])
+    assert not (ckpt / f"{keys[0]}.claim").exists()

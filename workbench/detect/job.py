@@ -38,12 +38,15 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     version; a run resumed from a checkpoint counts only its last process)."""
     import torch
 
+    from workbench.compute import apply_thread_budget
     from workbench.datasets.dataset import code_version
     from workbench.detect.data import DetectionDataset, DetectionView
     from workbench.detect.devices import cpu_has_native_bf16, cpu_model, pick_device
     from workbench.detect.engine import train_detector
     from workbench.detect.inference import evaluate_detector
 
+    if job.config.threads:                 # the sensor's pixel threads and BLAS too, not only torch's
+        apply_thread_budget(job.config.threads)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     dataset = DetectionDataset(job.dataset_dir)
     model, tr = train_detector(dataset, job.config, job.checkpoint, cancel)

@@ -147,35 +147,36 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
         """The sRGB EV-0 run at the profile's budget: the same key in every experiment, tested at every EV."""
         add({**role, "representation": "srgb", "condition": "ev0_trained"}, config, evs)
 
+    bases = {}
     for net in profile.nets:
         if net not in profile.epochs:
             raise ParameterError("profile.epochs", profile.epochs, f"a budget for net '{net}'")
-        base = TrainConfig(net=net, epochs=profile.epochs[net], batch_size=profile.batch_size, lr=profile.lr,
-                           crop_hw=profile.crop_hw, threads=profile.threads, device=profile.device,
-                           loader_workers=profile.loader_workers, cache_mb=profile.cache_mb,
-                           curve_points=profile.curve_points, precision=profile.precision.get(net, "auto"))
-        if kind == "budget":
-            for seed in range(min(seeds, BUDGET_SEEDS)):
-                role = {"net": net, "seed": seed, "budget_factor": 1}
-                add_srgb_ev0(role, replace(base, seed=seed))
-                add_srgb_ev0({**role, "budget_factor": 2}, replace(base, seed=seed, epochs=2 * base.epochs))
-            continue
-        for seed in range(seeds):
+        bases[net] = TrainConfig(net=net, epochs=profile.epochs[net], batch_size=profile.batch_size, lr=profile.lr,
+                                 crop_hw=profile.crop_hw, threads=profile.threads, device=profile.device,
+                                 loader_workers=profile.loader_workers, cache_mb=profile.cache_mb,
+                                 curve_points=profile.curve_points, precision=profile.precision.get(net, "auto"))
+    # seed by seed, both nets in each: whatever part of the list is done when a sitting ends is
+    # paired across nets and conditions
+    for seed in range(min(seeds, BUDGET_SEEDS) if kind == "budget" else seeds):
+        for net, base in bases.items():
             role = {"net": net, "seed": seed}
-            if kind == "isp":
+            if kind == "budget":
+                add_srgb_ev0({**role, "budget_factor": 1}, replace(base, seed=seed))
+                add_srgb_ev0({**role, "budget_factor": 2}, replace(base, seed=seed, epochs=2 * base.epochs))
+            elif kind == "isp":
                 for rep in REPRESENTATION_ORDER:
                     if rep == "srgb":
                         add_srgb_ev0(role, replace(base, seed=seed))
                     else:
                         add({**role, "representation": rep, "condition": "ev0_trained"},
                             replace(base, representation=rep, seed=seed), (0.0,))
-                continue
-            srgb = {**role, "representation": "srgb"}
-            add_srgb_ev0(role, replace(base, seed=seed))
-            add({**srgb, "condition": "ev_mix"}, replace(base, seed=seed, train_evs=evs), evs)
-            for ev in profile.per_ev_biases:
-                add({**srgb, "condition": "per_ev", "train_ev": float(ev)},
-                    replace(base, seed=seed, train_evs=(float(ev),)), evs)
+            else:
+                srgb = {**role, "representation": "srgb"}
+                add_srgb_ev0(role, replace(base, seed=seed))
+                add({**srgb, "condition": "ev_mix"}, replace(base, seed=seed, train_evs=evs), evs)
+                for ev in profile.per_ev_biases:
+                    add({**srgb, "condition": "per_ev", "train_ev": float(ev)},
+                        replace(base, seed=seed, train_evs=(float(ev),)), evs)
     return jobs
 
 
@@ -353,6 +354,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     profile (tests use tiny ones)."""
     from workbench.compute import run_jobs
     from workbench.compute.folder_lock import hold_folder_lock
+    from workbench.compute.job_claims import claim, release
     from workbench.detect.data import DetectionDataset
     from workbench.detect.job import run_detection_job
     from workbench.datasets.dataset import code_version
@@ -405,6 +407,17 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     reused = sorted(done | {r["key"] for r in lent})
     todo = [job for _, job in jobs if job.key not in reused and (nets is None or job.config.net in nets)]
     doc = merge_and_write()
+
+    def claimed():
+        """The todo runs, each claimed (job_claims, in the checkpoint folder) as it is drawn and
+        released once its record is written (a claim left by a process that died is stale); runs
+        another live process holds, or that the folder gained meanwhile, are skipped."""
+        for job in todo:
+            with hold_folder_lock(out, f"workbench experiment {kind}", wait=True):
+                finished = {r["key"] for r in _load_previous(out, kind, dataset.fingerprint, prof.name)[0]}
+            if job.key not in finished and claim(ckpt_dir, job.key):
+                yield job
+
     h, w = dataset.image_hw
     size_note = "" if (h, w) == tuple(prof.image_hw) else (
         f" (this data set is {w}×{h}, the profile is sized for {prof.image_hw[1]}×{prof.image_hw[0]}: "
@@ -416,12 +429,13 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     in_process = compute.backend == "local" and compute.workers == 0
     fn = partial(run_detection_job, cancel=cancel) if in_process else run_detection_job
     trained = []
-    for job, result in run_jobs(fn, todo, compute, cancel):
+    for job, result in run_jobs(fn, claimed(), compute, cancel):
         result["role"] = role_of[job.key]
         my_boots[job.key] = _split_bootstrap(result)
         mine = [r for r in mine if r["key"] != job.key] + [result]
         trained.append(job.key)
         doc = merge_and_write()
+        release(ckpt_dir, job.key)
         maps = ", ".join(f"EV{t['ev']:+g} {t['map']:.3f}" if t["map"] is not None else f"EV{t['ev']:+g} -"
                          for t in result["tests"])
         yield Progress(len(reused) + len(trained), len(jobs),

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Make, or continue, the standard detection results (docs/results/*-standard): render the data set
+# (resumable; the project alone fixes its fingerprint, so any sitting renders the same set), then
+# train and test what the result folders lack, in WORKERS processes of one thread each that share
+# the runs (job claims), niced so an interactive session keeps a core's worth of priority.
+#   bash packaging/standard-results.sh [DATA_DIR] [CHECKPOINT_DIR] [WORKERS]
+# Stop it at any time (kill the process group): finished runs are in docs/results; commit them.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+data=${1:-data/city320}; ckpt=${2:-ckpt}; workers=${3:-2}
+W=.venv/bin/workbench; R=docs/results; P=city_detection_quick
+common=(--data "$data" --profile standard --checkpoints "$ckpt")
+nice -n 5 "$W" dataset "$P" --frames 612 --out "$data" --workers "$workers"
+worker() {
+  nice -n 5 "$W" experiment budget "$P" "${common[@]}" --out "$R/budget-standard"
+  nice -n 5 "$W" experiment isp "$P" "${common[@]}" --out "$R/isp-standard" --reuse "$R/budget-standard"
+  nice -n 5 "$W" experiment exposure "$P" "${common[@]}" --out "$R/exposure-standard" \
+    --reuse "$R/budget-standard" "$R/isp-standard"
+}
+mkdir -p "$ckpt"
+for k in $(seq "$workers"); do
+  worker > "$ckpt/worker-$k.log" 2>&1 &
+  sleep 5                     # the first creates the result folders; the next find them
+done
+wait
+"$W" experiment claims --isp "$R/isp-standard" --exposure "$R/exposure-standard" --out "$R/claims-standard.md"
