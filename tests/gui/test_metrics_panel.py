@@ -85,11 +85,13 @@ def test_study_panel_runs_a_grid_resumes_it_and_draws_the_pareto_chart(qtbot, gr
     panel.show()
     qtbot.waitExposed(panel)
     panel.set_project(small)
+    assert "optics.f_number" not in panel.grid.toPlainText()     # a pinhole's default varies what it reads
     panel.folder.setText(str(tmp_path / "study"))
     panel.grid.setPlainText("sensor.pixel_pitch_um=1.5,3\n\noptics.f_number=4")
     with qtbot.waitSignal(panel.finished, timeout=120_000) as got:
         panel.run()
     assert len(got.args[0]["designs"]) == 2 and panel.table.rowCount() == 2
+    assert panel.notes.isVisible() and "irradiance" in panel.notes.text()   # the pinhole's f-number is flagged
     qtbot.wait(50)
     assert len(np.unique(grab(panel.chart).reshape(-1, 3), axis=0)) > 20
     with qtbot.waitSignal(panel.finished, timeout=60_000):            # the same grid: nothing measured again

@@ -143,7 +143,8 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
         writer.writerows(rows)
     front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
     md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
-          f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n" + _markdown(rows) +
+          f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n"
+          + "".join(f"Note: {n}.\n\n" for n in doc.get("notes", [])) + _markdown(rows) +
           f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n")
     fig = Figure(figsize=(6.5, 5))
     draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True),
@@ -160,13 +161,16 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
               y: str = "snr_at_10pct_full_well_dB", compute=None, cancel=None, detector=None,
               data=None) -> Generator[Progress, None, dict]:
     """Measure every design of the grid (resuming a folder that holds this study); with a detector
-    checkpoint and its data set, each design's test mAP too (summary 'map'). Yields Progress,
-    returns the study document."""
+    checkpoint and its data set, each design's test mAP too (summary 'map'). A field no design's
+    optics level reads is refused, one read in part is noted (metrics.grid_checks: the document's
+    'notes', the first Progress). Yields Progress, returns the study document."""
     from workbench.compute import ComputeSpec, run_jobs
     from workbench.datasets.files import read_json_object
     for name in (x, y):
         if name not in HIGHER_IS_BETTER:
             raise ParameterError("--x/--y", name, "one of " + ", ".join(HIGHER_IS_BETTER))
+    from workbench.metrics.grid_checks import check_grid
+    notes = check_grid(project, vary)
     grid = design_grid(project, vary)
     if (detector is None) != (data is None):
         raise ParameterError("detector/data", detector or data, "give both a checkpoint and its data set, or neither")
@@ -181,7 +185,7 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
         raise ParameterError("--x/--y", "map", "needs --detector and --data")
     out = _output_folder(out_dir)
     doc = {"format": STUDY_FORMAT, "project": project.name, "vary": vary, "detector": detector,
-           "planned": len(grid), "designs": []}
+           "planned": len(grid), "notes": notes, "designs": []}
     if (out / "study.json").exists():
         old = read_json_object(out / "study.json", "study file", "")
         if any(old.get(k) != doc[k] for k in ("format", "vary", "project", "detector")):
@@ -189,7 +193,8 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
         doc["designs"] = [d for d in old.get("designs", []) if isinstance(d, dict) and "design" in d]
     done = {d["design"] for d in doc["designs"]}
     jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid if name not in done]
-    yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured")
+    yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured"
+                                         + "".join(f"; note: {n}" for n in notes))
     for job, result in run_jobs(measure_design, jobs, compute or ComputeSpec(workers=0), cancel):
         doc["designs"].append(result)
         write_study(doc, out, x, y)

@@ -14,9 +14,9 @@ from superqt.utils import create_worker
 from workbench.errors import WorkbenchError
 from workbench.gui.mplcanvas import ChartImage, render_rgba
 from workbench.jobs import CancelToken, JobCancelled
+from workbench.metrics.grid_checks import BLURRING_GRID, check_grid, default_grid
 from workbench.metrics.study import HIGHER_IS_BETTER, parse_vary
 
-DEFAULT_GRID = "sensor.pixel_pitch_um=1.5,2,3\noptics.f_number=2,4,8"
 
 
 def study_with_charts(project, vary, out, x, y, token, chart_px):
@@ -59,7 +59,7 @@ class StudyPanel(QWidget):
         self._project = None
         self._worker = None
         self._token: CancelToken | None = None
-        self.grid = QPlainTextEdit(DEFAULT_GRID, self)
+        self.grid = QPlainTextEdit(BLURRING_GRID, self)
         self.grid.setToolTip("one SECTION.FIELD=V1,V2,… per line (as in the project file); every combination runs")
         self.grid.setMaximumHeight(80)
         metrics = sorted(k for k in HIGHER_IS_BETTER if k != "map")
@@ -78,6 +78,9 @@ class StudyPanel(QWidget):
         self.progress = QProgressBar(self)
         self.status = QLabel("set the grid, then Run study (the current design is the starting point)", self)
         self.status.setWordWrap(True)
+        self.notes = QLabel(self)                  # what the optics level ignores of the grid (grid_checks)
+        self.notes.setWordWrap(True)
+        self.notes.setVisible(False)
         self.table = QTableWidget(0, 0, self)
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
         self.chart = ChartImage("the Pareto chart of the two metrics appears as designs are measured", self)
@@ -99,6 +102,7 @@ class StudyPanel(QWidget):
         lay = QVBoxLayout(self)
         lay.addWidget(QLabel("grid (one field per line)", self))
         lay.addWidget(self.grid)
+        lay.addWidget(self.notes)
         lay.addLayout(axes)
         lay.addLayout(folder)
         lay.addLayout(run_row)
@@ -107,6 +111,11 @@ class StudyPanel(QWidget):
         self._update_buttons()
 
     def set_project(self, project) -> None:
+        """The design a study starts from; a grid the user has not edited follows its optics level
+        (metrics.grid_checks.default_grid)."""
+        if self.grid.toPlainText() in {default_grid(p) for p in (project, self._project) if p is not None} \
+                | {BLURRING_GRID}:
+            self.grid.setPlainText(default_grid(project))
         self._project = project
         if not self.folder.text():
             from workbench.gui.paths import data_dir
@@ -126,9 +135,12 @@ class StudyPanel(QWidget):
         try:
             lines = [ln.strip() for ln in self.grid.toPlainText().splitlines() if ln.strip()]
             vary = parse_vary(lines)
+            notes = check_grid(self._project, vary)
         except WorkbenchError as exc:
             self.status.setText(str(exc))
             return
+        self.notes.setText("\n".join(f"note: {n}" for n in notes))
+        self.notes.setVisible(bool(notes))
         self._token = CancelToken()
         self._worker = create_worker(study_with_charts, self._project, vary, Path(self.folder.text()),
                                      self.x.currentText(), self.y.currentText(), self._token, self.chart.size_px(),
