@@ -51,3 +51,15 @@ def test_plot_is_written(tmp_path):
     r = characterize(make_params(bit_depth=12), seed=0, size_px=32, n_levels=20)
     out = plot_photon_transfer(r, tmp_path / "ptc.png")
     assert out.stat().st_size > 10_000 and out.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_read_noise_hidden_by_an_8_bit_adc_is_measured_through_a_finer_one():
+    """At 8 bits (LSB 39 e⁻ with the paper's swing and gain) the dark noise is below one code: the
+    read noise was reported as '≥ 0 e⁻'; now it is measured through a 16-bit ADC and says so."""
+    p = make_params(bit_depth=8, read_noise_V=1e-3)                 # 10 e⁻ at 100 µV/e⁻
+    r = characterize(p, seed=0, size_px=64, n_levels=20)
+    assert r["adc_step_e"] == pytest.approx(1.0 / 256 / 100e-6, rel=0.05) and r["read_noise_bits"] == 16
+    assert r["read_noise_e"] == pytest.approx(r["configured"]["read_noise_e"], rel=0.08)
+    assert not r["read_noise_is_lower_bound"] and "16-bit ADC" in r["notes"][0]
+    from workbench.gui.editors.sensor import emva_summary
+    assert "≥" not in emva_summary(r) and "16-bit" in emva_summary(r)

@@ -13,8 +13,10 @@ From these (EMVA 1288 release 3/4 formulas):
 Only the pixels of one CFA channel (the most sensitive at 550 nm) are analysed.
 
 Quantisation: with few bits the read noise is smaller than one code and its estimate is biased
-(EMVA asks σ_y.dark ≥ 0.5 DN); characterise with bit_depth 0 (analog volts) or ≥ 12 bits to
-recover read noise, as the tests do. A black-level offset of `black_level_fraction` × swing is
+(EMVA asks σ_y.dark ≥ 0.5 DN). Where the dark noise is at or below the step, the dark pairs are
+taken again through a FINE_ADC_BITS ADC of the same swing and gain (the higher-resolution
+measurement EMVA 1288 allows) and the read noise comes from those; the result says so
+('read_noise_bits', 'adc_step_e', a note). A black-level offset of `black_level_fraction` × swing is
 added when the configured offset is smaller, so that dark frames do not clip at zero (as the
 standard requires); the saturation capacity then refers to the swing above that offset.
 """
@@ -32,6 +34,7 @@ from workbench.sensor.params import SensorParams
 from workbench.sensor.signal import irradiance_to_signal_rate
 
 WAVELENGTH_NM = 550.0
+FINE_ADC_BITS = 16          # the ADC a read noise hidden by a coarse one is measured through
 LINEAR_FIT_FRACTION = 0.7
 
 
@@ -103,6 +106,22 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     gain_dn_per_e, _ = np.polyfit(signal[fit], var_y[fit] - var_dark, 1)
     quant_var = 1.0 / 12.0 if cam.bit_depth else 0.0
     read_noise_e = float(np.sqrt(max(var_dark - quant_var, 0.0)) / gain_dn_per_e)
+    hidden = bool(cam.bit_depth) and var_dark <= 2 * quant_var       # the ADC step hides the read noise
+    notes = []
+    if hidden and cam.bit_depth < FINE_ADC_BITS:
+        fine = cam.updated(bit_depth=FINE_ADC_BITS)
+        fine_gain = gain_dn_per_e * 2 ** (FINE_ADC_BITS - cam.bit_depth)          # same swing: K scales with codes
+        var_fine = float(np.mean([_pair_stats(signal_rate_to_sensor_image(zero, fine, exposure_s, rng).dn,
+                                              signal_rate_to_sensor_image(zero, fine, exposure_s, rng).dn, mask)[1]
+                                  for _ in range(4)]))
+        read_noise_e = float(np.sqrt(max(var_fine - 1.0 / 12.0, 0.0)) / fine_gain)
+        notes.append(f"the dark noise ({np.sqrt(var_dark):.2f} DN) is below the {cam.bit_depth}-bit ADC's step "
+                     f"({1 / gain_dn_per_e:.3g} e⁻ per DN), which hides the read noise; it was measured through a "
+                     f"{FINE_ADC_BITS}-bit ADC of the same swing and gain (EMVA 1288's higher-resolution "
+                     f"measurement; {1 / fine_gain:.3g} e⁻ per DN)")
+    elif hidden:
+        notes.append(f"the dark noise ({np.sqrt(var_dark):.2f} DN) is at or below the ADC's step "
+                     f"({1 / gain_dn_per_e:.3g} e⁻ per DN): the read noise cannot be measured and is a lower bound")
     resp, _ = np.polyfit(photons[fit], signal[fit], 1)              # DN per photon = K·η
 
     dark_t = np.linspace(0.0, min(0.3 * sat_e / cam.dark_current_e_per_s, 3600.0), n_dark) \
@@ -134,11 +153,10 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
         "dsnu_e": float(np.sqrt(max(dsnu_var, 0.0)) / gain_dn_per_e),
         "prnu_pct": float(100 * np.sqrt(max(prnu_var, 0.0)) / max(signal[half], 1e-30)),
         "black_level_V": cam.analog_offset_V,
-        "notes": ([f"the dark noise ({np.sqrt(var_dark):.2f} DN) is at or below the quantisation step of "
-                   f"{cam.bit_depth} bits ({1 / gain_dn_per_e:.0f} e⁻ per DN): the read noise cannot be "
-                   "measured through this ADC and is reported as a lower bound; characterise with "
-                   "bit_depth ≥ 12 or 0 (analog) to measure it"]
-                  if cam.bit_depth and var_dark <= 2 * quant_var else []),
+        "adc_step_e": float(1 / gain_dn_per_e) if cam.bit_depth else None,
+        "read_noise_bits": (FINE_ADC_BITS if hidden and cam.bit_depth < FINE_ADC_BITS else cam.bit_depth) or None,
+        "read_noise_is_lower_bound": hidden and cam.bit_depth >= FINE_ADC_BITS,
+        "notes": notes,
         "configured": {
             "conversion_gain_uV_per_e": params.conversion_gain_uV_per_e,
             "conversion_gain_DN_per_e": (cam.conversion_gain_V_per_e * cam.analog_gain / cam.lsb_V

@@ -34,9 +34,10 @@ def qe_inputs(params: SensorParams) -> tuple:
 
 def emva_summary(result: dict) -> str:
     """The measured figures, each beside the configured one, and the measurement's notes (a read
-    noise hidden by the ADC's quantisation is a lower bound, marked ≥)."""
+    noise hidden by the ADC's quantisation is measured through a finer one, or is a lower bound,
+    marked ≥)."""
     conf = result["configured"]
-    bound = "≥ " if result["notes"] else ""
+    bound = "≥ " if result.get("read_noise_is_lower_bound") else ""
     lines = [f"K {result['conversion_gain_uV_per_e']:.3g} µV/e⁻ (configured {conf['conversion_gain_uV_per_e']:.3g}), "
              f"read noise {bound}{result['read_noise_e']:.3g} e⁻ (configured {conf['read_noise_e']:.3g}), "
              f"dark current {result['dark_current_e_per_s']:.3g} e⁻/s (configured "
