@@ -3,6 +3,7 @@ tile, the QE chart and the EMVA 1288 plot draw real pixels."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from PySide6.QtCore import Qt
 
 from workbench.gui.editors.sensor import SensorEditor
@@ -64,7 +65,8 @@ def test_emva_runs_in_background_and_plots(qtbot, grab, shown):
     assert abs(result["conversion_gain_uV_per_e"] - 100.0) < 5.0
     text = editor.emva_status.text()
     assert "µV/e⁻" in text and f"(configured {Project().sensor.read_noise_e:.3g})" in text
-    assert result["notes"] and "read noise ≥ " in text and "lower bound" in text     # an 8-bit ADC hides it
+    assert result["notes"] and "16-bit ADC" in text and "≥" not in text      # an 8-bit ADC hid it: measured finer
+    assert result["read_noise_e"] == pytest.approx(Project().sensor.read_noise_e, rel=0.15)
     snr_axes = editor.emva_chart.figure().axes[1]
     assert min(min(line.get_xdata()) for line in snr_axes.lines) >= 1.0             # no point below 1 e⁻
     qtbot.waitUntil(lambda: editor.emva_button.isEnabled())
