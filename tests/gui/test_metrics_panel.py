@@ -121,3 +121,21 @@ def test_the_kept_side_process_outlives_the_thread_that_started_it():
     time.sleep(1.0)                                   # the starting thread has ended
     assert side_process.run(os.getpid) == pids[0] != os.getpid()
     side_process.shutdown()
+
+
+def test_the_side_process_is_warmed_with_a_measurement_and_a_running_one_counts_its_seconds(qtbot, shown, small):
+    """The first measurement took 13 s (imports, kernels, caches) and showed only 'measuring…'; the
+    window now measures its project once in the side process as it opens, and the status counts."""
+    import os
+
+    from workbench.gui import side_process
+    metrics, _, _ = side_process.warm(small).result(timeout=300)
+    assert metrics["project"] == small.name and metrics["summary"]["mtf50_cy_px"] > 0
+    warmed = side_process.run(os.getpid)
+    panel = make_panel(shown)
+    panel.set_project(small)
+    seen = []
+    panel.measure(force=True)
+    qtbot.waitUntil(lambda: seen.append(panel.status.text()) or panel._worker is None, timeout=300_000)
+    assert any(t.startswith(f"measuring {small.name} on test charts… ") and t.endswith(" s") for t in seen)
+    assert side_process.run(os.getpid) == warmed                   # the same, kept process measured it

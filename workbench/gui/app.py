@@ -52,6 +52,8 @@ def _run_window(app, args) -> int:
     from workbench.gui.crash import install_crash_handler
     install_crash_handler(window)
     window.show()
+    from workbench.gui import side_process
+    side_process.warm(window.document.project)      # the Metrics dock's first measurement, ahead of time
     window.offer_recovery()
     report_missing_backends(window)
     return app.exec()

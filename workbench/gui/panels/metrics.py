@@ -11,6 +11,8 @@ Measurements run one at a time; an edit during a measurement queues one more run
 project (older requests are dropped), so results never arrive out of order."""
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (QCheckBox, QHBoxLayout, QLabel, QPushButton, QSplitter, QTableWidget,
@@ -21,6 +23,7 @@ from workbench.gui import side_process
 from workbench.gui.mplcanvas import ChartImage, render_rgba
 
 DEBOUNCE_MS = 300
+ELAPSED_STEP_MS = 500
 # (key, label, format) of the rows: frame read-outs, then the camera's summary measurements
 READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
                 ("analog_gain", "analog gain", lambda v: f"{v:.3g}"),
@@ -101,6 +104,10 @@ class MetricsPanel(QWidget):
         self._timer.setSingleShot(True)
         self._timer.setInterval(DEBOUNCE_MS)
         self._timer.timeout.connect(lambda: self.measure())
+        self._started = 0.0
+        self._elapsed = QTimer(self)               # the status counts the seconds of a running measurement
+        self._elapsed.setInterval(ELAPSED_STEP_MS)
+        self._elapsed.timeout.connect(self._show_elapsed)
 
         self.live = QCheckBox("measure after every edit", self)
         self.live.setChecked(True)
@@ -235,9 +242,17 @@ class MetricsPanel(QWidget):
         self._worker.returned.connect(lambda result, p=project: self._returned(p, result))
         self._worker.errored.connect(self._errored)
         self._worker.finished.connect(self._finished)
-        self.status.setText(f"measuring {project.name} on test charts…")
+        self._started = time.perf_counter()
+        self._show_elapsed()
+        self._elapsed.start()
         self._worker.start()
         self._update_buttons()
+
+    def _show_elapsed(self) -> None:
+        """The running measurement's status: what is measured and for how long so far."""
+        if self._worker is not None and self._project is not None:
+            self.status.setText(f"measuring {self._project.name} on test charts… "
+                                f"{time.perf_counter() - self._started:.0f} s")
 
     def _returned(self, project, result) -> None:
         metrics, rgba, seconds = result
@@ -254,6 +269,7 @@ class MetricsPanel(QWidget):
         self.status.setText(f"measurement failed: {exc}")
 
     def _finished(self) -> None:
+        self._elapsed.stop()
         self._worker = None
         queued, self._queued = self._queued, None
         if queued is not None:
