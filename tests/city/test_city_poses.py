@@ -62,6 +62,20 @@ def test_manual_pose(city):
         sample_camera_poses(city, PoseParams(mode="manual", manual_position_xy_m=(1e4, 0)))
 
 
+def test_a_manual_camera_inside_a_building_is_refused_saying_where(city):
+    """A camera dropped inside a building rendered a black frame and nothing said why."""
+    from workbench.scene.city.poses import building_at
+    building = next(o for o in city.objects if o.class_name == "building" and o.footprint_xy is not None)
+    x, y = np.asarray(building.footprint_xy, dtype=float).mean(axis=0)
+    assert building_at(city, x, y) is building
+    with pytest.raises(ValueError, match="inside a building .*put it on a street"):
+        sample_camera_poses(city, PoseParams(mode="manual", manual_position_xy_m=(float(x), float(y))))
+    layout = city.meta["layout"]
+    on_road = next(p for p in sample_camera_poses(city, PoseParams(), 20, seed=3))
+    assert layout.on_road(on_road.position_m[None, :2]).all()
+    assert building_at(city, *on_road.position_m[:2]) is None      # a street spot is free
+
+
 @pytest.mark.parametrize("kwargs,match", [
     ({"mode": "manual"}, "manual_position_xy_m"),
     ({"pan_range_deg": (10, -10)}, "pan_range_deg"),

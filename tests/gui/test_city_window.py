@@ -158,3 +158,18 @@ def test_a_pose_edit_reuses_the_shown_city_and_gets_the_same_pose():
         assert np.array_equal(again.position_m, reused.position_m)
         assert (again.pan_deg, again.tilt_deg, again.roll_deg) == (reused.pan_deg, reused.tilt_deg, reused.roll_deg)
 
+
+
+def test_a_camera_dropped_inside_a_building_is_refused_and_goes_back(city_window, qtbot):
+    """A gizmo drop inside a building put the camera there (a black frame, nothing said): it is
+    refused with the reason, no edit is made, and the boxes show the camera where it was."""
+    win = city_window
+    qtbot.waitUntil(lambda: win.city_view.city is not None and win.city_view.pose is not None, timeout=TIMEOUT_MS)
+    view = win.city_view
+    building = next(o for o in view.city.objects if o.class_name == "building" and o.footprint_xy is not None)
+    x, y = np.asarray(building.footprint_xy, dtype=float).mean(axis=0)
+    before, steps = win.document.project, win.document.undo_stack.count()
+    view._gizmo_moved((float(x), float(y), 1.5))
+    assert "inside a building" in view.status.text() and win.document.project == before
+    assert win.document.undo_stack.count() == steps
+    assert view.pose_boxes["x"].value() == pytest.approx(view.pose.position_m[0], abs=0.01)

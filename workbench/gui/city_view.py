@@ -165,12 +165,7 @@ class CityView(QWidget):
         self._city_key = key
         self.pose = pose
         p = pose.position_m
-        for name, value in zip(("x", "y", "height", "pan", "tilt", "roll"),
-                               (p[0], p[1], p[2], pose.pan_deg, pose.tilt_deg, pose.roll_deg)):
-            box = self.pose_boxes[name]
-            box.blockSignals(True)
-            box.setValue(float(value))
-            box.blockSignals(False)
+        self._show_pose_values(pose)
         if not same_city:
             self.city = city
             self._show_city(mesh)
@@ -178,6 +173,16 @@ class CityView(QWidget):
             self._redraw_camera()
         self.status.setText(f"{len(city.objects)} objects; camera at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.2f}) m, "
                             f"pan {pose.pan_deg:.1f}°")
+
+    def _show_pose_values(self, pose) -> None:
+        """The pose boxes show `pose` (without emitting edits)."""
+        p = pose.position_m
+        for name, value in zip(("x", "y", "height", "pan", "tilt", "roll"),
+                               (p[0], p[1], p[2], pose.pan_deg, pose.tilt_deg, pose.roll_deg)):
+            box = self.pose_boxes[name]
+            box.blockSignals(True)
+            box.setValue(float(value))
+            box.blockSignals(False)
 
     def _hfov_deg(self) -> float:
         from workbench.stages.geometry import project_geometry
@@ -288,10 +293,17 @@ class CityView(QWidget):
         if self.pose is not None and len(self._untouched()) == len(self.pose_boxes):
             self.status.setText("pose unchanged: type a new value first")
             return
+        pose = self.typed_pose()
         try:
-            self.document.edit("pose", self.typed_pose())
+            if self.city is not None:             # refused before it becomes an edit (and an undo step)
+                from workbench.scene.city.poses import check_camera_spot
+                check_camera_spot(self.city, *pose["manual_position_xy_m"])
+            self.document.edit("pose", pose)
         except ValueError as exc:
             self.status.setText(f"pose not set: {exc}")
+            if self.pose is not None:             # the gizmo and the boxes go back to the camera
+                self._show_pose_values(self.pose)
+                self._redraw_camera()
 
     def close_view(self) -> None:
         self._job_id += 1

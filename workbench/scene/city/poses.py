@@ -56,12 +56,34 @@ def _ego_clear(xy: np.ndarray, heading_deg: float, vehicles: list[np.ndarray]) -
     return not any(g.rects_overlap(ego, v, EGO_CLEARANCE_M) for v in vehicles)
 
 
-def _manual(city: City, pp: PoseParams, n: int) -> list[CameraPose]:
-    x, y = pp.manual_position_xy_m
+def building_at(city: City, x: float, y: float):
+    """The building whose ground footprint holds the point (x, y) m, or None."""
+    from matplotlib.path import Path
+    for obj in city.objects:
+        if obj.class_name == "building" and obj.footprint_xy is not None and len(obj.footprint_xy) >= 3 \
+                and Path(np.asarray(obj.footprint_xy, dtype=float)).contains_point((x, y)):
+            return obj
+    return None
+
+
+def check_camera_spot(city: City, x: float, y: float) -> None:
+    """InvalidValueError when a camera at (x, y) m would stand outside the city or inside a
+    building (its frame would be black), saying where the free space is."""
     x0, y0, x1, y1 = city.extent_m
     if not (x0 <= x <= x1 and y0 <= y <= y1):
         raise InvalidValueError(f"manual_position_xy_m=({x}, {y}) lies outside the city extent "
-                         f"x {x0:.1f}…{x1:.1f}, y {y0:.1f}…{y1:.1f} m")
+                                f"x {x0:.1f}…{x1:.1f}, y {y0:.1f}…{y1:.1f} m")
+    inside = building_at(city, x, y)
+    if inside is not None:
+        fx, fy = np.asarray(inside.footprint_xy, dtype=float).T
+        raise InvalidValueError(f"manual_position_xy_m=({x:.2f}, {y:.2f}) is inside a building (footprint x "
+                                f"{fx.min():.1f}…{fx.max():.1f}, y {fy.min():.1f}…{fy.max():.1f} m): the camera "
+                                "would see only its walls; put it on a street or a sidewalk")
+
+
+def _manual(city: City, pp: PoseParams, n: int) -> list[CameraPose]:
+    x, y = pp.manual_position_xy_m
+    check_camera_spot(city, x, y)
     return [CameraPose(np.array([x, y, pp.height_m]), _wrap(pp.manual_pan_deg), pp.manual_tilt_deg,
                        pp.manual_roll_deg, meta={"mode": "manual"}) for _ in range(n)]
 
