@@ -378,3 +378,25 @@ def test_a_frame_repaints_the_window_once_and_only_its_changed_panes(window, qtb
                if (pane.view_widget.viewport(), QEvent.Type.Paint) in counter.seen}
     assert len(updates) == 1 and painted == {"linear", "srgb"}
     assert grab(panes["srgb"].view_widget).astype(float).std() > 5.0
+
+
+def test_hovering_a_pane_does_not_widen_the_window(window, qtbot):
+    """A long pixel-inspector line raised the window's minimum width from 929 to 1358 px at
+    1280×800 and made the pane columns unequal (484 vs 324 px); real mouse moves over each pane."""
+    from PySide6.QtCore import QPoint
+    window.resize(1280, 800)
+    qtbot.wait(100)
+    min_before = window.minimumSizeHint().width()
+    widths_before = [p.width() for p in window.previews.panes.values()]
+    for pane in window.previews.panes.values():
+        port = pane.view_widget.viewport()
+        centre = QPoint(port.width() // 3, port.height() // 2)
+        qtbot.mouseMove(port, centre)
+        qtbot.mouseMove(port, centre + QPoint(3, 2))
+        qtbot.waitUntil(lambda p=pane: p.inspector.text() != "—", timeout=5_000)
+    qtbot.wait(100)
+    texts = [p.inspector.text() for p in window.previews.panes.values()]
+    assert all(len(t) > 20 for t in texts) and window.width() <= 1280
+    assert window.minimumSizeHint().width() <= min_before
+    assert [p.width() for p in window.previews.panes.values()] == widths_before
+    assert all(p.inspector.toolTip() == p.inspector.text() for p in window.previews.panes.values())

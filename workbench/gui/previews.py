@@ -18,7 +18,7 @@ from contextlib import contextmanager
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QMetaObject, Qt, QTimer, Signal
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout,
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QGridLayout, QHBoxLayout, QLabel, QSizePolicy, QVBoxLayout,
                                QWidget)
 
 pg.setConfigOptions(imageAxisOrder="row-major", antialias=False)
@@ -115,6 +115,11 @@ class PreviewPane(QWidget):
         self.title = QLabel(f"<b>{TITLES[name]}</b>")
         self.inspector = QLabel("—")
         self.inspector.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        # its text never sets the pane's width (a long line widened the window's minimum from
+        # 929 to 1358 px at 1280×800 and made the pane columns unequal): what does not fit is cut,
+        # and the whole line is the tooltip
+        self.inspector.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.inspector.setMinimumWidth(1)
         top = QHBoxLayout()
         top.addWidget(self.title)
         top.addStretch(1)
@@ -364,6 +369,7 @@ class PreviewPanes(QWidget):
         texts = self.describe_pixel(self._last_px)
         for name, pane in self.panes.items():
             pane.inspector.setText(texts.get(name, "—"))
+            pane.inspector.setToolTip(texts.get(name, ""))
         if self._last_px is not None:
             self.inspected.emit(" | ".join(texts[n] for n in PANES))
 
