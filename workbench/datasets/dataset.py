@@ -183,7 +183,8 @@ class CityJob:
         return [s.index for s in self.seeds]
 
     def __repr__(self) -> str:
-        return f"city {self.seeds[0].city} (frames {', '.join(map(str, self.indices))})"
+        first, last = self.seeds[0].index, self.seeds[-1].index
+        return f"frame {first}" if first == last else f"frames {first}–{last} (city {self.seeds[0].city})"
 
 
 @dataclass(frozen=True)
@@ -215,6 +216,12 @@ def render_city_job(job: CityJob) -> list[FramePayload]:
         payload = encode_frame(data, header, job.irradiance_dtype)
         out.append(FramePayload(seeds.index, payload, len(data.labels.objects), time.perf_counter() - t0))
     return out
+
+
+def _frame_in_flight(job: CityJob, done: float) -> str:
+    """'frame I P %': the frame a city job is rendering, `done` frames into it."""
+    k = min(int(done), len(job.seeds) - 1)
+    return f"frame {job.seeds[k].index} {100 * (done - k):.0f} %"
 
 
 def city_jobs(project, frames: int, done: set[int], fingerprint: str, irradiance_dtype: str,
@@ -292,18 +299,19 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         todo = city_jobs(project, frames, set(reused), fingerprint, irradiance_dtype, renderer)
         rendered, running = [], {}
         for item in run_jobs(render_city_job, todo, compute, cancel, task_progress=True):
-            if isinstance(item, Progress):          # a city still rendering: frames done in it so far
+            if isinstance(item, Progress):          # a city still rendering: its frames done so far
                 job = item.source
-                running[job.seeds[0].city] = item.done
-                yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
-                               "rendering " + ", ".join(f"city {c}: {d:.1f} frames" for c, d in sorted(running.items())))
+                running[job.seeds[0].city] = (job, item.done)
+                yield Progress(len(reused) + len(rendered) + sum(d for _, d in running.values()), frames,
+                               "rendering " + ", ".join(_frame_in_flight(j, d) for j, d in
+                                                        (running[c] for c in sorted(running))))
                 continue
             job, records = item
             running.pop(job.seeds[0].city, None)
             for rec in records:
                 atomic_write_bytes(frame_path(out, rec.index), rec.payload)
                 rendered.append(rec.index)
-                yield Progress(len(reused) + len(rendered) + sum(running.values()), frames,
+                yield Progress(len(reused) + len(rendered) + sum(d for _, d in running.values()), frames,
                                f"frame {rec.index}: {rec.objects} objects, {rec.seconds:.1f} s")
         result = yield from write_index(out, project, frames, fingerprint, irradiance_dtype, renderer)
     return DatasetResult(out, frames, rendered, reused, *result)
