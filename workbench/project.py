@@ -251,3 +251,19 @@ def project_to_json(project: Project) -> str:
 def save_project(project: Project, path: str | os.PathLike) -> Path:
     """Validate and save atomically as indented JSON (see atomic_write_text); returns the file written."""
     return atomic_write_text(path, project_to_json(project))
+
+
+def project_differences(a: Project, b: Project, skip: tuple[str, ...] = ("name", "description")) -> list[tuple]:
+    """(dotted field, value in a, value in b) of every parameter where two projects differ (the
+    leaves of their JSON form; a section set in one and absent in the other is one entry), fields
+    starting with one of `skip` left out."""
+    out: list[tuple] = []
+
+    def walk(x, y, prefix: str) -> None:
+        if isinstance(x, dict) and isinstance(y, dict):
+            for k in sorted(set(x) | set(y)):
+                walk(x.get(k), y.get(k), f"{prefix}.{k}" if prefix else k)
+        elif x != y and not prefix.startswith(skip):
+            out.append((prefix, x, y))
+    walk(json.loads(a.model_dump_json()), json.loads(b.model_dump_json()), "")
+    return out

@@ -46,11 +46,13 @@ def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
     assert len(np.unique(grab(panel.chart).reshape(-1, 3), axis=0)) > 20
 
     panel.pin()
+    assert panel.changes.isVisible() and "no parameter differs" in panel.changes.text()
     b = small.updated(sensor=small.sensor.updated(pixel_pitch_um=1.5))
     with qtbot.waitSignal(panel.measured, timeout=60_000):
         panel.set_project(b)
         panel.set_frame(frame_of(b))
     rows = table(panel)
+    assert panel.changes.text() == f"A → B: sensor.pixel_pitch_um {small.sensor.pixel_pitch_um} → 1.5"
     assert not panel.table.isColumnHidden(0) and not panel.table.isColumnHidden(2)
     a_nee, b_nee, change = (float(v) for v in rows["noise-equivalent exposure (mlx·s)"])
     assert b_nee / a_nee == pytest.approx(4.0, rel=0.1) and change == pytest.approx(b_nee - a_nee, rel=1e-2)
@@ -59,7 +61,7 @@ def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
     assert len(np.unique(grab(panel.ab).reshape(-1, 3), axis=0)) > 50
 
     panel.clear_pin()
-    assert panel.table.isColumnHidden(0) and panel.pinned is None
+    assert panel.table.isColumnHidden(0) and panel.pinned is None and not panel.changes.isVisible()
 
 
 def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small, shown):

@@ -50,6 +50,22 @@ def test_compare_of_smaller_pixels_reports_the_expected_trade(small_camera, tmp_
     md = (tmp_path / "cmp" / "compare.md").read_text()
     assert "| metric | A | B | B − A |" in md
     assert (tmp_path / "cmp" / "compare.png").stat().st_size > 10_000
+    assert doc["changed"] == [{"field": "sensor.pixel_pitch_um", "A": p.sensor.pixel_pitch_um, "B": 1.5}]
+    assert f"Changed from A to B: sensor.pixel_pitch_um {p.sensor.pixel_pitch_um} → 1.5" in md
+
+
+def test_compare_of_a_design_with_itself_is_the_same_everywhere(small_camera, tmp_path):
+    """Two identical projects: nothing changed, and every metric reads 'same' (a 0.04 % difference
+    in noise-equivalent exposure used to be 'A better')."""
+    from workbench.metrics.study import compare_verdict
+    assert main(["compare", str(small_camera), str(small_camera), "--out", str(tmp_path / "cmp")]) == 0
+    doc = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    assert doc["changed"] == [] and all(r[""].startswith("same within") for r in doc["table"] if r["A"] is not None)
+    assert "the same design" in (tmp_path / "cmp" / "compare.md").read_text()
+    assert compare_verdict("noise_equivalent_exposure_lux_s", 1.0, 1.0004).startswith("same within")
+    assert compare_verdict("noise_equivalent_exposure_lux_s", 1.0, 1.05) == "A better"
+    assert compare_verdict("mtf50_cy_px", 0.250, 0.2515).startswith("same")
+    assert compare_verdict("mtf50_cy_px", 0.25, 0.26) == "B better"
 
 
 def test_study_runs_the_grid_resumes_and_draws_the_pareto_chart(small_camera, tmp_path, capsys):

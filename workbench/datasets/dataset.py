@@ -360,17 +360,9 @@ def spec_differences(spec: dict, project) -> str:
     if not frame_input_differences(stored, project):
         return ("the same settings by an earlier version of the frame renderer (frame format "
                 f"{FRAME_VERSION} or its code changed since): its frames cannot be mixed with new ones")
-    a, b = json.loads(stored.model_dump_json()), json.loads(project.model_dump_json())
-    fields = [f for f in _leaf_differences(a, b) if not f.startswith(("name", "description", "experiment"))]
+    from workbench.project import project_differences
+    fields = [f for f, _, _ in project_differences(stored, project, skip=("name", "description", "experiment"))]
     return "a different project or settings (" + ", ".join(fields[:8]) + (" …" if len(fields) > 8 else "") + ")"
-
-
-def _leaf_differences(a, b, prefix: str = "") -> list[str]:
-    """Dotted paths of the leaves where two JSON-like values differ."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        return [p for k in sorted(set(a) | set(b))
-                for p in _leaf_differences(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else k)]
-    return [] if a == b else [prefix]
 
 
 def scan_frames(out: Path, frames: int) -> tuple[list[int], list[str]]:

@@ -226,9 +226,31 @@ def _output_folder(out_dir) -> Path:
     return prepare_output_folder(out_dir)
 
 
+# how far apart two measurements of a metric must be to call one design better: below this they
+# read "same within ±tolerance" (the measurement's repeatability on the test charts is about this
+# size: MTF50 by the slanted edge ±0.002 cy/px, SNR ±0.1 dB; an exposure 1 %; ΔE ±0.05)
+COMPARE_TOLERANCE = {"mtf50_cy_px": ("abs", 0.002), "mtf_nyquist": ("abs", 0.005), "mtf50_lp_mm": ("rel", 0.01),
+                     "snr_at_10pct_full_well_dB": ("abs", 0.1), LOW_LIGHT_SNR_KEY: ("abs", 0.1),
+                     "noise_equivalent_exposure_lux_s": ("rel", 0.01), "delta_e_mean": ("abs", 0.05),
+                     "delta_e_max": ("abs", 0.05), "read_noise_e": ("rel", 0.01), "full_well_e": ("rel", 0.01),
+                     "dynamic_range_dB": ("abs", 0.1), "map": ("abs", 0.01)}
+
+
+def compare_verdict(metric: str, a: float | None, b: float | None) -> str:
+    """'A better', 'B better', 'same within ±x' (COMPARE_TOLERANCE) or '' when one is missing."""
+    if a is None or b is None:
+        return ""
+    kind, tol = COMPARE_TOLERANCE.get(metric, ("rel", 0.01))
+    width = tol * max(abs(a), abs(b)) if kind == "rel" else tol
+    if abs(b - a) <= width:
+        return f"same within ±{tol:g}" + (" (relative)" if kind == "rel" else "")
+    return "B better" if (b > a) == HIGHER_IS_BETTER.get(metric, True) else "A better"
+
+
 def compare_designs(a, b, out_dir) -> dict:
-    """camera_metrics of two projects, written as compare.json, compare.md (a table with the
-    change) and compare.png (MTF, SNR and ΔE of both); returns the comparison."""
+    """camera_metrics of two projects, written as compare.json, compare.md (the parameters that
+    differ, then a table with the change and a verdict: better only beyond the metric's
+    tolerance) and compare.png (MTF, SNR and ΔE of both); returns the comparison."""
     from matplotlib.figure import Figure
 
     from workbench.files import atomic_write_files
@@ -238,15 +260,18 @@ def compare_designs(a, b, out_dir) -> dict:
     ma, mb = camera_metrics(a), camera_metrics(b)
     if ma["project"] == mb["project"]:
         ma["project"], mb["project"] = f"A: {a.name}", f"B: {b.name}"
+    from workbench.project import project_differences
+    changed = [{"field": f, "A": va, "B": vb} for f, va, vb in project_differences(a, b)]
     rows = []
     for key, better in HIGHER_IS_BETTER.items():
         va, vb = ma["summary"].get(key), mb["summary"].get(key)
         if va is None and vb is None:
             continue
-        change = None if va is None or vb is None else vb - va
-        verdict = "" if change is None or change == 0 else ("B better" if (change > 0) == better else "A better")
-        rows.append({"metric": key, "A": va, "B": vb, "B − A": change, "": verdict})
-    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n" + _markdown(rows) +
+        rows.append({"metric": key, "A": va, "B": vb, "B − A": None if va is None or vb is None else vb - va,
+                     "": compare_verdict(key, va, vb)})
+    what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
+            if changed else "A and B are the same design (no parameter differs).")
+    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) +
           "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "
@@ -257,7 +282,7 @@ def compare_designs(a, b, out_dir) -> dict:
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
-    doc = {"A": ma, "B": mb, "table": rows}
+    doc = {"A": ma, "B": mb, "changed": changed, "table": rows}
     atomic_write_files({out / "compare.png": png.getvalue(), out / "compare.md": md.encode(),
                         out / "compare.json": (json.dumps(doc, indent=1, default=float) + "\n").encode()})
     return doc

@@ -24,6 +24,7 @@ from workbench.gui.mplcanvas import ChartImage, render_rgba
 
 DEBOUNCE_MS = 300
 ELAPSED_STEP_MS = 500
+MAX_CHANGES_SHOWN = 4
 # (key, label, format) of the rows: frame read-outs, then the camera's summary measurements
 READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
                 ("analog_gain", "analog gain", lambda v: f"{v:.3g}"),
@@ -122,6 +123,9 @@ class MetricsPanel(QWidget):
         self.clear_button.clicked.connect(self.clear_pin)
         self.status = QLabel("no measurement yet", self)
         self.status.setWordWrap(True)
+        self.changes = QLabel(self)                 # what differs between A and B (project_differences)
+        self.changes.setWordWrap(True)
+        self.changes.setVisible(False)
         self.table = QTableWidget(0, 3, self)
         self.table.setHorizontalHeaderLabels(["A (pinned)", "B (current)", "B − A"])
         self.table.horizontalHeader().setStretchLastSection(True)
@@ -145,6 +149,7 @@ class MetricsPanel(QWidget):
         lay.addWidget(self.live)
         lay.addLayout(buttons)
         lay.addWidget(self.status)
+        lay.addWidget(self.changes)
         lay.addWidget(split, 1)
         self._update_buttons()
         self._fill_table()
@@ -155,9 +160,26 @@ class MetricsPanel(QWidget):
         is on screen (a hidden panel measures when it is shown: no CPU for numbers nobody sees)."""
         changed = project is not self._project and project != self._project
         self._project = project
+        if changed:
+            self._show_changes()
         if changed and self.live.isChecked() and self.on_screen():
             self._timer.start()
         self._update_buttons()
+
+    def _show_changes(self) -> None:
+        """Above the A/B table: the parameters in which the current design B differs from the pinned A."""
+        from workbench.project import project_differences
+        a = None if self.pinned is None else self.pinned.get("design")
+        if a is None or self._project is None:
+            self.changes.setVisible(False)
+            return
+        diff = project_differences(a, self._project)
+        text = ("A → B: " + "; ".join(f"{f} {va} → {vb}" for f, va, vb in diff[:MAX_CHANGES_SHOWN])
+                + (f"; … {len(diff) - MAX_CHANGES_SHOWN} more" if len(diff) > MAX_CHANGES_SHOWN else "")
+                if diff else "B is the pinned design A (no parameter differs)")
+        self.changes.setText(text)
+        self.changes.setToolTip("\n".join(f"{f}: {va} → {vb}" for f, va, vb in diff))
+        self.changes.setVisible(True)
 
     def on_screen(self) -> bool:
         """Whether any of the panel can be seen: Qt keeps the widgets of a dock's hidden tabs
@@ -191,14 +213,16 @@ class MetricsPanel(QWidget):
             return
         self.pinned = {"metrics": self.metrics, "readouts": dict(self._readouts),
                        "srgb": None if self._frame is None else np.array(self._frame.srgb),
-                       "project": getattr(self._project, "name", "A")}
+                       "project": getattr(self._project, "name", "A"), "design": self._project}
         self.status.setText(f"pinned '{self.pinned['project']}' as A: edit the design to compare")
         self._fill_table()
         self._update_buttons()
+        self._show_changes()
         self._draw_ab()
 
     def clear_pin(self) -> None:
         self.pinned = None
+        self._show_changes()
         self.ab.clear()
         self.ab.setText("Pin a design as A, then edit: A, B and their difference appear here")
         self._fill_table()
