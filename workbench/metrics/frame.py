@@ -13,6 +13,8 @@ chart (ΔE2000 per patch, and the noise of its six neutral patches per channel).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from workbench.metrics.colour import macbeth_delta_e
@@ -143,26 +145,40 @@ def noise_series(project) -> tuple[list[dict], float]:
 
 
 def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
-    """On the noise series' green (or first) channel: electrons per lux·s at the sensor plane; the
-    SNR of a road at LOW_LIGHT_CD_M2 seen for LOW_LIGHT_EXPOSURE_S (measured, interpolated log–log
-    between unclipped captures; the model's at the measured gain outside them); the
-    noise-equivalent exposure (lux·s where the model's SNR is 1: N² = N + σ²_floor)."""
+    """On the noise series' green (or first) channel: electrons per lux·s at the sensor plane
+    (measured); the SNR of a road at LOW_LIGHT_CD_M2 seen for LOW_LIGHT_EXPOSURE_S and the
+    noise-equivalent exposure (lux·s where SNR = 1), both from the read-out's exact statistics at
+    that signal (sensor.readout_stats: the closed form's uniform quantisation error was off by up to
+    31 % below ~100 e⁻ with an 8-bit ADC); an analog read-out has no codes and keeps the closed form."""
+    from workbench.sensor.readout_stats import exact_snr
     names = [r["channel"] for r in noise]
     ch = next((n for n in ("G", "C", "W", "M", "Y") if n in names), names[0])
     rows = sorted((r for r in noise if r["channel"] == ch and r["clipped"] == 0 and r["mean_e"] > 0),
                   key=lambda r: r["exposure_lux_s"])
     e_per_lux_s = float(np.median([r["mean_e"] / r["exposure_lux_s"] for r in rows]))
     at = lux_per_cd_m2 * LOW_LIGHT_CD_M2 * LOW_LIGHT_EXPOSURE_S
-    h = np.log([r["exposure_lux_s"] for r in rows])
-    if len(rows) >= 2 and h[0] <= np.log(at) <= h[-1]:
-        snr = float(np.exp(np.interp(np.log(at), h, np.log([r["snr"] for r in rows]))))
-    else:
-        snr = float(snr_model(e_per_lux_s * at, sensor, LOW_LIGHT_EXPOSURE_S))
-    floor = float(snr_model(1.0, sensor, 0.0)) ** -2 - 1.0       # σ² of read + quantisation at N = 1
-    n_eq = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * max(floor, 0.0)))
+
+    def snr_at(n_e: float, exposure_s: float) -> float:
+        return float(exact_snr(n_e, sensor, exposure_s) if sensor.bit_depth else snr_model(n_e, sensor, exposure_s))
+    snr = snr_at(e_per_lux_s * at, LOW_LIGHT_EXPOSURE_S)
     return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
             "snr_low_light_dB": 20 * float(np.log10(snr)) if snr > 0 else None,
-            "noise_equivalent_exposure_lux_s": float(n_eq / e_per_lux_s) if e_per_lux_s > 0 else None}
+            "noise_equivalent_exposure_lux_s": (noise_equivalent_e(lambda n: snr_at(n, 0.0)) / e_per_lux_s
+                                                if e_per_lux_s > 0 else None)}
+
+
+def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float:
+    """The smallest signal (e⁻) where snr_of(signal) reaches 1: a geometric bisection from below on
+    the first bracket of a log-spaced scan (the exact SNR need not be monotonic)."""
+    grid = np.geomspace(lo_e, hi_e, 121)
+    above = next(i for i, n in enumerate(grid) if snr_of(float(n)) >= 1.0)
+    if above == 0:
+        return float(grid[0])
+    a, b = float(grid[above - 1]), float(grid[above])
+    for _ in range(40):
+        mid = math.sqrt(a * b)
+        a, b = (mid, b) if snr_of(mid) < 1.0 else (a, mid)
+    return math.sqrt(a * b)
 
 
 def colour_error(project) -> dict:

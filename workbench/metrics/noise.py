@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.sensor.readout_stats import dn_to_electrons
 
 
 def _detrended_std(values: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> float:
@@ -24,12 +25,6 @@ def _detrended_std(values: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> float:
     a = np.column_stack([np.ones_like(y), y, x, y * y, x * y, x * x])
     coef, *_ = np.linalg.lstsq(a, values, rcond=None)
     return float(np.std(values - a @ coef, ddof=a.shape[1]))
-
-
-def dn_to_electrons(dn: np.ndarray, sensor) -> np.ndarray:
-    """Digital numbers (black level removed by the analog offset) → electrons."""
-    volts = np.asarray(dn, np.float64) * (sensor.lsb_V if sensor.bit_depth else 1.0) - sensor.analog_offset_V
-    return volts / (sensor.conversion_gain_V_per_e * sensor.analog_gain)
 
 
 def region_noise(image, sensor, region: np.ndarray) -> list[dict]:
