@@ -257,6 +257,11 @@ def test_a_run_claimed_by_a_live_process_is_left_to_it_and_a_dead_ones_claim_is_
         live.kill()
         live.wait()
     assert claim(ckpt, keys[0])                         # its holder is gone: the claim is taken over
-    assert not claim(ckpt, keys[0])                     # and now this live process holds it
+    assert claim(ckpt, keys[0])                         # this process's own claim is its own again
+    (ckpt / f"{keys[0]}.claim").write_text(json.dumps({"pid": os.getppid(), "host": socket.gethostname()}))
+    assert not claim(ckpt, keys[0])                     # another live process holds it
+    release(ckpt, keys[0])
+    assert (ckpt / f"{keys[0]}.claim").exists()          # only the holder releases a claim
+    (ckpt / f"{keys[0]}.claim").write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname()}))
     release(ckpt, keys[0])
     assert not (ckpt / f"{keys[0]}.claim").exists()

@@ -15,13 +15,17 @@ from workbench.files import pid_alive
 SUFFIX = ".claim"
 
 
-def _holder_alive(path: Path) -> bool:
+def _held_by_another(path: Path) -> bool:
+    """Whether the claim at `path` belongs to another live process (this process's own claim, left by
+    a cancelled run, is not another's)."""
     try:
         info = json.loads(path.read_text(encoding="utf-8"))
         pid, host = int(info["pid"]), info["host"]
     except (OSError, ValueError, KeyError, TypeError):
         return False                          # half-written or foreign: treat as stale
-    return host != socket.gethostname() or pid_alive(pid)
+    if host != socket.gethostname():
+        return True
+    return pid != os.getpid() and pid_alive(pid)
 
 
 def claim(folder: str | os.PathLike, key: str) -> bool:
@@ -33,9 +37,9 @@ def claim(folder: str | os.PathLike, key: str) -> bool:
         try:
             fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         except FileExistsError:
-            if _holder_alive(path):
+            if _held_by_another(path):
                 return False
-            path.unlink(missing_ok=True)      # stale: its process is gone; try once more
+            path.unlink(missing_ok=True)      # stale, or this process's own: take it again
             continue
         with os.fdopen(fd, "wb") as f:
             f.write(record)
