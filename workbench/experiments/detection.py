@@ -356,8 +356,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     from workbench.compute.folder_lock import hold_folder_lock
     from workbench.compute.job_claims import claim, release
     from workbench.detect.data import DetectionDataset
-    from workbench.detect.job import run_detection_job
-    from workbench.datasets.dataset import code_version
+    from workbench.detect.job import loaded_code_version, run_detection_job
 
     if profile_override is None and profile not in PROFILES:
         raise ParameterError("profile", profile, f"one of {', '.join(PROFILES)}")
@@ -384,6 +383,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
             "classes": list(dataset.class_names), "ev_biases": evs, "settings": {**asdict(prof), "seeds": seeds}}
     mine: list[dict] = []
     my_boots: dict = {}
+    version = loaded_code_version()              # the code this process runs, not the tree's state later
 
     def merge_and_write() -> dict:
         """The folder's records merged with this process's (by key; role as planned), rewritten."""
@@ -393,7 +393,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
             runs = [r for r in runs if r["key"] not in keys] + mine
             runs = [{**r, "role": role_of.get(r["key"], r["role"])} for r in runs]
             boots = {**boots, **my_boots}
-            doc = {**base, "code_version": code_version(), "runs": runs, **_analysis(kind, runs, boots, evs),
+            doc = {**base, "code_version": version, "runs": runs, **_analysis(kind, runs, boots, evs),
                    "complete": all(key in {r["key"] for r in runs} for key in role_of),
                    "written_utc": datetime.now(timezone.utc).isoformat()}
             write_outputs(doc, boots, out, project)
