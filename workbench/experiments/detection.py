@@ -99,7 +99,7 @@ PROFILES = {
              "its mAPs say nothing about the camera"),
     "standard": Profile(
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
-        epochs={"mobile": 60, "resnet18": 40}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
+        epochs={"mobile": 120, "resnet18": 80}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
         per_ev_biases=(), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
         curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16_native"},
         note="standard profile: sized to the paper's four claims on a CPU: 320×240 frames (≥ 400 train, "
