@@ -265,3 +265,16 @@ def test_a_run_claimed_by_a_live_process_is_left_to_it_and_a_dead_ones_claim_is_
     (ckpt / f"{keys[0]}.claim").write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname()}))
     release(ckpt, keys[0])
     assert not (ckpt / f"{keys[0]}.claim").exists()
+
+
+def test_runs_of_an_earlier_budget_are_kept_apart_as_superseded(synthetic_dir, tmp_path):
+    """A budget that grows re-plans the runs: the folder keeps the old records, outside the analysis,
+    and a record the new plan shares (the old 2B run is the new B run) serves it untrained."""
+    _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=TINY))
+    grown = replace(TINY, epochs={"mobile": 2, "resnet18": 2})
+    result = _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=grown))
+    assert len(result.reused) == 1 and len(result.trained) == 1            # 2 epochs: done; 4: trained
+    doc = json.loads((tmp_path / "results.json").read_text())
+    assert sorted(r["config"]["epochs"] for r in doc["runs"]) == [2, 4]
+    assert [r["config"]["epochs"] for r in doc["superseded_runs"]] == [1]
+    assert doc["budget_enough"]["mobile"]["epochs"] == 2 and doc["complete"]

@@ -42,3 +42,12 @@ def test_without_read_noise_the_code_is_the_rounded_poisson_count():
     codes, p = code_distribution(4.0, sensor, 0.0)                 # LSB = 1 e⁻ exactly: code k ⇔ k electrons
     from scipy import stats
     np.testing.assert_allclose(p[:12], stats.poisson.pmf(codes[:12], 4.0), atol=1e-12)
+
+
+def test_the_noise_equivalent_signal_is_where_the_exact_snr_first_reaches_1():
+    from workbench.metrics.frame import noise_equivalent_e
+    sensor = PAPER.updated(bit_depth=8)
+    n1 = noise_equivalent_e(lambda n: float(exact_snr(n, sensor, 0.0)))
+    assert float(exact_snr(n1, sensor, 0.0)) == pytest.approx(1.0, abs=1e-6)
+    assert all(float(exact_snr(n, sensor, 0.0)) < 1.0 for n in np.geomspace(1e-3, 0.999 * n1, 40))
+    assert noise_equivalent_e(lambda n: 0.5) is None                     # never reaches 1: no figure

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import asdict, dataclass
+from functools import lru_cache
 
 from workbench.detect.engine import TrainConfig
 
@@ -30,6 +31,14 @@ class DetectionJob:
         return f"DetectionJob({self.key})"
 
 
+@lru_cache(maxsize=1)
+def loaded_code_version() -> str:
+    """The code version when this process first asked (its first run's start): the code it runs,
+    even when the source tree moves on while it trains."""
+    from workbench.datasets.dataset import code_version
+    return code_version()
+
+
 def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     """Train (or resume) and test one run; return a plain dict: key, config, train figures (loss
     and train-mAP curves, train mAP on every training frame at the curve EV), one entry per test
@@ -39,7 +48,6 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     import torch
 
     from workbench.compute import apply_thread_budget
-    from workbench.datasets.dataset import code_version
     from workbench.detect.data import DetectionDataset, DetectionView
     from workbench.detect.devices import cpu_has_native_bf16, cpu_model, pick_device
     from workbench.detect.engine import train_detector
@@ -48,6 +56,7 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     if job.config.threads:                 # the sensor's pixel threads and BLAS too, not only torch's
         apply_thread_budget(job.config.threads)
     wall0, cpu0 = time.perf_counter(), time.process_time()
+    version = loaded_code_version()
     dataset = DetectionDataset(job.dataset_dir)
     model, tr = train_detector(dataset, job.config, job.checkpoint, cancel)
     device = pick_device(job.config.device)
@@ -68,6 +77,6 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
              for ev in job.test_evs]
     machine = {"cpu": cpu_model(), "bf16_native": cpu_has_native_bf16(), "threads": torch.get_num_threads(),
                "wall_s": time.perf_counter() - wall0, "cpu_s": time.process_time() - cpu0,
-               "code_version": code_version()}
+               "code_version": version}
     return {"key": job.key, "config": json.loads(cfg.to_json()), "train": train, "tests": tests,
             "classes": list(dataset.class_names), "device": device, "machine": machine}

@@ -34,7 +34,9 @@ the data set (same fingerprint), points the experiment at the folder and trains 
 missing. After every finished run the folder is merged and rewritten atomically under its lock:
 the records on disk and this process's, by key, so several processes (one per net, say) can fill
 one folder, a killed experiment resumes without retraining finished runs, and no run is held
-twice; a half-trained run resumes from its last epoch checkpoint while that exists.
+twice; a half-trained run resumes from its last epoch checkpoint while that exists. Records the
+current profile no longer plans (a budget that grew) are kept under 'superseded_runs', outside
+the analysis.
 """
 from __future__ import annotations
 
@@ -97,7 +99,7 @@ PROFILES = {
              "its mAPs say nothing about the camera"),
     "standard": Profile(
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
-        epochs={"mobile": 60, "resnet18": 40}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
+        epochs={"mobile": 120, "resnet18": 80}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
         per_ev_biases=(), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
         curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16_native"},
         note="standard profile: sized to the paper's four claims on a CPU: 320×240 frames (≥ 400 train, "
@@ -273,7 +275,7 @@ def _load_previous(out: Path, kind: str, fingerprint: str, profile: str) -> tupl
     if doc["kind"] != kind or doc["dataset"]["fingerprint"] != fingerprint or doc["profile"] != profile:
         raise OutputPathError(out, f"holds results of another experiment ({doc['kind']}, profile "
                                    f"{doc['profile']}, another data set or project); choose another --out")
-    return doc["runs"], read_bootstraps(out)
+    return doc["runs"] + doc.get("superseded_runs", []), read_bootstraps(out)
 
 
 def borrowed_runs(folders, jobs, fingerprint: str) -> tuple[list[dict], dict]:
@@ -356,8 +358,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     from workbench.compute.folder_lock import hold_folder_lock
     from workbench.compute.job_claims import claim, release
     from workbench.detect.data import DetectionDataset
-    from workbench.detect.job import run_detection_job
-    from workbench.datasets.dataset import code_version
+    from workbench.detect.job import loaded_code_version, run_detection_job
 
     if profile_override is None and profile not in PROFILES:
         raise ParameterError("profile", profile, f"one of {', '.join(PROFILES)}")
@@ -384,6 +385,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
             "classes": list(dataset.class_names), "ev_biases": evs, "settings": {**asdict(prof), "seeds": seeds}}
     mine: list[dict] = []
     my_boots: dict = {}
+    version = loaded_code_version()              # the code this process runs, not the tree's state later
 
     def merge_and_write() -> dict:
         """The folder's records merged with this process's (by key; role as planned), rewritten."""
@@ -391,11 +393,12 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
             runs, boots = _load_previous(out, kind, dataset.fingerprint, prof.name)
             keys = {r["key"] for r in mine}
             runs = [r for r in runs if r["key"] not in keys] + mine
-            runs = [{**r, "role": role_of.get(r["key"], r["role"])} for r in runs]
+            superseded = [r for r in runs if r["key"] not in role_of]       # planned by an earlier profile
+            runs = [{**r, "role": role_of[r["key"]]} for r in runs if r["key"] in role_of]
             boots = {**boots, **my_boots}
-            doc = {**base, "code_version": code_version(), "runs": runs, **_analysis(kind, runs, boots, evs),
+            doc = {**base, "code_version": version, "runs": runs, **_analysis(kind, runs, boots, evs),
                    "complete": all(key in {r["key"] for r in runs} for key in role_of),
-                   "written_utc": datetime.now(timezone.utc).isoformat()}
+                   "superseded_runs": superseded, "written_utc": datetime.now(timezone.utc).isoformat()}
             write_outputs(doc, boots, out, project)
         return doc
 
@@ -404,7 +407,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     lent, lent_boots = borrowed_runs(reuse_from, [(r, j) for r, j in jobs if j.key not in done], dataset.fingerprint)
     mine += lent
     my_boots.update(lent_boots)
-    reused = sorted(done | {r["key"] for r in lent})
+    reused = sorted((done | {r["key"] for r in lent}) & set(role_of))
     todo = [job for _, job in jobs if job.key not in reused and (nets is None or job.config.net in nets)]
     doc = merge_and_write()
 

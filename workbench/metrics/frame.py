@@ -161,17 +161,21 @@ def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
     def snr_at(n_e: float, exposure_s: float) -> float:
         return float(exact_snr(n_e, sensor, exposure_s) if sensor.bit_depth else snr_model(n_e, sensor, exposure_s))
     snr = snr_at(e_per_lux_s * at, LOW_LIGHT_EXPOSURE_S)
+    n_eq = noise_equivalent_e(lambda n: snr_at(n, 0.0))
     return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
             "snr_low_light_dB": 20 * float(np.log10(snr)) if snr > 0 else None,
-            "noise_equivalent_exposure_lux_s": (noise_equivalent_e(lambda n: snr_at(n, 0.0)) / e_per_lux_s
-                                                if e_per_lux_s > 0 else None)}
+            "noise_equivalent_exposure_lux_s": (n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None
+                                                else None)}
 
 
-def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float:
+def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float | None:
     """The smallest signal (e⁻) where snr_of(signal) reaches 1: a geometric bisection from below on
-    the first bracket of a log-spaced scan (the exact SNR need not be monotonic)."""
+    the first bracket of a log-spaced scan (the exact SNR need not be monotonic); None when it
+    never does up to hi_e."""
     grid = np.geomspace(lo_e, hi_e, 121)
-    above = next(i for i, n in enumerate(grid) if snr_of(float(n)) >= 1.0)
+    above = next((i for i, n in enumerate(grid) if snr_of(float(n)) >= 1.0), None)
+    if above is None:
+        return None
     if above == 0:
         return float(grid[0])
     a, b = float(grid[above - 1]), float(grid[above])
