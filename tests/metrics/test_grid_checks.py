@@ -14,7 +14,8 @@ def test_the_pinhole_default_grid_varies_what_the_pinhole_reads_and_is_not_flagg
     assert PINHOLE.optics.model == "pinhole" and default_grid(PINHOLE) == PINHOLE_GRID
     assert check_grid(PINHOLE, parse_vary(PINHOLE_GRID.splitlines())) == []
     blurring = PINHOLE.updated(optics=PINHOLE.optics.updated(model="diffraction_limited"))
-    assert default_grid(blurring) == BLURRING_GRID and check_grid(blurring, parse_vary(BLURRING_GRID.splitlines())) == []
+    assert default_grid(blurring) == BLURRING_GRID
+    assert check_grid(blurring, parse_vary(BLURRING_GRID.splitlines())) == []
 
 
 def test_the_f_number_of_a_pinhole_is_noted_as_irradiance_only():
@@ -24,7 +25,8 @@ def test_the_f_number_of_a_pinhole_is_noted_as_irradiance_only():
     assert len(check_grid(PINHOLE, both)) == 1                       # the pinhole designs still ignore the blur
 
 
-@pytest.mark.parametrize("field", ["optics.psf_field_zones=3,5", "optics.depth_layers=4,8", "optics.rays_per_sample=16,64"])
+@pytest.mark.parametrize("field", ["optics.psf_field_zones=3,5", "optics.depth_layers=4,8",
+                                   "optics.rays_per_sample=16,64"])
 def test_a_field_no_design_reads_is_refused_naming_it(field):
     with pytest.raises(ParameterError, match=field.split("=")[0]):
         check_grid(PINHOLE, parse_vary([field]))

@@ -8,10 +8,8 @@ must grow. With 2 seeds the intervals are wide: the rule reads the mean, as the 
 """
 from __future__ import annotations
 
-import numpy as np
-
-from workbench.experiments.analysis import CLAIM_BOUNDS, seed_values
-from workbench.experiments.paired import paired_difference, t_interval
+from workbench.experiments.analysis import _paired, seed_values
+from workbench.experiments.paired import t_interval
 
 FACTORS = (1, 2)
 
@@ -36,16 +34,12 @@ def budget_analysis(runs: list[dict], boots: dict, tolerance: float) -> dict:
             summary.append({"net": net, "representation": "srgb", "condition": f"budget ×{f}", "test_ev": 0.0,
                             "epochs": epochs[f], "n": len(seeds), "mean_map": mean, "sd": sd, "ci95_low": lo,
                             "ci95_high": hi, "per_seed": dict(zip(seeds, points.tolist()))})
-        (sa, va, ba), (sb, vb, bb) = values[2], values[1]
-        common = sorted(set(sa) & set(sb))
-        if not common:
+        interval = _paired(values[2], values[1])                 # 2B − B on the seeds both have
+        if interval is None:
             continue
-        ia, ib = [sa.index(s) for s in common], [sb.index(s) for s in common]
-        both = ba is not None and bb is not None
-        interval = paired_difference(va[ia], vb[ib], ba[ia] if both else None, bb[ib] if both else None, CLAIM_BOUNDS)
         rows.append({"contrast": "2B − B", "net": net, "test_ev": 0.0, **interval.to_dict()})
-        gain = float(np.mean(va[ia] - vb[ib]))
-        enough[net] = {"epochs": epochs[1], "gain": gain, "seeds": common, "enough": gain < tolerance,
+        seeds = sorted(set(values[2][0]) & set(values[1][0]))
+        enough[net] = {"epochs": epochs[1], "gain": interval.mean, "seeds": seeds, "enough": interval.mean < tolerance,
                        "tolerance": tolerance}
     return {"summary": summary, "contrasts": rows, "per_ev_is_upper_bound": None, "budget_enough": enough}
 

@@ -20,7 +20,8 @@ Seeds vary network initialisation, batch order, augmentation and training-captur
 split and the test captures are the same for every run. Every sRGB run trained at EV 0 for the
 budget B (one configuration, one key, in all three experiments) is tested at every EV of the
 project, so its record serves each experiment: `reuse_from` folders lend finished records
-to another experiment, and a run is never trained twice, in one sitting or the next. What the runs say is read by paired
+to another experiment, and a run is never trained twice, in one sitting or the next. What the
+runs say is read by paired
 statistics (workbench.experiments.analysis): means with a seed t-interval and a test-set bootstrap
 interval, paired contrasts, and the paper's claims with a verdict each.
 
