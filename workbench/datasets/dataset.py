@@ -139,15 +139,22 @@ def verify_frame(path: str | os.PathLike, fingerprint: str, index: int) -> bool:
             and data.irradiance_photons.shape[:2] == data.labels.shape)
 
 
-def code_version() -> str:
-    """`git describe --always --dirty` of the source tree, else the package version."""
+CODE_PATHS = ("workbench", "resources", "pyproject.toml")   # what a run's results depend on
+
+
+def code_version(root: Path | None = None) -> str:
+    """`git describe --always --tags` of the source tree (root: this checkout), '-dirty' when the
+    code (CODE_PATHS, not the results folders a running experiment rewrites) differs from it; else
+    the package version."""
     from workbench import __version__
-    root = Path(__file__).resolve().parents[2]
+    root = root or Path(__file__).resolve().parents[2]
     try:
-        out = subprocess.run(["git", "describe", "--always", "--dirty", "--tags"], cwd=root,
+        out = subprocess.run(["git", "describe", "--always", "--tags"], cwd=root,
                              capture_output=True, text=True, timeout=10, check=False)
-        if out.returncode == 0 and out.stdout.strip():
-            return f"{__version__}+git.{out.stdout.strip()}"
+        changed = subprocess.run(["git", "status", "--porcelain", "--", *CODE_PATHS], cwd=root,
+                                 capture_output=True, text=True, timeout=10, check=False)
+        if out.returncode == 0 and out.stdout.strip() and changed.returncode == 0:
+            return f"{__version__}+git.{out.stdout.strip()}" + ("-dirty" if changed.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         pass
     return __version__
