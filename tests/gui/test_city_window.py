@@ -88,6 +88,41 @@ def test_city_view_and_panes_draw_and_camera_moves_render_progressively(city_win
     dropped = win.document.project.pose
     assert dropped.mode == "manual"
     assert np.hypot(*np.subtract(dropped.manual_position_xy_m, before)) > 1.0
+    # A drag from anywhere but the visible gizmo orbits the view and leaves the camera alone.
+    assert_a_drag_off_the_gizmo_orbits(qtbot, win.city_view)
+
+
+def assert_a_drag_off_the_gizmo_orbits(qtbot, city_view) -> None:
+    """A left drag from the view's middle (where the gizmo is not drawn: picked through the depth
+    buffer, so a gizmo hidden behind a building there does not count) adds no edit."""
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+
+    from workbench.gui.city_view import visible_actor_at
+    view, got = city_view.view, {}
+    qtbot.wait(500)                               # the dropped pose's redraw is posted
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    dpr = view.devicePixelRatioF()
+    mid = QPoint(view.width() // 2, view.height() // 2)
+
+    def probe(pl):
+        got["gizmo_there"] = visible_actor_at(pl, round(mid.x() * dpr), round((view.height() - mid.y()) * dpr)) \
+            is city_view._gl.get("gizmo")
+        got["camera"] = tuple(pl.camera.position)
+    view.call(probe)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert not got["gizmo_there"], "the gizmo is drawn in the middle of the view; move the probe"
+    camera = got["camera"]
+    steps, pose = city_view.document.undo_stack.index(), city_view.document.project.pose
+    QTest.mousePress(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, mid)
+    for k in range(1, 5):
+        QTest.mouseMove(view, mid + QPoint(30 * k, 8 * k))
+    QTest.mouseRelease(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, mid + QPoint(120, 30))
+    qtbot.wait(300)
+    view.call(probe)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert city_view.document.undo_stack.index() == steps and city_view.document.project.pose == pose
+    assert np.linalg.norm(np.subtract(got["camera"], camera)) > 0.5, "the drag did not orbit the view"
 
 
 def drag_gizmo(qtbot, city_view, dx_px: int) -> None:

@@ -69,6 +69,72 @@ def test_a_mouse_drag_rotates_and_the_wheel_zooms(view, qtbot):
     assert np.linalg.norm(zoomed) < np.linalg.norm(rotated) - 1e-3, "the wheel did not zoom in"
 
 
+def _drag(view, start: tuple[int, int], dx: int, during=None) -> None:
+    from PySide6.QtCore import QPoint, Qt
+    from PySide6.QtTest import QTest
+    at = QPoint(*start)
+    QTest.mousePress(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, at)
+    for k in range(1, 5):
+        QTest.mouseMove(view, at + QPoint(k * dx // 4, 0))
+    if during is not None:
+        during()
+    QTest.mouseRelease(view, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, at + QPoint(dx, 0))
+
+
+def test_a_camera_drag_draws_a_quarter_of_the_pixels_and_the_full_view_on_release(view, qtbot):
+    """Orbiting re-renders at INTERACTIVE_PIXEL_FRACTION of the pixels (a software OpenGL's cost is
+    per pixel), painted over the whole view; the release draws the full size again."""
+    from workbench.gui.vtk_view import INTERACTIVE_PIXEL_FRACTION
+    full = view._physical_size()
+    sizes = []
+
+    def held():
+        qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+        sizes.append((view.image.width(), view.image.height()))
+    _drag(view, (160, 120), 80, during=held)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert sizes[0][0] * sizes[0][1] == pytest.approx(INTERACTIVE_PIXEL_FRACTION * full[0] * full[1], rel=0.05)
+    assert (view.image.width(), view.image.height()) == full
+
+
+def test_a_claimed_drag_goes_to_its_handler_and_the_camera_stays(view, qtbot):
+    before = _camera(qtbot, view)
+    calls = []
+    view.set_drag_handler(lambda pl, x, y, phase: calls.append((phase, x, y)) or True)
+    _drag(view, (160, 120), 80)
+    assert _camera(qtbot, view) == before, "a claimed drag moved the camera"
+    assert [c[0] for c in calls][:1] == ["press"] and calls[-1][0] == "release"
+    assert calls[0][1:] == (160, 239 - 120) and calls[-1][1:] == (240, 239 - 120)
+    view.set_drag_handler(lambda pl, x, y, phase: False)     # declined at the press: the camera orbits
+    _drag(view, (160, 120), 80)
+    assert np.linalg.norm(np.subtract(_camera(qtbot, view), before)) > 0.5
+
+
+def test_the_visible_actor_is_picked_through_the_depth_buffer(view, qtbot):
+    """A sphere hidden behind a box is not what a press on it picks (the city view's gizmo rule)."""
+    import pyvista as pv
+
+    from workbench.gui.city_view import visible_actor_at
+    got = {}
+
+    def scene(pl):
+        pl.clear()
+        got["sphere"] = pl.add_mesh(pv.Sphere(radius=0.5, center=(0, 0, 0)), color="magenta")
+        pl.camera.position, pl.camera.focal_point, pl.camera.up = (0, 0, 10), (0, 0, 0), (0, 1, 0)
+        pl.reset_camera_clipping_range()
+        x, y = pl.window_size[0] // 2, pl.window_size[1] // 2
+        got["alone"] = visible_actor_at(pl, x, y)
+        got["box"] = pl.add_mesh(pv.Cube(center=(0, 0, 3), x_length=3, y_length=3, z_length=0.5))
+        pl.reset_camera_clipping_range()
+        got["hidden"] = visible_actor_at(pl, x, y)
+        got["beside"] = visible_actor_at(pl, 2, 2)
+    view.call(scene)
+    qtbot.waitUntil(view.is_current, timeout=TIMEOUT_MS)
+    assert got["alone"] is got["sphere"]
+    assert got["hidden"] is got["box"]
+    assert got["beside"] is None
+
+
 def test_mouse_moves_queued_while_the_thread_is_busy_are_merged(view, qtbot):
     """A render thread behind the mouse runs only the newest move, not every one it missed."""
     from PySide6.QtCore import QPoint

@@ -1,6 +1,13 @@
 """The 3-D city view: the project's city, the camera with its view frustum, a gizmo to drag the
 camera, typed pose values, colour by class, and "look through camera".
 
+The gizmo (a magenta sphere at the camera) moves the camera only when a drag starts on it where it
+can be seen: a press is picked through the depth buffer (visible_actor_at), so a drag whose pick
+ray passes a gizmo hidden behind a building orbits the view instead. A dragged gizmo slides in the
+horizontal plane at the camera's height, and the camera moves there when it is dropped. The first
+view of a city looks down on the camera from the lowest of a few elevations at which the gizmo is
+visible (a street, the camera and its frustum; not the wall of the nearest building).
+
 Generating the city (seed, arrangement) and merging it into one mesh run on a superqt worker
 thread. The view is an OffscreenPlotterView: its plotter lives on a render thread of its own, so
 adding the city, moving the frustum, switching "Colour by class" and every redraw run there, not
@@ -120,6 +127,7 @@ class CityView(QWidget):
             return
         from workbench.gui.vtk_view import OffscreenPlotterView
         self.view = OffscreenPlotterView(parent=self)
+        self.view.set_drag_handler(self._drag_gizmo)
         self.view.failed.connect(lambda message: self.status.setText(f"3-D view: {message}"))
         self.layout().replaceWidget(self.placeholder, self.view)
         self.placeholder.hide()
@@ -202,7 +210,6 @@ class CityView(QWidget):
 
     def _clear(self, pl) -> None:
         """(render thread) Remove the city, the frustum and the gizmo."""
-        pl.clear_sphere_widgets()
         pl.clear()
         self._gl.clear()
 
@@ -227,30 +234,42 @@ class CityView(QWidget):
         from workbench.scene.city.view import add_camera_frustum, look_through, move_camera_frustum
         if through:
             pl.remove_actor("city_camera")
+            pl.remove_actor("camera_gizmo")
             self._gl.pop("frustum", None)
-            if self._gl.pop("gizmo", None) is not None:
-                pl.clear_sphere_widgets()
+            self._gl.pop("gizmo", None)
             look_through(pl, pose, hfov)
             return
         if "frustum" not in self._gl:
             self._gl["frustum"] = add_camera_frustum(pl, pose, hfov, frustum_length_m=12.0)
         else:
             move_camera_frustum(self._gl["frustum"], pose, hfov, frustum_length_m=12.0)
-        centre = tuple(float(v) for v in pose.position_m)
-        if "gizmo" in self._gl:
-            self._gl["gizmo"].SetCenter(*centre)
-        else:
-            self._gl["gizmo"] = pl.add_sphere_widget(
-                self._gizmo_released, center=centre, radius=1.2, color="magenta", style="surface",
-                interaction_event="end")
+        if "gizmo" not in self._gl:
+            import pyvista as pv
+            self._gl["gizmo"] = pl.add_mesh(pv.Sphere(radius=GIZMO_RADIUS_M), color="magenta",
+                                            name="camera_gizmo", pickable=True)
+        self._gl["gizmo"].SetPosition(*(float(v) for v in pose.position_m))
         if reset_view:
-            _overview(pl, pose)
+            _overview(pl, pose, self._gl["gizmo"])
 
-    def _gizmo_released(self, centre) -> None:
-        """(render thread) pyvista calls this once while adding the gizmo too: only a gizmo that
-        is already in place was dropped."""
-        if "gizmo" in self._gl:
-            self.gizmoDropped.emit(tuple(float(v) for v in centre))
+    def _drag_gizmo(self, pl, x: int, y: int, phase: str) -> bool:
+        """(render thread; the view's drag handler) A press on the visible gizmo claims the drag;
+        moves slide the gizmo in the horizontal plane at its height; the release drops it."""
+        gizmo = self._gl.get("gizmo")
+        if gizmo is None:
+            return False
+        if phase == "press":
+            if visible_actor_at(pl, x, y) is not gizmo:
+                return False
+            self._gl["drag_from"] = gizmo.GetPosition()
+            return True
+        at = _on_horizontal_plane(pl, x, y, gizmo.GetPosition()[2])
+        if at is not None:
+            gizmo.SetPosition(*at)
+        if phase == "release":
+            dropped, start = gizmo.GetPosition(), self._gl.pop("drag_from")
+            if np.hypot(dropped[0] - start[0], dropped[1] - start[1]) > 0:
+                self.gizmoDropped.emit(tuple(float(v) for v in dropped))
+        return True
 
     def render(self) -> None:
         if self.view is not None:
@@ -311,13 +330,56 @@ class CityView(QWidget):
             self.view.close_view()
 
 
-def _overview(pl, pose) -> None:
-    """(render thread) An oblique view from behind and above the camera, showing the city around it."""
+def visible_actor_at(pl, x: int, y: int):
+    """(render thread) The actor drawn nearest the viewer at display pixel (x, y) (bottom row 0),
+    or None: picked through the depth buffer, so a prop hidden behind another is not found."""
+    from vtkmodules.vtkRenderingCore import vtkPropPicker
+    picker = vtkPropPicker()
+    return picker.GetActor() if picker.Pick(x, y, 0.0, pl.renderer) else None
+
+
+def _on_horizontal_plane(pl, x: int, y: int, height_m: float):
+    """(render thread) Where the view ray through display pixel (x, y) meets the plane z =
+    height_m, or None when it does not (in front of the viewer)."""
+    ends = []
+    for depth in (0.0, 1.0):
+        pl.renderer.SetDisplayPoint(float(x), float(y), depth)
+        pl.renderer.DisplayToWorld()
+        w = pl.renderer.GetWorldPoint()
+        ends.append(np.asarray(w[:3]) / w[3])
+    d = ends[1] - ends[0]
+    if abs(d[2]) < 1e-9:
+        return None
+    t = (height_m - ends[0][2]) / d[2]
+    return tuple(ends[0] + t * d) if t > 0 else None
+
+
+GIZMO_RADIUS_M = 1.2
+OVERVIEW_ELEVATIONS_DEG = (30.0, 45.0, 60.0, 75.0, 89.0)
+OVERVIEW_DISTANCE_M = 75.0
+
+
+def _overview(pl, pose, gizmo=None) -> None:
+    """(render thread) A view from behind and above the camera at the lowest of
+    OVERVIEW_ELEVATIONS_DEG from which the gizmo is visible (the last when none), looking at a
+    point ahead of the camera: the street, the camera and its frustum."""
     from workbench.scene.city.poses import pose_basis
     f, _r, _u = pose_basis(pose)
+    ahead = np.array([f[0], f[1], 0.0]) / max(np.hypot(f[0], f[1]), 1e-9)
     p = np.asarray(pose.position_m, dtype=float)
-    pl.camera.focal_point = tuple(p + 25 * f)
-    pl.camera.position = tuple(p - 45 * f + np.array([0.0, 0.0, 35.0]))
+    focus = p + 10.0 * ahead
+    pl.camera.focal_point = tuple(focus)
     pl.camera.up = (0.0, 0.0, 1.0)
     pl.camera.view_angle = 45.0
-    pl.reset_camera_clipping_range()
+    for elevation in OVERVIEW_ELEVATIONS_DEG:
+        e = np.radians(elevation)
+        pl.camera.position = tuple(focus + OVERVIEW_DISTANCE_M * (-np.cos(e) * ahead + np.array([0.0, 0.0, np.sin(e)])))
+        pl.camera.up = (0.0, 0.0, 1.0)
+        pl.reset_camera_clipping_range()
+        if gizmo is None:
+            return
+        pl.renderer.SetWorldPoint(*p, 1.0)
+        pl.renderer.WorldToDisplay()
+        x, y, _ = pl.renderer.GetDisplayPoint()
+        if visible_actor_at(pl, round(x), round(y)) is gizmo:
+            return
