@@ -57,6 +57,24 @@ def test_window_opens_and_all_four_panes_draw_real_pixels(window, grab):
     assert [b.count() for b in bars] == [len([t for t in DOCK_TABS[0] if t in window.docks])]
 
 
+def test_every_dock_tab_shows_its_whole_name_at_1280_by_800(window, qtbot):
+    """Eight tabs side by side in the 460-px column read "Le…", "Me…": upright at the edge, each
+    tab holds its whole name and every tab fits the bar (no scrolling to reach one)."""
+    from PySide6.QtWidgets import QTabBar
+    font = window.font()
+    font.setPointSizeF(font.pointSizeF() * 1.3)          # a larger desktop font, as the issue's machine had
+    window.setFont(font)
+    window.resize(1280, 800)
+    qtbot.wait(300)
+    window.hide_stale_tab_bars()
+    bar = next(b for b in window.findChildren(QTabBar) if b.parent() is window and b.isVisible())
+    metrics = bar.fontMetrics()
+    for i in range(bar.count()):
+        rect, text = bar.tabRect(i), bar.tabText(i)
+        assert max(rect.width(), rect.height()) >= metrics.horizontalAdvance(text), f"tab {text!r} is cut"
+        assert bar.rect().contains(rect), f"tab {text!r} lies outside its bar ({rect} in {bar.rect()})"
+
+
 def test_isp_edit_recomputes_isp_only_and_sensor_edit_sensor_and_isp(window, qtbot):
     before = window.previews.frame
     shown = window.previews.frames_shown

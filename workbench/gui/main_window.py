@@ -10,7 +10,7 @@ from pathlib import Path
 from pydantic import ValidationError
 from PySide6.QtCore import QSettings, Qt, QTimer
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox,
+from PySide6.QtWidgets import (QDockWidget, QFileDialog, QLabel, QMainWindow, QMessageBox, QTabWidget,
                                QProgressBar, QPushButton, QTabBar)
 
 from workbench.errors import InputFileError
@@ -35,6 +35,8 @@ EDITORS = (("Lens", "workbench.gui.editors.lens", "LensEditor"),
 # panes keep most of the window (1280×800 included) and each panel has the column's full height.
 DOCK_TABS = (("3-D city", "Lens", "Sensor", "ISP", "Metrics", "Design study", "Exposure sweep", "Experiments"),)
 DOCK_FRACTION = 0.36          # of the window's width, on first run
+DOCK_TAB_POSITION = "East"    # the column's tabs stand upright at the window's edge: eight names side by
+                              # side in a 460-px column were cut to "Le…", "Me…" at 1280 px
 PROGRESS_REPAINT_S = 0.1          # the status bar's progress is shown at most this often
 PROGRESS_DELAY_MS = 300           # a run shows its progress bar and Cancel once it has run this long
 LAYOUT_KEY = "window/state-v2"     # v1 was the older two-group layout; it is not restored
@@ -58,6 +60,14 @@ def format_stage_times(times_s: dict[str, float], recomputed: list[str]) -> str:
     return " · ".join(parts)
 
 
+def _against(bar, dock, slack: int = 2) -> bool:
+    """Whether a tab bar's rectangle adjoins a dock's on one side and lies within its extent."""
+    along_x = bar.left() >= dock.left() - slack and bar.right() <= dock.right() + slack
+    along_y = bar.top() >= dock.top() - slack and bar.bottom() <= dock.bottom() + slack
+    return ((along_x and (abs(bar.top() - dock.bottom() - 1) <= slack or abs(dock.top() - bar.bottom() - 1) <= slack))
+            or (along_y and (abs(bar.left() - dock.right() - 1) <= slack or abs(dock.left() - bar.right() - 1) <= slack)))
+
+
 class MainWindow(QMainWindow):
     def __init__(self, document: Document | None = None, settings: QSettings | None = None,
                  with_city_view: bool = True):
@@ -68,6 +78,7 @@ class MainWindow(QMainWindow):
         self.live = LiveRunner(self)
         self.previews = PreviewPanes()
         self.setCentralWidget(self.previews)
+        self.setTabPosition(Qt.DockWidgetArea.AllDockWidgetAreas, getattr(QTabWidget.TabPosition, DOCK_TAB_POSITION))
         self.docks: dict[str, QDockWidget] = {}
         self.editors: dict[str, object] = {}
         self.city_view = None
@@ -138,13 +149,13 @@ class MainWindow(QMainWindow):
 
     def hide_stale_tab_bars(self) -> None:
         """Qt 6.12 leaves an earlier tab bar of a tabbed dock group visible over other docks when
-        several groups are built; hide every main-window tab bar not sitting under a shown dock."""
+        several groups are built; hide every main-window tab bar not sitting against a shown dock
+        (beside it, the side DOCK_TAB_POSITION puts it), and show every live one's names whole."""
         live = [d.geometry() for d in self.docks.values() if d.isVisible() and not d.isFloating()]
         for bar in self.findChildren(QTabBar):
             if bar.parent() is self and bar.isVisible():
-                g = bar.geometry()
-                if not any(abs(g.top() - (d.bottom() + 1)) <= 2 and g.left() >= d.left() - 2
-                           and g.right() <= d.right() + 2 for d in live):
+                bar.setElideMode(Qt.TextElideMode.ElideNone)
+                if not any(_against(bar.geometry(), d) for d in live):
                     bar.hide()
 
     def showEvent(self, event) -> None:
