@@ -69,22 +69,25 @@ def cfa_plane_nyquist_cy_px(tile: np.ndarray, channel: int) -> float:
     return 0.5 * phases.size / tile.shape[1]
 
 
-def _rows_of_sites(img: np.ndarray, mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(row index, columns, values) of the rows that hold sites, each row with the same number of
-    sites (a full grid, or one CFA channel's sites)."""
+def _rows_of_sites(img: np.ndarray, mask: np.ndarray | None):
+    """(row index, columns, values, valid) of the rows that hold sites: rows × (most sites in a row)
+    arrays, a row with fewer sites (RCCC's C in its R rows) padded by repeating its last site
+    (valid False there: no derivative, no ESF sample)."""
     if mask is None:
         h, w = img.shape
-        return np.arange(h), np.broadcast_to(np.arange(w), (h, w)), img
+        return np.arange(h), np.broadcast_to(np.arange(w), (h, w)), img, np.ones((h, w), bool)
     mask = np.asarray(mask, bool)
     if mask.shape != img.shape:
         raise InvalidValueError(f"edge SFR: the site mask is {mask.shape}, the region {img.shape}")
     rows = np.flatnonzero(mask.any(axis=1))
-    counts = mask[rows].sum(axis=1)
-    if rows.size == 0 or np.any(counts != counts[0]):
-        raise InvalidValueError("edge SFR: the site mask must keep the same number of sites in each row it "
-                                "keeps (a CFA channel's sites)")
-    cols = np.nonzero(mask[rows])[1].reshape(rows.size, -1)
-    return rows, cols, np.take_along_axis(img[rows], cols, axis=1)
+    m = mask[rows]
+    counts = m.sum(axis=1)
+    n = int(counts.max()) if rows.size else 0
+    order = np.argsort(~m, axis=1, kind="stable")[:, :n]          # each row's site columns first, in order
+    valid = np.arange(n)[None, :] < counts[:, None]
+    last = np.take_along_axis(order, (counts - 1)[:, None], axis=1)
+    cols = np.where(valid, order, last)
+    return rows, cols, np.take_along_axis(img[rows], cols, axis=1), valid
 
 
 def _centroids(cols: np.ndarray, values: np.ndarray, centres: np.ndarray | None, half_width: float) -> np.ndarray:
@@ -104,8 +107,9 @@ def _centroids(cols: np.ndarray, values: np.ndarray, centres: np.ndarray | None,
     return (d * x).sum(axis=1) / w
 
 
-def _sfr(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, width: int, bins_per_px: int) -> EdgeSFR:
-    """e-SFR of the sites (rows[i], cols[i, j]) with values[i, j] (module docstring)."""
+def _sfr(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, valid: np.ndarray, width: int,
+         bins_per_px: int) -> EdgeSFR:
+    """e-SFR of the sites (rows[i], cols[i, j]) with values[i, j] where valid[i, j] (module docstring)."""
     half = width / 2
     fit = np.polyfit(rows, _centroids(cols, values, None, half), 1)
     fit = np.polyfit(rows, _centroids(cols, values, np.polyval(fit, rows), half), 1)
@@ -115,10 +119,10 @@ def _sfr(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, width: int, bin
         raise InvalidValueError(f"edge SFR: the edge leans {angle:.2f}° from vertical; the method needs "
                                 "about 1–20° (a slanted edge), not an aligned or diagonal one")
     xs = cols - np.polyval(fit, rows)[:, None]              # signed distance to the line along x (px)
-    bins = np.floor(xs * bins_per_px).astype(np.int64)
-    idx = (bins - bins.min()).ravel()
+    bins = np.floor(xs[valid] * bins_per_px).astype(np.int64)
+    idx = bins - bins.min()
     counts = np.bincount(idx)
-    sums = np.bincount(idx, weights=values.ravel())
+    sums = np.bincount(idx, weights=values[valid])
     good = np.flatnonzero(counts > 0)
     esf = np.interp(np.arange(counts.size), good, sums[good] / counts[good])
     margin = bins_per_px                                    # drop the ragged ends
@@ -157,11 +161,11 @@ def _prepared(image: np.ndarray, mask: np.ndarray | None, flat: np.ndarray | Non
             raise InvalidValueError(f"edge SFR: the flat field must be positive and finite, of the region's "
                                     f"shape {img.shape}, got {flat.shape}")
         img = img / (flat / flat.mean())
-    rows, cols, values = _rows_of_sites(img, mask)
-    if rows.size < MIN_ROWS or cols.shape[1] < 4:
-        raise InvalidValueError(f"edge SFR: the region keeps {rows.size} rows of {cols.shape[1]} sites; it needs "
-                                f"≥ {MIN_ROWS} rows of ≥ 4")
-    return rows, cols, values, img.shape[1]
+    rows, cols, values, valid = _rows_of_sites(img, mask)
+    if rows.size < MIN_ROWS or valid.sum(axis=1).min() < 4:
+        raise InvalidValueError(f"edge SFR: the region keeps {rows.size} rows of {valid.sum(axis=1).min()} sites "
+                                f"or more; it needs ≥ {MIN_ROWS} rows of ≥ 4")
+    return rows, cols, values, valid, img.shape[1]
 
 
 def edge_sfr(image: np.ndarray, bins_per_px: int = OVERSAMPLE, mask: np.ndarray | None = None,
@@ -172,8 +176,7 @@ def edge_sfr(image: np.ndarray, bins_per_px: int = OVERSAMPLE, mask: np.ndarray 
     A horizontal edge: pass image.T. mask: H×W bool, the sites to use (one CFA channel's; None: all).
     flat: H×W, a flat-field image of the same optics and exposure (a uniform field's, black level
     removed) that the region is divided by; None: no flat-field correction."""
-    rows, cols, values, width = _prepared(image, mask, flat)
-    return _sfr(rows, cols, values, width, bins_per_px)
+    return _sfr(*_prepared(image, mask, flat), bins_per_px)
 
 
 def mtf50_spread(image: np.ndarray, mask: np.ndarray | None = None, flat: np.ndarray | None = None,
@@ -181,13 +184,13 @@ def mtf50_spread(image: np.ndarray, mask: np.ndarray | None = None, flat: np.nda
     """Standard deviation of MTF50 (cycles/pixel) over a bootstrap of the region's rows: `draws`
     resamplings of its rows with replacement, each measured as edge_sfr does (edge fit included).
     None when fewer than half the draws reach 0.5."""
-    rows, cols, values, width = _prepared(image, mask, flat)
+    rows, cols, values, valid, width = _prepared(image, mask, flat)
     rng = np.random.default_rng(seed)
     found = []
     for _ in range(draws):
         pick = np.sort(rng.integers(0, rows.size, rows.size))
         try:
-            m = _sfr(rows[pick], cols[pick], values[pick], width, OVERSAMPLE).mtf50_cy_px
+            m = _sfr(rows[pick], cols[pick], values[pick], valid[pick], width, OVERSAMPLE).mtf50_cy_px
         except InvalidValueError:
             continue
         if m is not None:
