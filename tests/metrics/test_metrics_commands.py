@@ -23,7 +23,14 @@ def test_metrics_command_prints_and_writes_the_measurements(small_camera, tmp_pa
     out = capsys.readouterr().out
     assert "mtf50_cy_px" in out and "delta_e_mean" in out
     doc = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    assert {r["plane"] for r in doc["mtf"]} == {"raw R", "raw G", "raw B", "linear G", "sRGB luminance", "optics alone"}
+    assert {r["plane"] for r in doc["mtf"]} == {"raw R", "raw G", "raw B", "linear G", "sRGB luminance",
+                                                "optics (model)", "pixel aperture (model)"}
+    sd = doc["summary"]["mtf50_sd_cy_px"]                  # MTF50's uncertainty beside it, everywhere it is shown
+    assert 0 < sd < 0.05
+    line = next(x for x in out.splitlines() if x.split()[0] == "mtf50_cy_px")
+    assert f"± {sd:.2g}" in line
+    md = (tmp_path / "m" / "metrics.md").read_text()
+    assert f"| mtf50_cy_px | {doc['summary']['mtf50_cy_px']:.4g} ± {sd:.2g} |" in md and "| raw G |" in md
     neutral = doc["colour"]["neutral_noise"]
     assert {r["patch"] for r in neutral} == {"white 9.5", "neutral 8", "neutral 6.5", "neutral 5", "neutral 3.5",
                                              "black 2"}
