@@ -163,3 +163,19 @@ def test_photodiode_aperture_needs_a_whole_number_of_samples_per_pixel():
     oi = OpticalImage(np.ones((12, 12, 1), np.float32), np.array([550.0]), 3e-6 / 1.5, 1e-3, 4.0)
     with pytest.raises(WorkbenchError, match="whole number"):
         irradiance_to_signal_rate(oi, sp.pixel_response)
+
+
+@pytest.mark.parametrize("folder", ["budget-standard", "isp-standard"])
+def test_committed_standard_results_keep_their_projects_and_fingerprints(folder):
+    """The committed result folders' projects load (read-only) with the microlens default, and their
+    frame inputs, pixel response and sensor digest as on the code before pixel_aperture (05165ea)."""
+    from pathlib import Path
+
+    from workbench.project import load_project
+    from workbench.render.city_frame import city_frame_inputs
+    from workbench.stages.keys import digest
+    p = load_project(Path(__file__).resolve().parents[2] / "docs" / "results" / folder / "project.json")
+    assert p.sensor.pixel_aperture == "microlens"
+    assert digest(city_frame_inputs(p)) == "28fb8e3a41e586190c07ced33329dc0fa59d2a88"
+    assert digest(p.sensor.pixel_response) == "6d7bbf525db10cc56db5e0c9122d2d39d67c6897"
+    assert digest(p.sensor) == "52003b784ae8ecb058db2a070a765b9a48786186"
