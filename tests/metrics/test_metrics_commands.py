@@ -56,6 +56,9 @@ def test_compare_of_smaller_pixels_reports_the_expected_trade(small_camera, tmp_
     assert rows["mtf50_lp_mm"]["B"] / rows["mtf50_lp_mm"]["A"] == pytest.approx(2.0, rel=0.15)
     md = (tmp_path / "cmp" / "compare.md").read_text()
     assert "| metric | A | B | B − A |" in md
+    sd_a, sd_b = doc["A"]["summary"]["mtf50_sd_cy_px"], doc["B"]["summary"]["mtf50_sd_cy_px"]
+    assert f"MTF50 ± 1σ (bootstrap over the edge's rows): A {doc['A']['summary']['mtf50_cy_px']:.4g} ± {sd_a:.2g}, " \
+           f"B {doc['B']['summary']['mtf50_cy_px']:.4g} ± {sd_b:.2g} cy/px." in md
     assert (tmp_path / "cmp" / "compare.png").stat().st_size > 10_000
     assert doc["changed"] == [{"field": "sensor.pixel_pitch_um", "A": p.sensor.pixel_pitch_um, "B": 1.5}]
     assert f"Changed from A to B: sensor.pixel_pitch_um {p.sensor.pixel_pitch_um} → 1.5" in md

@@ -308,7 +308,9 @@ def compare_designs(a, b, out_dir) -> dict:
                      "": compare_verdict(key, va, vb)})
     what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
             if changed else "A and B are the same design (no parameter differs).")
-    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) +
+    spread = (f"\nMTF50 ± 1σ (bootstrap over the edge's rows): A {summary_value(ma['summary'], 'mtf50_cy_px')}, "
+              f"B {summary_value(mb['summary'], 'mtf50_cy_px')} cy/px.\n")
+    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) + spread +
           "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "
