@@ -123,12 +123,21 @@ def _model_row(name: str, frequency: np.ndarray, mtf: np.ndarray, note: str) -> 
             "note": note}
 
 
-def flat_field(project, shape: tuple[int, int], tile: np.ndarray) -> np.ndarray:
-    """The chart's flat field: the noise-free signal rate of a uniform chart through the same optics
-    and pixels (a dark-subtracted flat averaged over infinitely many frames), each CFA channel's
-    sites divided by their mean so that only the optics' shading (cos⁴ fall-off) is left."""
+def uniform_chart(project):
+    """The project in front of the uniform chart, its light through the optics as it is (πT/4N²),
+    not rescaled: noise_series' chart and the slanted edge's flat field."""
+    chart = _chart(project, "uniform")
+    return chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))
+
+
+def flat_field(project, shape: tuple[int, int], tile: np.ndarray, uniform=None) -> np.ndarray:
+    """The chart's flat field: the noise-free signal rate of the uniform chart through the same optics
+    and pixels (a dark-subtracted flat averaged over infinitely many frames; `uniform`: that chart's
+    pipeline result when already run), each CFA channel's sites divided by their mean so that only
+    the optics' shading (cos⁴ fall-off) is left."""
     from workbench.pipeline import Pipeline
-    rate = np.asarray(Pipeline(_chart(project, "uniform")).signal_rate(), np.float64)
+    rate = np.asarray(uniform.signal_rate_e_per_s if uniform is not None
+                      else Pipeline(uniform_chart(project)).signal_rate(), np.float64)
     if rate.shape != shape:
         raise InvalidValueError(f"metrics: the flat field is {rate.shape}, the slanted-edge image {shape}")
     th, tw = tile.shape
@@ -140,19 +149,19 @@ def flat_field(project, shape: tuple[int, int], tile: np.ndarray) -> np.ndarray:
     return np.where(flat > 0, flat, 1.0)
 
 
-def system_mtf(project) -> list[dict]:
+def system_mtf(project, uniform=None) -> list[dict]:
     """e-SFR rows of the slanted-edge chart seen by the project's camera, flat-fielded by a uniform
     chart through the same optics: each raw channel on its own sites at their full-grid positions
     (black level removed; its closed form optics × pixel beside it as model_mtf when the optics has
     one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
     diffraction_limited; other levels have no closed form and no such row) and the pixel aperture
-    alone (metrics.mtf_model)."""
+    alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run."""
     from workbench.pipeline import Pipeline
     result = Pipeline(_chart(project, "slanted_edge")).run()
     image, isp, sensor = result.sensor_image, result.isp, project.sensor
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
-    flat = flat_field(project, image.dn.shape, tile)
+    flat = flat_field(project, image.dn.shape, tile, uniform)
     pitch_m, os = sensor.pixel_pitch_um * 1e-6, project.scene.oversample
     dn = np.asarray(image.dn, np.float64) - float(image.meta.get("black_level_dn", 0.0))
     th, tw = tile.shape
@@ -191,15 +200,15 @@ def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
     return values[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, values.shape[-1]).mean(axis=0)
 
 
-def noise_series(project) -> tuple[list[dict], float]:
+def noise_series(project, uniform=None) -> tuple[list[dict], float]:
     """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
     scene luminance to sensor-plane illuminance (lux per cd/m²: πT/4N² on axis, less off axis);
-    each row also holds its sensor-plane exposure (exposure_lux_s)."""
+    each row also holds its sensor-plane exposure (exposure_lux_s). uniform: the pipeline result of
+    uniform_chart(project), when already run."""
     from workbench.pipeline import Pipeline
     from workbench.sensor import resolve_exposure
     from workbench.spectra import luminance_from_photons
-    chart = _chart(project, "uniform")         # light through the optics as it is (πT/4N²), not rescaled
-    result = Pipeline(chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))).run()
+    result = uniform if uniform is not None else Pipeline(uniform_chart(project)).run()
     rate = result.signal_rate_e_per_s
     t = float(np.mean(resolve_exposure(rate, project.sensor)))
     h, w = rate.shape
@@ -293,7 +302,10 @@ def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
 
 def camera_metrics(project) -> dict:
     """The measurements of module docstring, with a summary of the headline numbers."""
-    mtf, (noise, lux_per_cd_m2), colour = system_mtf(project), noise_series(project), colour_error(project)
+    from workbench.pipeline import Pipeline
+    uniform = Pipeline(uniform_chart(project)).run()          # run once: the edge's flat field and the noise
+    mtf, (noise, lux_per_cd_m2) = system_mtf(project, uniform), noise_series(project, uniform)
+    colour = colour_error(project)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
     mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
