@@ -23,7 +23,14 @@ def test_metrics_command_prints_and_writes_the_measurements(small_camera, tmp_pa
     out = capsys.readouterr().out
     assert "mtf50_cy_px" in out and "delta_e_mean" in out
     doc = json.loads((tmp_path / "m" / "metrics.json").read_text())
-    assert {r["plane"] for r in doc["mtf"]} == {"raw R", "raw G", "raw B", "linear G", "sRGB luminance", "optics alone"}
+    assert {r["plane"] for r in doc["mtf"]} == {"raw R", "raw G", "raw B", "linear G", "sRGB luminance",
+                                                "optics (model)", "pixel aperture (model)"}
+    sd = doc["summary"]["mtf50_sd_cy_px"]                  # MTF50's uncertainty beside it, everywhere it is shown
+    assert 0 < sd < 0.05
+    line = next(x for x in out.splitlines() if x.split()[0] == "mtf50_cy_px")
+    assert f"± {sd:.2g}" in line
+    md = (tmp_path / "m" / "metrics.md").read_text()
+    assert f"| mtf50_cy_px | {doc['summary']['mtf50_cy_px']:.4g} ± {sd:.2g} |" in md and "| raw G |" in md
     neutral = doc["colour"]["neutral_noise"]
     assert {r["patch"] for r in neutral} == {"white 9.5", "neutral 8", "neutral 6.5", "neutral 5", "neutral 3.5",
                                              "black 2"}
@@ -49,6 +56,9 @@ def test_compare_of_smaller_pixels_reports_the_expected_trade(small_camera, tmp_
     assert rows["mtf50_lp_mm"]["B"] / rows["mtf50_lp_mm"]["A"] == pytest.approx(2.0, rel=0.15)
     md = (tmp_path / "cmp" / "compare.md").read_text()
     assert "| metric | A | B | B − A |" in md
+    sd_a, sd_b = doc["A"]["summary"]["mtf50_sd_cy_px"], doc["B"]["summary"]["mtf50_sd_cy_px"]
+    assert f"MTF50 ± 1σ (bootstrap over the edge's rows): A {doc['A']['summary']['mtf50_cy_px']:.4g} ± {sd_a:.2g}, " \
+           f"B {doc['B']['summary']['mtf50_cy_px']:.4g} ± {sd_b:.2g} cy/px." in md
     assert (tmp_path / "cmp" / "compare.png").stat().st_size > 10_000
     assert doc["changed"] == [{"field": "sensor.pixel_pitch_um", "A": p.sensor.pixel_pitch_um, "B": 1.5}]
     assert f"Changed from A to B: sensor.pixel_pitch_um {p.sensor.pixel_pitch_um} → 1.5" in md

@@ -215,3 +215,26 @@ def test_regrid_of_a_vanishing_optical_image_is_bounded(method):
     m = REGRID_METHODS.get(method)(6, 1e-16, 10, 3e-6)
     assert m.shape == (10, 6) and m.nnz <= 10 * 7
     assert np.all(np.isfinite(m.toarray()))
+
+
+@pytest.mark.parametrize("oversample", [1, 2, 3, 4])
+def test_a_photodiode_pixel_integrates_over_its_sqrt_fill_factor_square(oversample):
+    """A sinusoid of 0.3 cy/px, given as cell averages (what charts and renders store), reaches the
+    pixels with the photodiode's |sinc(√FF · f)| (here 0.928 at FF 0.5), in phase, at every scene
+    oversample; the microlens pixel keeps the full pitch's sinc(f) (0.858)."""
+    from workbench.sensor.params import SensorParams
+    f_cy_px, k = 0.3, oversample
+    s = 3e-6 / k
+    x = (np.arange(64 * k) - (64 * k - 1) / 2) * s
+    f = f_cy_px / 3e-6
+    cells = 1 + 0.5 * np.sinc(s * f) * np.cos(2 * np.pi * f * x)
+    oi = OpticalImage(np.broadcast_to(cells[None, :, None], (16 * k, 64 * k, 1)).astype(np.float32).copy(),
+                      np.array([550.0]), s, 1e-3, 4.0)
+    xc = (np.arange(64) - 31.5) * 3e-6
+    basis = np.c_[np.ones(64), np.cos(2 * np.pi * f * xc), np.sin(2 * np.pi * f * xc)][8:56]
+    for aperture, expected in (("photodiode", np.sinc(np.sqrt(0.5) * f_cy_px)), ("microlens", np.sinc(f_cy_px))):
+        sp = SensorParams(rows=16, cols=64, fill_factor=0.5, pixel_aperture=aperture, cfa_pattern="MONO",
+                          filter_file=None, photodiode_qe_file=None, ir_cut_file=None)
+        row = irradiance_to_signal_rate(oi, sp.pixel_response)[8].astype(np.float64)
+        mean, cos, sin = np.linalg.lstsq(basis, row[8:56], rcond=None)[0]
+        assert cos / mean / 0.5 == pytest.approx(expected, abs=0.002) and abs(sin / mean) < 0.001, aperture

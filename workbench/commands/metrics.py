@@ -13,7 +13,8 @@ def register(sub) -> None:
     m = sub.add_parser("metrics", help="measure a camera design on test charts: system MTF (ISO 12233 "
                                        "slanted edge), SNR against signal, ΔE2000 of the Macbeth chart")
     m.add_argument("project", help="project file or sample name")
-    m.add_argument("--out", default=None, help="folder for metrics.json and metrics.png (default: print only)")
+    m.add_argument("--out", default=None, help="folder for metrics.json, metrics.md and metrics.png (default: "
+                                               "print only)")
     m.set_defaults(func=cmd_metrics)
 
     c = sub.add_parser("compare", help="two camera designs side by side: a report (Markdown table with the "
@@ -44,8 +45,10 @@ def register(sub) -> None:
 
 
 def _summary_lines(metrics: dict) -> str:
-    return "\n".join(f"  {k:28s} {v:.4g}" if isinstance(v, float) else f"  {k:28s} {v}"
-                     for k, v in metrics["summary"].items())
+    """The summary, one metric a line; MTF50 with its uncertainty beside it."""
+    from workbench.metrics.study import summary_value
+    return "\n".join(f"  {k:28s} {summary_value(metrics['summary'], k)}" for k in metrics["summary"]
+                     if k != "mtf50_sd_cy_px")
 
 
 def cmd_metrics(args) -> int:

@@ -8,7 +8,7 @@ import numpy as np
 from workbench.metrics.colour import PATCH_NAMES
 
 DESIGN_STYLES = ("-", "--", ":", "-.")
-PLANE_COLOURS = {"optics alone": "0.6", "linear": "tab:cyan", "sRGB": "tab:purple"}
+PLANE_COLOURS = {"optics": "0.6", "pixel": "0.8", "linear": "tab:cyan", "sRGB": "tab:purple"}
 
 
 RAW_COLOURS = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}
@@ -21,12 +21,18 @@ def _plane_colour(name: str) -> str:
 
 
 def draw_mtf(ax, designs: list[dict]) -> None:
-    """MTF against frequency (cycles/pixel) of every plane of each design; Nyquist dashed."""
+    """MTF against frequency (cycles/pixel) of every plane of each design, MTF50 ± 1σ in the legend,
+    a raw plane's closed form (optics × pixel) thin beside it; Nyquist dashed."""
     for d, metrics in enumerate(designs):
         for row in metrics["mtf"]:
-            label = row["plane"] + (f" ({metrics['project']})" if len(designs) > 1 else "")
-            ax.plot(row["frequency_cy_px"], row["mtf"], DESIGN_STYLES[d % 4], color=_plane_colour(row["plane"]),
-                    lw=1.2, label=label)
+            m50, sd = row.get("mtf50_cy_px"), row.get("mtf50_sd_cy_px")
+            label = (row["plane"] + ("" if m50 is None else f": MTF50 {m50:.3f}")
+                     + ("" if m50 is None or sd is None else f" ± {sd:.3f}")
+                     + (f" ({metrics['project']})" if len(designs) > 1 else ""))
+            colour = _plane_colour(row["plane"])
+            ax.plot(row["frequency_cy_px"], row["mtf"], DESIGN_STYLES[d % 4], color=colour, lw=1.2, label=label)
+            if row.get("model_mtf") is not None:
+                ax.plot(row["frequency_cy_px"], row["model_mtf"], DESIGN_STYLES[d % 4], color=colour, lw=0.5)
     ax.axvline(0.5, color="k", ls="--", lw=0.8)
     ax.text(0.5, 1.02, " Nyquist", fontsize=7, va="bottom")
     ax.set(xlim=(0, 1.0), ylim=(0, 1.1), xlabel="frequency (cycles/pixel)", ylabel="MTF",

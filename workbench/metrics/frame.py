@@ -6,8 +6,11 @@ clipped pixels, and for a city frame the SNR at the road users (the noise model'
 kept box's mean signal; the median over boxes and the share below SNR 10).
 
 camera_metrics(project): the project's camera (optics, sensor, ISP) in front of charts it builds
-from the project: the slanted edge (e-SFR on each raw channel's sites, the demosaiced G plane, the sRGB
-luminance and, for comparison, the optical image alone: MTF50 and MTF at Nyquist), the uniform
+from the project: the slanted edge (ISO 12233 e-SFR, flat-fielded by a uniform chart through the same
+optics, so lens fall-off cannot lift the curve: on each raw channel's own sites at full resolution
+with that plane's Nyquist and the closed form optics × pixel beside it, the demosaiced G plane, the
+sRGB luminance; MTF50 with its bootstrap standard deviation, MTF at 0.25 and at Nyquist; and the
+optics' MTF from its model and the pixel aperture's, metrics.mtf_model), the uniform
 field at a series of exposures (SNR against signal per channel, with the model's), and the Macbeth
 chart (ΔE2000 per patch, and the noise of its six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
 """
@@ -18,7 +21,9 @@ import math
 import numpy as np
 
 from workbench.metrics.colour import macbeth_delta_e
-from workbench.metrics.esfr import edge_sfr
+from workbench.errors import InvalidValueError
+from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50, mtf50_spread
+from workbench.metrics.mtf_model import optics_mtf, pixel_mtf
 from workbench.metrics.noise import snr_model, snr_vs_signal
 
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
@@ -74,44 +79,118 @@ def _chart(project, kind: str):
     return project.updated(scene=project.scene.updated(kind=kind, fov_deg=None))
 
 
-def _sfr_row(name: str, image: np.ndarray, px_per_sample: float) -> dict:
-    """e-SFR of a region around the chart's centre; frequencies in cycles per sensor pixel."""
-    h, w = image.shape
+MODEL_FREQUENCIES_CY_PX = np.linspace(0.0, 1.0, 101)
+
+
+def _centre_roi(shape: tuple[int, int]) -> tuple[slice, slice]:
+    """The central square, half the shorter side (even-aligned, so CFA phases keep their sites)."""
+    h, w = shape
     size = min(h, w) // 2
-    roi = image[h // 2 - size // 2:h // 2 + size // 2, w // 2 - size // 2:w // 2 + size // 2]
-    sfr = edge_sfr(roi)
-    freq = sfr.frequency_cy_px / px_per_sample
-    keep = freq <= 1.0
-    mtf50 = sfr.mtf50_cy_px
-    return {"plane": name, "frequency_cy_px": freq[keep].tolist(), "mtf": sfr.mtf[keep].tolist(),
-            "mtf50_cy_px": None if mtf50 is None else mtf50 / px_per_sample,
-            "mtf_nyquist": float(np.interp(0.5, freq, sfr.mtf)), "edge_angle_deg": sfr.edge_angle_deg}
+    r0, c0 = (h // 2 - size // 2) // 2 * 2, (w // 2 - size // 2) // 2 * 2
+    return slice(r0, r0 + size), slice(c0, c0 + size)
 
 
-def system_mtf(project) -> list[dict]:
-    """e-SFR rows of the slanted-edge chart seen by the project's camera (module docstring)."""
+def reliable_limit_cy_px(nyquist_cy_px: float, oversample: int) -> float:
+    """The highest frequency (cycles/pixel) where a plane's e-SFR is trusted: 1.6 × the plane's own
+    Nyquist (measured, noise off: raw R and B of slanted_edge_diffraction_f8 and of its 2 µm f/4
+    variant, Nyquist 0.25, keep within 0.014 of their closed form up to 0.4 cy/px and miss by
+    0.022–0.035 beyond, where their 2-pixel site lattice aliases; raw G, Nyquist 0.5, within 0.009
+    up to 0.5), and no further than the optical image's own Nyquist, 0.5 × the scene oversample
+    (the simulation folds the optics' OTF above it), nor 1 cy/px."""
+    return min(1.6 * nyquist_cy_px, 0.5 * oversample, 1.0)
+
+
+def _sfr_row(name: str, image: np.ndarray, flat: np.ndarray, oversample: int, mask: np.ndarray | None = None,
+             nyquist_cy_px: float = 0.5) -> dict:
+    """e-SFR of the central region, flat-fielded, with MTF50's bootstrap spread; frequencies in
+    cycles per sensor pixel (the plane's own Nyquist `nyquist_cy_px` and the limit of trust,
+    reliable_limit_cy_px, stated beside them)."""
+    roi = _centre_roi(image.shape)
+    region, flat, mask = image[roi], flat[roi], None if mask is None else mask[roi]
+    sfr = edge_sfr(region, mask=mask, flat=flat)
+    keep = sfr.frequency_cy_px <= 1.0
+    return {"plane": name, "frequency_cy_px": sfr.frequency_cy_px[keep].tolist(), "mtf": sfr.mtf[keep].tolist(),
+            "mtf50_cy_px": sfr.mtf50_cy_px, "mtf50_sd_cy_px": mtf50_spread(region, mask=mask, flat=flat),
+            "mtf_nyquist": sfr.mtf_at(0.5), "mtf_0.25": sfr.mtf_at(0.25), "nyquist_cy_px": nyquist_cy_px,
+            "reliable_up_to_cy_px": reliable_limit_cy_px(nyquist_cy_px, oversample),
+            "edge_angle_deg": sfr.edge_angle_deg}
+
+
+def _model_row(name: str, frequency: np.ndarray, mtf: np.ndarray, note: str) -> dict:
+    return {"plane": name, "frequency_cy_px": frequency.tolist(), "mtf": mtf.tolist(),
+            "mtf50_cy_px": mtf50(frequency, mtf), "mtf50_sd_cy_px": None,
+            "mtf_nyquist": float(np.interp(0.5, frequency, mtf)), "mtf_0.25": float(np.interp(0.25, frequency, mtf)),
+            "note": note}
+
+
+def uniform_chart(project):
+    """The project in front of the uniform chart, its light through the optics as it is (πT/4N²),
+    not rescaled: noise_series' chart and the slanted edge's flat field."""
+    chart = _chart(project, "uniform")
+    return chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))
+
+
+def flat_field(project, shape: tuple[int, int], tile: np.ndarray, uniform=None) -> np.ndarray:
+    """The chart's flat field: the noise-free signal rate of the uniform chart through the same optics
+    and pixels (a dark-subtracted flat averaged over infinitely many frames; `uniform`: that chart's
+    pipeline result when already run), each CFA channel's sites divided by their mean so that only
+    the optics' shading (cos⁴ fall-off) is left."""
     from workbench.pipeline import Pipeline
-    from workbench.spectra import xyz_cmfs
+    rate = np.asarray(uniform.signal_rate_e_per_s if uniform is not None
+                      else Pipeline(uniform_chart(project)).signal_rate(), np.float64)
+    if rate.shape != shape:
+        raise InvalidValueError(f"metrics: the flat field is {rate.shape}, the slanted-edge image {shape}")
+    th, tw = tile.shape
+    flat = np.ones_like(rate)
+    for i in range(th):
+        for j in range(tw):
+            sites = rate[i::th, j::tw]
+            flat[i::th, j::tw] = sites / sites.mean() if sites.mean() > 0 else 1.0
+    return np.where(flat > 0, flat, 1.0)
+
+
+def system_mtf(project, uniform=None) -> list[dict]:
+    """e-SFR rows of the slanted-edge chart seen by the project's camera, flat-fielded by a uniform
+    chart through the same optics: each raw channel on its own sites at their full-grid positions
+    (black level removed; its closed form optics × pixel beside it as model_mtf when the optics has
+    one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
+    diffraction_limited; other levels have no closed form and no such row) and the pixel aperture
+    alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run."""
+    from workbench.pipeline import Pipeline
     result = Pipeline(_chart(project, "slanted_edge")).run()
-    image, isp = result.sensor_image, result.isp
-    rows = []
+    image, isp, sensor = result.sensor_image, result.isp, project.sensor
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
+    flat = flat_field(project, image.dn.shape, tile, uniform)
+    pitch_m, os = sensor.pixel_pitch_um * 1e-6, project.scene.oversample
+    dn = np.asarray(image.dn, np.float64) - float(image.meta.get("black_level_dn", 0.0))
+    th, tw = tile.shape
+    layout = np.tile(tile, (dn.shape[0] // th + 1, dn.shape[1] // tw + 1))[:dn.shape[0], :dn.shape[1]]
+    rows = []
     for k, name in enumerate(names):                        # every raw channel, on its own sites
         if not np.any(tile == k):
             continue
-        r0, c0 = map(int, np.argwhere(tile == k)[0])
-        step = 1 if np.all(tile == k) else tile.shape[0]    # a monochrome tile: every pixel
-        rows.append(_sfr_row(f"raw {name}", np.asarray(image.dn, np.float64)[r0::step, c0::step], step))
+        row = _sfr_row(f"raw {name}", dn, flat, os, None if np.all(tile == k) else layout == k,
+                       cfa_plane_nyquist_cy_px(tile, k))
+        optics = optics_mtf(result, k, np.asarray(row["frequency_cy_px"]), pitch_m)
+        if optics is not None:
+            model = optics * pixel_mtf(sensor, np.asarray(row["frequency_cy_px"]), row["edge_angle_deg"])
+            row["model_mtf"] = model.tolist()
+            row["model_mtf50_cy_px"] = mtf50(np.asarray(row["frequency_cy_px"]), model)
+        rows.append(row)
     green = next((n for n in ("G", "C", "W", "M") if n in names), names[0])
     k = names.index(green)
-    rows.append(_sfr_row(f"linear {green}", np.asarray(isp.linear[..., k], np.float64), 1.0))
+    rows.append(_sfr_row(f"linear {green}", np.asarray(isp.linear[..., k], np.float64), flat, os))
     lin = np.where(isp.srgb <= 0.04045, isp.srgb / 12.92, ((isp.srgb + 0.055) / 1.055) ** 2.4)
-    rows.append(_sfr_row("sRGB luminance", lin @ np.array([0.2126, 0.7152, 0.0722]), 1.0))
-    oi = result.optical_image
-    y = np.asarray(oi.irradiance_photons, np.float64) @ xyz_cmfs(oi.wavelengths_nm)[:, 1]
-    ratio = project.sensor.pixel_pitch_um * 1e-6 / oi.sample_spacing_m      # samples per pixel
-    rows.append(_sfr_row("optics alone", y, 1.0 / ratio))
+    rows.append(_sfr_row("sRGB luminance", lin @ np.array([0.2126, 0.7152, 0.0722]), flat, os))
+    f = MODEL_FREQUENCIES_CY_PX
+    optics = optics_mtf(result, k, f, pitch_m)
+    if optics is not None:
+        rows.append(_model_row("optics (model)", f, optics,
+                               f"{result.optical_image.meta.get('model')} optics, {green} channel's spectrum"))
+    aperture = ("full pitch (microlens)" if sensor.pixel_aperture == "microlens"
+                else f"photodiode √FF = {sensor.aperture_width_px:.3f} pitch")
+    rows.append(_model_row("pixel aperture (model)", f, pixel_mtf(sensor, f), aperture))
     return rows
 
 
@@ -121,15 +200,15 @@ def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
     return values[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, values.shape[-1]).mean(axis=0)
 
 
-def noise_series(project) -> tuple[list[dict], float]:
+def noise_series(project, uniform=None) -> tuple[list[dict], float]:
     """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
     scene luminance to sensor-plane illuminance (lux per cd/m²: πT/4N² on axis, less off axis);
-    each row also holds its sensor-plane exposure (exposure_lux_s)."""
+    each row also holds its sensor-plane exposure (exposure_lux_s). uniform: the pipeline result of
+    uniform_chart(project), when already run."""
     from workbench.pipeline import Pipeline
     from workbench.sensor import resolve_exposure
     from workbench.spectra import luminance_from_photons
-    chart = _chart(project, "uniform")         # light through the optics as it is (πT/4N²), not rescaled
-    result = Pipeline(chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))).run()
+    result = uniform if uniform is not None else Pipeline(uniform_chart(project)).run()
     rate = result.signal_rate_e_per_s
     t = float(np.mean(resolve_exposure(rate, project.sensor)))
     h, w = rate.shape
@@ -223,14 +302,18 @@ def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
 
 def camera_metrics(project) -> dict:
     """The measurements of module docstring, with a summary of the headline numbers."""
-    mtf, (noise, lux_per_cd_m2), colour = system_mtf(project), noise_series(project), colour_error(project)
+    from workbench.pipeline import Pipeline
+    uniform = Pipeline(uniform_chart(project)).run()          # run once: the edge's flat field and the noise
+    mtf, (noise, lux_per_cd_m2) = system_mtf(project, uniform), noise_series(project, uniform)
+    colour = colour_error(project)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
     mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
            min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
     expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
-    summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf_nyquist": srgb["mtf_nyquist"],
+    summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf50_sd_cy_px": srgb["mtf50_sd_cy_px"],
+               "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
                "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
                LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],

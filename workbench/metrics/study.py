@@ -25,6 +25,9 @@ from workbench.jobs import Progress
 from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
 
 STUDY_FORMAT = "camera-workbench-study"
+# what the measurements mean: 2 = e-SFR flat-fielded, raw planes at full resolution, MTF50's spread;
+# a resumed study re-measures the designs of another version instead of mixing them into one table
+METRICS_VERSION = 2
 # summary metrics and whether more is better (for the Pareto front)
 HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": True, "snr_at_10pct_full_well_dB": True,
                     LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
@@ -185,12 +188,16 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
         raise ParameterError("--x/--y", "map", "needs --detector and --data")
     out = _output_folder(out_dir)
     doc = {"format": STUDY_FORMAT, "project": project.name, "vary": vary, "detector": detector,
-           "planned": len(grid), "notes": notes, "designs": []}
+           "planned": len(grid), "notes": notes, "metrics_version": METRICS_VERSION, "designs": []}
     if (out / "study.json").exists():
         old = read_json_object(out / "study.json", "study file", "")
         if any(old.get(k) != doc[k] for k in ("format", "vary", "project", "detector")):
             raise OutputPathError(out, "holds another study (project, --vary or --detector differ); choose another --out")
-        doc["designs"] = [d for d in old.get("designs", []) if isinstance(d, dict) and "design" in d]
+        if old.get("metrics_version", 1) == METRICS_VERSION:
+            doc["designs"] = [d for d in old.get("designs", []) if isinstance(d, dict) and "design" in d]
+        else:
+            notes.append(f"the designs measured by metrics version {old.get('metrics_version', 1)} are measured "
+                         f"again (version {METRICS_VERSION}: flat-fielded e-SFR)")
     done = {d["design"] for d in doc["designs"]}
     jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid if name not in done]
     yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured"
@@ -198,13 +205,43 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
     for job, result in run_jobs(measure_design, jobs, compute or ComputeSpec(workers=0), cancel):
         doc["designs"].append(result)
         write_study(doc, out, x, y)
-        yield Progress(len(doc["designs"]), len(grid), f"{job.name}: MTF50 {result['summary']['mtf50_cy_px']}")
+        yield Progress(len(doc["designs"]), len(grid),
+                       f"{job.name}: MTF50 {summary_value(result['summary'], 'mtf50_cy_px')}")
     write_study(doc, out, x, y)
     return doc
 
 
+def summary_value(summary: dict, key: str) -> str:
+    """A summary metric as text; MTF50 with its standard deviation beside it (± 1σ)."""
+    v = summary.get(key)
+    text = f"{v:.4g}" if isinstance(v, float) else str(v)
+    sd = summary.get("mtf50_sd_cy_px") if key == "mtf50_cy_px" else None
+    return text + (f" ± {sd:.2g}" if isinstance(v, float) and sd is not None else "")
+
+
+def metrics_markdown(metrics: dict) -> str:
+    """metrics.md: the summary, then MTF50 (± its bootstrap standard deviation over the edge's rows),
+    MTF(0.25) and MTF(0.5) of every plane, with the closed form optics × pixel beside the raw planes."""
+    fmt = (lambda v: "—" if v is None else f"{v:.4g}")
+    lines = [f"# Camera metrics of {metrics['project']}", "", "| metric | value |", "|---|---|"]
+    lines += [f"| {k} | {summary_value(metrics['summary'], k)} |" for k in metrics["summary"] if k != "mtf50_sd_cy_px"]
+    lines += ["", "## MTF (ISO 12233 e-SFR, flat-fielded; cycles per sensor pixel)", "",
+              "| plane | MTF50 | ± 1σ | MTF(0.25) | MTF(0.5) | plane Nyquist | trusted up to | closed-form MTF50 |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in metrics["mtf"]:
+        lines.append(f"| {r['plane']} | {fmt(r['mtf50_cy_px'])} | {fmt(r.get('mtf50_sd_cy_px'))} | "
+                     f"{fmt(r.get('mtf_0.25'))} | {fmt(r['mtf_nyquist'])} | {fmt(r.get('nyquist_cy_px'))} | "
+                     f"{fmt(r.get('reliable_up_to_cy_px'))} | {fmt(r.get('model_mtf50_cy_px'))} |")
+    notes = [f"{r['plane']}: {r['note']}" for r in metrics["mtf"] if r.get("note")]
+    lines += ["", "± 1σ: standard deviation of MTF50 over a bootstrap of the edge region's rows. Raw planes: "
+              "each channel's own sites at their full-grid positions; closed form = the optics' model × the "
+              "pixel aperture, weighted by the channel's spectrum. " + "; ".join(notes) + "."]
+    return "\n".join(lines) + "\n"
+
+
 def write_metrics(metrics: dict, out_dir) -> dict:
-    """metrics.json and metrics.png (MTF, SNR and ΔE charts) of one design; returns their paths."""
+    """metrics.json, metrics.md (metrics_markdown) and metrics.png (MTF, SNR and ΔE charts) of one
+    design; returns their paths."""
     from matplotlib.figure import Figure
 
     from workbench.files import atomic_write_files
@@ -215,8 +252,8 @@ def write_metrics(metrics: dict, out_dir) -> dict:
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
-    paths = {"json": out / "metrics.json", "png": out / "metrics.png"}
-    atomic_write_files({paths["png"]: png.getvalue(),
+    paths = {"json": out / "metrics.json", "md": out / "metrics.md", "png": out / "metrics.png"}
+    atomic_write_files({paths["png"]: png.getvalue(), paths["md"]: metrics_markdown(metrics).encode(),
                         paths["json"]: (json.dumps(metrics, indent=1, default=float) + "\n").encode()})
     return paths
 
@@ -271,7 +308,9 @@ def compare_designs(a, b, out_dir) -> dict:
                      "": compare_verdict(key, va, vb)})
     what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
             if changed else "A and B are the same design (no parameter differs).")
-    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) +
+    spread = (f"\nMTF50 ± 1σ (bootstrap over the edge's rows): A {summary_value(ma['summary'], 'mtf50_cy_px')}, "
+              f"B {summary_value(mb['summary'], 'mtf50_cy_px')} cy/px.\n")
+    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) + spread +
           "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "

@@ -33,6 +33,14 @@ class SensorParams(Params):
        0  no noise; analog gain/offset, clipping to the swing and quantisation;
        1  as 0 plus photon shot noise (true Poisson);
        2  as 1 plus dark current, read noise, PRNU, DSNU and column FPN (the default).
+
+    pixel_aperture: the light-sensitive area a pixel integrates over. Automotive CMOS sensors, like
+    camera sensors generally, put an on-chip microlens on every pixel, which converges the light
+    of the whole pixel onto the photodiode and raises the effective fill factor to nearly 100 %
+    (S. Battiato et al. (eds.), Image Processing for Embedded Devices, Bentham 2010, pp. 12 and
+    29); hence the default 'microlens' (aperture = the full pitch). 'photodiode' models a pixel
+    without one: a centred square photodiode of √fill_factor × pitch.
+    fill_factor always scales the collected signal (A·FF·QE); the aperture model sets the MTF.
     """
 
     rows: int = Field(480, ge=1, le=65536, description="pixel rows (image height); sensor geometry and signal stage")
@@ -42,6 +50,11 @@ class SensorParams(Params):
                                               "view and the optical-image sample spacing (pitch / oversample)")
     fill_factor: float = Field(0.75, gt=0.0, le=1.0,
                                description="photosensitive fraction of the pixel area (0–1); signal stage")
+    pixel_aperture: Literal["microlens", "photodiode"] = Field(
+        "microlens", description="the area each pixel integrates light over, so its MTF: 'microlens' the full "
+                                 "pitch (a microlens focuses the pixel's light onto the photodiode, MTF "
+                                 "sinc(f·pitch)); 'photodiode' a bare centred square of √fill_factor × pitch "
+                                 "(MTF sinc(f·√FF·pitch)); signal stage, metrics")
     conversion_gain_uV_per_e: float = Field(100.0, ge=0.1, le=1000.0,
                                             description="conversion gain (µV per electron, 0.1–1,000: real pixels "
                                                         "have 10–500); sensor stage")
@@ -168,6 +181,11 @@ class SensorParams(Params):
         return self.rows * p, self.cols * p
 
     @property
+    def aperture_width_px(self) -> float:
+        """Side of the square the pixel integrates light over, in pixel pitches (pixel_aperture)."""
+        return 1.0 if self.pixel_aperture == "microlens" else self.fill_factor ** 0.5
+
+    @property
     def conversion_gain_V_per_e(self) -> float:
         return self.conversion_gain_uV_per_e * 1e-6
 
@@ -195,8 +213,8 @@ class SensorParams(Params):
         return float(2 ** self.bit_depth - 1) if self.bit_depth else self.voltage_swing_V
 
 
-PIXEL_RESPONSE_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "cfa_pattern", "filter_file",
-                         "photodiode_qe_file", "ir_cut_file", "regrid_method")
+PIXEL_RESPONSE_FIELDS = ("rows", "cols", "pixel_pitch_um", "fill_factor", "pixel_aperture", "cfa_pattern",
+                         "filter_file", "photodiode_qe_file", "ir_cut_file", "regrid_method")
 
 
 class _PixelResponse(Params):
@@ -210,6 +228,7 @@ class _PixelResponse(Params):
 
     pixel_area_m2 = SensorParams.pixel_area_m2
     sensor_size_m = SensorParams.sensor_size_m
+    aperture_width_px = SensorParams.aperture_width_px
 
 
 PixelResponseParams = create_model(

@@ -1,7 +1,11 @@
 """Irradiance → mean photo-electron rate per pixel (ISETCam's signalCurrent + regridOI2ISA).
 
 mean e⁻/s of a pixel = A_pixel · fill factor · Σ_λ E(λ) · QE_k(λ) · Δλ, with E the irradiance
-(photons/s/m²/nm) over the pixel and QE_k the effective QE of the pixel's CFA channel.
+(photons/s/m²/nm) averaged over the pixel's aperture and QE_k the effective QE of the pixel's CFA
+channel. The aperture (SensorParams.pixel_aperture) is the full pitch with a microlens: the optical
+image's samples, each already the average over its own cell, are averaged over the pixel
+(regrid_method), or taken as they are on the pixel grid. A bare photodiode integrates over a centred
+square of √FF × pitch instead: see _photodiode_signal_rate.
 The optical image and the pixel array are both centred on the optical axis; pixels beyond
 the optical image receive no light.
 """
@@ -149,6 +153,53 @@ def _project_by_tile(irr: np.ndarray, weights: np.ndarray, tile: np.ndarray, r0:
     return rate
 
 
+def _photodiode_signal_rate(irr: np.ndarray, spacing_m: float, weights: np.ndarray,
+                            params: PixelResponseParams) -> np.ndarray:
+    """Mean e⁻/s of pixels that integrate over a centred photodiode square of side a = √FF × pitch.
+
+    The optical image's samples are averages over their cells of side s (charts by exact coverage,
+    renders by supersampling), transfer function sinc(s·f) per axis. Each channel's irradiance is
+    filtered by sinc(a·f)/sinc(s·f) per axis (finite up to the samples' Nyquist 1/2s; above 1 when
+    a < s, e.g. at one sample per pixel), which swaps the cell's box for the photodiode's, then read
+    at the pixel centres (shifted by half a sample by the filter's phase when an even number of
+    samples spans a pixel). The pixel pitch must be a whole number of samples (scene oversample);
+    regrid_method is not used."""
+    from workbench.optics.formation.fourier import apply_otf
+    pitch_m = params.pixel_pitch_um * 1e-6
+    k = pitch_m / spacing_m
+    if abs(k - round(k)) > 1e-6 * k or round(k) < 1:
+        raise InvalidValueError(f"sensor: pixel_aperture 'photodiode' needs the optical image sampled at the pixel "
+                                f"pitch divided by a whole number (scene oversample), got {k:.4g} samples per pixel; "
+                                "choose pixel_aperture 'microlens' or a whole scene oversample")
+    k = int(round(k))
+    h, w = irr.shape[:2]
+    rows, cols = params.rows, params.cols
+    # a pixel centre's position in samples of the centred optical image; half-integer when k is even
+    u_r = k * (np.arange(rows) - (rows - 1) / 2.0) + (h - 1) / 2.0
+    u_c = k * (np.arange(cols) - (cols - 1) / 2.0) + (w - 1) / 2.0
+    shift = (k - 1) / 2.0 % 1.0
+    a_m = params.aperture_width_px * pitch_m
+
+    def transfer(_, fy, fx):
+        box = (np.sinc(a_m * fy) / np.sinc(spacing_m * fy)) * (np.sinc(a_m * fx) / np.sinc(spacing_m * fx))
+        return box * np.exp(2j * np.pi * shift * spacing_m * (fy + fx)) if shift else box
+    planes, _ = apply_otf((irr.reshape(-1, irr.shape[2]) @ weights).reshape(h, w, -1), spacing_m, transfer,
+                          pad=k + 2)
+    tile, _ = cfa_layout(params.cfa_pattern)
+    th, tw = tile.shape
+    r_idx, c_idx = np.floor(u_r - shift + 0.5).astype(np.int64), np.floor(u_c - shift + 0.5).astype(np.int64)
+    inside_r, inside_c = (r_idx >= 0) & (r_idx < h), (c_idx >= 0) & (c_idx < w)
+    rate = np.zeros((rows, cols), dtype=np.float32)
+    for i in range(th):
+        for j in range(tw):
+            rr, cc = np.arange(i, rows, th), np.arange(j, cols, tw)
+            rr, cc = rr[inside_r[rr]], cc[inside_c[cc]]
+            rate[np.ix_(rr, cc)] = planes[np.ix_(r_idx[rr], c_idx[cc])][..., tile[i, j]]
+    if not np.isfinite(rate).all():
+        raise InvalidValueError(_NON_FINITE)
+    return rate
+
+
 def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, method: str | None = None) -> np.ndarray:
     """Mean photo-electron rate (e⁻/s) of every pixel, rows×cols float32, before any noise.
 
@@ -167,6 +218,8 @@ def irradiance_to_signal_rate(oi: OpticalImage, params: PixelResponseParams, met
         irr = irr.astype(np.float32)
     weights = (film_channel_weights(oi, params) if oi.meta.get("representation") == "sensor"
                else channel_weights(params, oi.wavelengths_nm))
+    if params.pixel_aperture == "photodiode" and params.fill_factor < 1.0:
+        return _photodiode_signal_rate(irr, oi.sample_spacing_m, weights, params)
     tile, _ = cfa_layout(params.cfa_pattern)
     rows, cols = params.rows, params.cols
     pitch_m = params.pixel_pitch_um * 1e-6

@@ -34,6 +34,7 @@ READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
                 ("road_user_snr_median", "SNR at road users (median)", lambda v: f"{v:.1f}"),
                 ("road_user_low_snr_pct", "road users below SNR 10 (%)", lambda v: f"{v:.0f}"))
 SUMMARY_ROWS = (("mtf50_cy_px", "MTF50 sRGB (cy/px)", lambda v: f"{v:.3f}"),
+                ("mtf50_sd_cy_px", "MTF50 sRGB ± 1σ (cy/px)", lambda v: f"{v:.3f}"),
                 ("mtf50_lp_mm", "MTF50 sRGB (lp/mm)", lambda v: f"{v:.1f}"),
                 ("mtf_nyquist", "MTF at Nyquist", lambda v: f"{v:.3f}"),
                 ("snr_at_10cd_m2_10ms_dB", "SNR, 10 cd/m² for 10 ms (dB)", lambda v: f"{v:.1f}"),
