@@ -44,8 +44,16 @@ def register(sub) -> None:
 
 
 def _summary_lines(metrics: dict) -> str:
-    return "\n".join(f"  {k:28s} {v:.4g}" if isinstance(v, float) else f"  {k:28s} {v}"
-                     for k, v in metrics["summary"].items())
+    """Each summary metric with ± its measured uncertainty (σ), then the colour error in words."""
+    from workbench.metrics.study import colour_lines
+    sigma = metrics.get("uncertainty", {})
+
+    def line(k, v) -> str:
+        text = f"{v:.4g}" if isinstance(v, float) else str(v)
+        return f"  {k:32s} {text}" + (f" ± {sigma[k]:.2g}" if sigma.get(k) else "")
+    return "\n".join([line(k, v) for k, v in metrics["summary"].items()] +
+                     [f"  (±: σ over {metrics.get('noise_draws')} noise draws)"] +
+                     [f"  {text}" for text in colour_lines(metrics)])
 
 
 def cmd_metrics(args) -> int:
@@ -67,7 +75,7 @@ def cmd_compare(args) -> int:
     doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
     for row in doc["table"]:
         fmt = (lambda v: "—" if v is None else f"{v:.4g}")
-        print(f"{row['metric']:28s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
+        print(f"{row['metric']:32s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
     print(f"report: {args.out}/compare.md")
     return 0
 

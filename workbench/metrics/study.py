@@ -15,6 +15,7 @@ import csv
 import io
 import itertools
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,9 +26,15 @@ from workbench.jobs import Progress
 from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
 
 STUDY_FORMAT = "camera-workbench-study"
+DELTA_E_NOTE = ("ΔE2000: the Macbeth chart shot with its brightest pixels at 90 % of the swing, the ISP's XYZ of "
+                "flat-fielded patch means (divided by the noise-free frame of a uniform white field through the same "
+                "optics, so lens fall-off is not counted), exposure matched on neutral 5; delta_e_held_out: each "
+                "patch through the colour matrix fitted to the other 23 (leave-one-out: colours the fit never saw); "
+                "delta_e_mean/max: fitted (training) patches, the matrix fitted to all 24.")
 # summary metrics and whether more is better (for the Pareto front)
 HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": True, "snr_at_10pct_full_well_dB": True,
                     LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
+                    "delta_e_held_out_mean": False, "delta_e_held_out_max": False,
                     "delta_e_mean": False, "delta_e_max": False, "read_noise_e": False, "full_well_e": True,
                     "dynamic_range_dB": True, "map": True}
 
@@ -109,8 +116,9 @@ def measure_design(job: DesignJob) -> dict:
     metrics = camera_metrics(project)
     if job.detector is not None:
         from workbench.metrics.detection import design_map
-        metrics["detection"] = design_map(project, job.detector, job.data)
+        metrics["detection"] = design_map(project, job.detector, job.data, bootstrap=MAP_BOOTSTRAP)
         metrics["summary"]["map"] = metrics["detection"]["map"]
+        metrics["uncertainty"]["map"] = metrics["detection"]["map_bootstrap_sd"]
     return {"design": job.name, "values": job.values, **metrics, "seconds": time.perf_counter() - t0}
 
 
@@ -129,6 +137,18 @@ def _markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def epsilon_note(sigma: dict[str, tuple], metrics: tuple[str, str]) -> str:
+    """The ε-dominance rule of a study's front and the ε values its pairs of designs have."""
+    parts = []
+    for i, name in enumerate(metrics):
+        eps = [difference_tolerance(a[i], b[i]) for (n1, a), (n2, b) in itertools.combinations(sigma.items(), 2)]
+        parts.append(f"{name} ε {min(eps):.3g}–{max(eps):.3g}" if eps else f"{name} ε —")
+    return ("The front is by ε-dominance: a design is left off only when another is better by more than ε on one "
+            "metric and worse by no more than ε on the other, ε = the compare tolerance of the pair, "
+            f"{TOLERANCE_SIGMAS:g}·√(σ₁² + σ₂²) of their measured uncertainties (a design measured without "
+            f"them counts σ = 0). Here: {'; '.join(parts)}.\n")
+
+
 def write_study(doc: dict, out: Path, x: str, y: str) -> None:
     """study.json, study.csv, study.md and pareto.png of a study document, atomically."""
     from matplotlib.figure import Figure
@@ -141,14 +161,15 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
+    sigma = {d["design"]: tuple(d.get("uncertainty", {}).get(m) for m in (x, y)) for d in doc["designs"]}
+    front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True), sigma)
     md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
           f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n"
           + "".join(f"Note: {n}.\n\n" for n in doc.get("notes", [])) + _markdown(rows) +
-          f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n")
+          f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n\n" + epsilon_note(sigma, (x, y)))
     fig = Figure(figsize=(6.5, 5))
     draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True),
-                fields=list(doc["vary"]))
+                fields=list(doc["vary"]), sigma=sigma)
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
@@ -203,8 +224,36 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
     return doc
 
 
+def colour_lines(metrics: dict) -> list[str]:
+    """ΔE2000 of a design in words: held out beside fitted (training) patches, and the sRGB output."""
+    colour = metrics["colour"]
+    out = colour["srgb_output"]
+    lines = []
+    if colour.get("held_out") is not None:
+        held, fitted = colour["held_out"], colour["fitted"]
+        lines += [f"ΔE2000 held-out patches (leave-one-out fits): mean {held['mean']:.2f}, max {held['max']:.2f} "
+                  f"({held['worst']})",
+                  f"ΔE2000 fitted (training) patches: mean {fitted['mean']:.2f}, max {fitted['max']:.2f} "
+                  f"({fitted['worst']})"]
+    lines.append(f"ΔE2000 of the sRGB output as rendered (fitted matrix, lens fall-off and gamut clipping "
+                 f"included): mean {out['mean']:.2f}, max {out['max']:.2f}")
+    return lines
+
+
+def metrics_markdown(metrics: dict) -> str:
+    """A design's summary as Markdown: each metric with its measured uncertainty, then the colour error."""
+    sigma = metrics.get("uncertainty", {})
+    rows = [{"metric": k, "value": v, "± σ": sigma.get(k)} for k, v in metrics["summary"].items()]
+    return (f"# Camera metrics of {metrics['project']}\n\n" + _markdown(rows) +
+            f"\nσ: the standard deviation over {metrics.get('noise_draws')} noise draws of the charts (for the "
+            "noise-equivalent exposure and the low-light SNR at least the standard error of the sensitivity); "
+            "design parameters are exact.\n\n" + "".join(f"- {line}\n" for line in colour_lines(metrics)) +
+            f"\n{DELTA_E_NOTE}\n")
+
+
 def write_metrics(metrics: dict, out_dir) -> dict:
-    """metrics.json and metrics.png (MTF, SNR and ΔE charts) of one design; returns their paths."""
+    """metrics.json, metrics.md (metrics_markdown) and metrics.png (MTF, SNR and ΔE charts) of one
+    design; returns their paths."""
     from matplotlib.figure import Figure
 
     from workbench.files import atomic_write_files
@@ -215,8 +264,8 @@ def write_metrics(metrics: dict, out_dir) -> dict:
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
-    paths = {"json": out / "metrics.json", "png": out / "metrics.png"}
-    atomic_write_files({paths["png"]: png.getvalue(),
+    paths = {"json": out / "metrics.json", "md": out / "metrics.md", "png": out / "metrics.png"}
+    atomic_write_files({paths["png"]: png.getvalue(), paths["md"]: metrics_markdown(metrics).encode(),
                         paths["json"]: (json.dumps(metrics, indent=1, default=float) + "\n").encode()})
     return paths
 
@@ -226,25 +275,40 @@ def _output_folder(out_dir) -> Path:
     return prepare_output_folder(out_dir)
 
 
-# how far apart two measurements of a metric must be to call one design better: below this they
-# read "same within ±tolerance" (the measurement's repeatability on the test charts is about this
-# size: MTF50 by the slanted edge ±0.002 cy/px, SNR ±0.1 dB; an exposure 1 %; ΔE ±0.05)
-COMPARE_TOLERANCE = {"mtf50_cy_px": ("abs", 0.002), "mtf_nyquist": ("abs", 0.005), "mtf50_lp_mm": ("rel", 0.01),
-                     "snr_at_10pct_full_well_dB": ("abs", 0.1), LOW_LIGHT_SNR_KEY: ("abs", 0.1),
-                     "noise_equivalent_exposure_lux_s": ("rel", 0.01), "delta_e_mean": ("abs", 0.05),
-                     "delta_e_max": ("abs", 0.05), "read_noise_e": ("rel", 0.01), "full_well_e": ("rel", 0.01),
-                     "dynamic_range_dB": ("abs", 0.1), "map": ("abs", 0.01)}
+# how far apart two designs' measurements of a metric must be to call one better: this many standard
+# deviations of their difference, √(σ_A² + σ_B²), σ each design's measured uncertainty (≈ 95 %)
+TOLERANCE_SIGMAS = 2.0
+MAP_BOOTSTRAP = 200                    # test-set resamples for the uncertainty of a design's mAP
+TOLERANCE_RULE = (f"'better' only where the difference exceeds ±x = {TOLERANCE_SIGMAS:g}·√(σ_A² + σ_B²), σ each "
+                  "design's measured uncertainty (the standard deviation over repeated sensor noise draws of its "
+                  "charts; for the noise-equivalent exposure and the low-light SNR at least the standard error of "
+                  "the sensitivity the exposure series gives; mAP: test-set bootstrap); design parameters (read "
+                  "noise, full well, dynamic range) are exact")
 
 
-def compare_verdict(metric: str, a: float | None, b: float | None) -> str:
-    """'A better', 'B better', 'same within ±x' (COMPARE_TOLERANCE) or '' when one is missing."""
+def difference_tolerance(sigma_a: float | None, sigma_b: float | None) -> float:
+    """±x within which two measurements are the same (TOLERANCE_SIGMAS; an unmeasured σ counts 0)."""
+    return TOLERANCE_SIGMAS * math.hypot(sigma_a or 0.0, sigma_b or 0.0)
+
+
+def compare_verdict(metric: str, a: float | None, b: float | None, sigma_a: float | None = None,
+                    sigma_b: float | None = None) -> str:
+    """'A better', 'B better', 'same within ±x' (difference_tolerance of the two uncertainties)
+    or '' when one is missing."""
     if a is None or b is None:
         return ""
-    kind, tol = COMPARE_TOLERANCE.get(metric, ("rel", 0.01))
-    width = tol * max(abs(a), abs(b)) if kind == "rel" else tol
-    if abs(b - a) <= width:
-        return f"same within ±{tol:g}" + (" (relative)" if kind == "rel" else "")
+    x = difference_tolerance(sigma_a, sigma_b)
+    if abs(b - a) <= x:
+        return f"same within ±{x:.2g}"
     return "B better" if (b > a) == HIGHER_IS_BETTER.get(metric, True) else "A better"
+
+
+def epsilon_dominates(q: tuple, p: tuple, higher: tuple[bool, ...]) -> bool:
+    """Whether design q ε-dominates p: q is better by more than ε on one metric and worse by no
+    more than ε on any; q and p are ((value, σ), …) per metric, ε = difference_tolerance(σ_q, σ_p)."""
+    margins = [(1 if up else -1) * (vq - vp) for (vq, _), (vp, _), up in zip(q, p, higher)]
+    eps = [difference_tolerance(sq, sp) for (_, sq), (_, sp) in zip(q, p)]
+    return all(m >= -e for m, e in zip(margins, eps)) and any(m > e for m, e in zip(margins, eps))
 
 
 def compare_designs(a, b, out_dir) -> dict:
@@ -267,16 +331,17 @@ def compare_designs(a, b, out_dir) -> dict:
         va, vb = ma["summary"].get(key), mb["summary"].get(key)
         if va is None and vb is None:
             continue
+        sa, sb = ma.get("uncertainty", {}).get(key), mb.get("uncertainty", {}).get(key)
         rows.append({"metric": key, "A": va, "B": vb, "B − A": None if va is None or vb is None else vb - va,
-                     "": compare_verdict(key, va, vb)})
+                     "±": difference_tolerance(sa, sb), "": compare_verdict(key, va, vb, sa, sb)})
     what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
             if changed else "A and B are the same design (no parameter differs).")
     md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) +
-          "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
+          f"\nVerdict: {TOLERANCE_RULE}; noise draws per design: A {ma.get('noise_draws')}, B {mb.get('noise_draws')}.\n\n"
+          "MTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
-          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "
-          "chart shot with its brightest pixels at 90 % of the swing, exposure matched on neutral 5; it "
-          "includes the optics' fall-off over the chart. Dynamic range: full well over read noise.\n")
+          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
+          " Dynamic range: full well over read noise.\n")
     fig = Figure(figsize=(11, 8))
     draw_metrics(fig, [ma, mb])
     fig.tight_layout()
