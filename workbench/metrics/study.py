@@ -137,6 +137,11 @@ def _markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def study_sigma(designs: list[dict], x: str, y: str) -> dict[str, tuple]:
+    """Design name → (σ_x, σ_y), the designs' measured uncertainties (None where not measured)."""
+    return {d["design"]: tuple((d.get("uncertainty") or {}).get(m) for m in (x, y)) for d in designs}
+
+
 def epsilon_note(sigma: dict[str, tuple], metrics: tuple[str, str]) -> str:
     """The ε-dominance rule of a study's front and the ε values its pairs of designs have."""
     parts = []
@@ -161,7 +166,7 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    sigma = {d["design"]: tuple(d.get("uncertainty", {}).get(m) for m in (x, y)) for d in doc["designs"]}
+    sigma = study_sigma(doc["designs"], x, y)
     front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True), sigma)
     md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
           f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n"
