@@ -28,7 +28,8 @@ def observer_sensor_csv(folder) -> str:
     qe /= qe.max()
     path = folder / "sensors" / "observer_rgb.csv"
     path.parent.mkdir(parents=True)
-    path.write_text("wavelength_nm,R,G,B\n" + "".join(f"{w:g},{r:.9g},{g:.9g},{b:.9g}\n" for w, (r, g, b) in zip(wl, qe)))
+    path.write_text("wavelength_nm,R,G,B\n" +
+                    "".join(f"{w:g},{r:.9g},{g:.9g},{b:.9g}\n" for w, (r, g, b) in zip(wl, qe)))
     return "sensors/observer_rgb.csv"
 
 
@@ -74,7 +75,6 @@ def test_a_leave_one_out_fit_never_sees_its_patch():
     """The fit without patch k equals a least-squares fit to the other 23 done here; it differs from
     the full fit."""
     from workbench.isp.color import fit_sensor_to_xyz, macbeth_responses
-    from workbench.spectra import illuminant_spd
     wl = np.arange(400.0, 701.0, 10.0)
     qe = np.stack([np.exp(-0.5 * ((wl - c) / 30.0) ** 2) for c in (600.0, 540.0, 460.0)], axis=1)
     S, s_white, X, x_white = macbeth_responses(qe, wl)
@@ -84,4 +84,3 @@ def test_a_leave_one_out_fit_never_sees_its_patch():
         mine = np.linalg.lstsq(S[keep], X[keep], rcond=None)[0]
         np.testing.assert_allclose(fit_sensor_to_xyz(qe, wl, leave_out=k).matrix, mine, rtol=1e-8, atol=1e-10)
         assert not np.allclose(fit_sensor_to_xyz(qe, wl, leave_out=k).matrix, fit_sensor_to_xyz(qe, wl).matrix)
-    assert illuminant_spd("D65", wl).size == wl.size

@@ -12,7 +12,8 @@ field at a series of exposures (SNR against signal per channel, with the model's
 chart (ΔE2000 per patch of the fitted and of held-out patches, flat-fielded; and the noise of its
 six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
 Each summary metric's uncertainty is measured: its standard deviation over NOISE_DRAWS more
-captures of the same charts with other sensor noise draws (the optics computed once).
+captures of the same charts with other sensor seeds (other temporal noise and, where the sensor has
+it, another unit's fixed-pattern noise; the optics computed once).
 """
 from __future__ import annotations
 

@@ -146,7 +146,7 @@ def epsilon_note(sigma: dict[str, tuple], metrics: tuple[str, str]) -> str:
     """The ε-dominance rule of a study's front and the ε values its pairs of designs have."""
     parts = []
     for i, name in enumerate(metrics):
-        eps = [difference_tolerance(a[i], b[i]) for (n1, a), (n2, b) in itertools.combinations(sigma.items(), 2)]
+        eps = [difference_tolerance(a[i], b[i]) for a, b in itertools.combinations(sigma.values(), 2)]
         parts.append(f"{name} ε {min(eps):.3g}–{max(eps):.3g}" if eps else f"{name} ε —")
     return ("The front is by ε-dominance: a design is left off only when another is better by more than ε on one "
             "metric and worse by no more than ε on the other, ε = the compare tolerance of the pair, "
