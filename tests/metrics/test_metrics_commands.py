@@ -34,6 +34,14 @@ def test_metrics_command_prints_and_writes_the_measurements(small_camera, tmp_pa
     assert 0.05 < s["mtf50_cy_px"] < 0.6 and 0 < s["delta_e_mean"] < s["delta_e_max"] < 30
     assert s["noise_equivalent_exposure_lux_s"] > 0
     assert (tmp_path / "m" / "metrics.png").stat().st_size > 10_000
+    # held-out ΔE beside the fitted (training) patches', in the print-out, the JSON and the Markdown
+    held, fitted = doc["colour"]["held_out"], doc["colour"]["fitted"]
+    assert s["delta_e_held_out_mean"] == held["mean"] and s["delta_e_mean"] == fitted["mean"] <= held["mean"]
+    assert f"ΔE2000 held-out patches (leave-one-out fits): mean {held['mean']:.2f}" in out
+    assert f"ΔE2000 fitted (training) patches: mean {fitted['mean']:.2f}" in out
+    md = (tmp_path / "m" / "metrics.md").read_text()
+    assert f"| delta_e_held_out_mean | {held['mean']:.4g} | {doc['uncertainty']['delta_e_held_out_mean']:.4g} |" in md
+    assert "fitted (training) patches" in md and "flat-fielded" in md
 
 
 def test_compare_of_smaller_pixels_reports_the_expected_trade(small_camera, tmp_path, capsys):
