@@ -67,3 +67,21 @@ def test_better_by_more_than_epsilon_is_needed(margin, dominated):
     p = ((0.30, 0.002), (30.0, 0.1))
     q = ((0.30 + margin, 0.002), (30.0, 0.1))
     assert epsilon_dominates(q, p, (True, True)) is dominated
+
+
+def test_a_designs_map_carries_its_test_set_bootstrap_sd_as_its_uncertainty(monkeypatch):
+    """measure_design with a detector: the mAP's σ is the standard deviation of its test-set
+    bootstrap (design_map(bootstrap=MAP_BOOTSTRAP)), so compare and the front judge mAP by it too."""
+    from workbench.metrics import detection, frame, study
+    asked = {}
+
+    def fake_map(project, detector, data, *, bootstrap=0):
+        asked["bootstrap"] = bootstrap
+        return {"map": 0.61, "map_bootstrap_sd": 0.012}
+    monkeypatch.setattr(frame, "camera_metrics", lambda p: {"project": p.name, "summary": {}, "uncertainty": {}})
+    monkeypatch.setattr(detection, "design_map", fake_map)
+    from workbench.project import load_project
+    job = study.DesignJob("d", {}, load_project("paper_camera").model_dump_json(), "ckpt.pt", "data")
+    got = study.measure_design(job)
+    assert asked["bootstrap"] == study.MAP_BOOTSTRAP
+    assert got["summary"]["map"] == 0.61 and got["uncertainty"]["map"] == 0.012
