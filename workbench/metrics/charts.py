@@ -73,8 +73,7 @@ def draw_delta_e(ax, designs: list[dict]) -> None:
             continue
         ax.bar(at, held["patches"], width, label=f"{metrics['project']}: held out, mean {held['mean']:.2f}")
         ax.plot(at, fitted["patches"], "_", color="k", ms=6,
-                label=f"fitted (training) patches, mean {fitted['mean']:.2f}" if d == 0 else
-                f"fitted ({metrics['project']}), mean {fitted['mean']:.2f}")
+                label=f"{metrics['project']}: fitted (training) patches, mean {fitted['mean']:.2f}")
     ax.set_xticks(x, PATCH_NAMES, rotation=60, ha="right", fontsize=6)
     ax.set(ylabel="ΔE2000", title="colour error per Macbeth patch (flat-fielded, exposure-matched on neutral 5; "
                                    "bars: held out, —: fitted)")
