@@ -45,10 +45,11 @@ def register(sub) -> None:
 
 
 def _summary_lines(metrics: dict) -> str:
-    """The summary, one metric a line; MTF50 with its uncertainty beside it."""
-    from workbench.metrics.study import summary_value
-    return "\n".join(f"  {k:28s} {summary_value(metrics['summary'], k)}" for k in metrics["summary"]
-                     if k != "mtf50_sd_cy_px")
+    """Each summary metric with ± its measured uncertainty (σ), then the colour error in words."""
+    from workbench.metrics.study import colour_lines, summary_value
+    return "\n".join([f"  {k:32s} {summary_value(metrics, k)}" for k in metrics["summary"] if k != "mtf50_sd_cy_px"] +
+                     [f"  (±: σ over {metrics.get('noise_draws')} noise draws)"] +
+                     [f"  {text}" for text in colour_lines(metrics)])
 
 
 def cmd_metrics(args) -> int:
@@ -70,7 +71,7 @@ def cmd_compare(args) -> int:
     doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
     for row in doc["table"]:
         fmt = (lambda v: "—" if v is None else f"{v:.4g}")
-        print(f"{row['metric']:28s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
+        print(f"{row['metric']:32s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
     print(f"report: {args.out}/compare.md")
     return 0
 

@@ -31,7 +31,7 @@ class ColourFit:
 
     condition: condition number of the column-normalised 24×K Macbeth response matrix.
     ridge: the Tikhonov weight used (0 for plain least squares).
-    residual_rms: RMS XYZ error of the fit over the 24 patches (Y_white = 1 units).
+    residual_rms: RMS XYZ error of the fit over the patches it was fitted to (Y_white = 1 units).
     notes: human-readable remarks (e.g. that the fit was regularised, and why)."""
 
     matrix: np.ndarray
@@ -60,8 +60,12 @@ def macbeth_responses(qe: np.ndarray, wavelengths_nm: np.ndarray,
 
 
 def fit_sensor_to_xyz(qe: np.ndarray, wavelengths_nm: np.ndarray,
-                      max_condition: float = 1.0e4, preserve_white: bool = False) -> ColourFit:
+                      max_condition: float = 1.0e4, preserve_white: bool = False,
+                      leave_out: int | None = None) -> ColourFit:
     """Least-squares K×3 matrix T with S·T ≈ X on the 24 Macbeth patches under D65 (cached per QE).
+
+    leave_out: a patch index (0–23) the fit does not see (a leave-one-out fit, to score that patch
+    as a colour the matrix was not trained on); residual_rms is then over the other 23.
 
     preserve_white: the least-squares solution under the constraint s_white·T = x_white, so the
     D65 white (and every grey) maps exactly onto the neutral axis; the unconstrained fit lets the
@@ -74,15 +78,20 @@ def fit_sensor_to_xyz(qe: np.ndarray, wavelengths_nm: np.ndarray,
     and the returned notes say so."""
     qe = np.ascontiguousarray(qe, dtype=np.float64)
     wl = np.ascontiguousarray(wavelengths_nm, dtype=np.float64)
-    return _fit_cached(qe.tobytes(), qe.shape, wl.tobytes(), float(max_condition), bool(preserve_white))
+    if leave_out is not None and not 0 <= leave_out < 24:
+        raise InvalidValueError(f"leave_out must be a Macbeth patch index 0–23, got {leave_out}")
+    return _fit_cached(qe.tobytes(), qe.shape, wl.tobytes(), float(max_condition), bool(preserve_white),
+                       None if leave_out is None else int(leave_out))
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=128)
 def _fit_cached(qe_bytes: bytes, qe_shape: tuple[int, int], wl_bytes: bytes,
-                max_condition: float, preserve_white: bool) -> ColourFit:
+                max_condition: float, preserve_white: bool, leave_out: int | None = None) -> ColourFit:
     qe = np.frombuffer(qe_bytes, dtype=np.float64).reshape(qe_shape)
     wl = np.frombuffer(wl_bytes, dtype=np.float64)
     S, s_white, X, x_white = macbeth_responses(qe, wl, "D65")
+    if leave_out is not None:
+        S, X = np.delete(S, leave_out, axis=0), np.delete(X, leave_out, axis=0)
     k = S.shape[1]
     if k < 3:
         raise ColourFitError(f"a colour transform needs at least 3 sensor channels, the sensor has {k}")

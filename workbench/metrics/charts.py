@@ -66,14 +66,23 @@ def draw_snr(ax, designs: list[dict]) -> None:
 
 
 def draw_delta_e(ax, designs: list[dict]) -> None:
-    """ΔE2000 per Macbeth patch, one bar per design."""
+    """ΔE2000 per Macbeth patch, one bar per design: held out (leave-one-out fits), with the fitted
+    (training) patches' as a mark on each bar; the sRGB output's when no colour matrix is fitted."""
     width = 0.8 / len(designs)
     x = np.arange(24)
     for d, metrics in enumerate(designs):
-        ax.bar(x + (d - (len(designs) - 1) / 2) * width, metrics["colour"]["patches"], width,
-               label=f"{metrics['project']}: mean {metrics['colour']['mean']:.1f}")
+        colour, at = metrics["colour"], x + (d - (len(designs) - 1) / 2) * width
+        held, fitted = colour.get("held_out"), colour.get("fitted")
+        if held is None:
+            out = colour["srgb_output"]
+            ax.bar(at, out["patches"], width, label=f"{metrics['project']}: sRGB output, mean {out['mean']:.1f}")
+            continue
+        ax.bar(at, held["patches"], width, label=f"{metrics['project']}: held out, mean {held['mean']:.2f}")
+        ax.plot(at, fitted["patches"], "_", color="k", ms=6,
+                label=f"{metrics['project']}: fitted (training) patches, mean {fitted['mean']:.2f}")
     ax.set_xticks(x, PATCH_NAMES, rotation=60, ha="right", fontsize=6)
-    ax.set(ylabel="ΔE2000", title="colour error per Macbeth patch (exposure-matched on neutral 5)")
+    ax.set(ylabel="ΔE2000", title="colour error per Macbeth patch (flat-fielded, exposure-matched on neutral 5; "
+                                   "bars: held out, —: fitted)")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3, axis="y")
 
@@ -87,9 +96,10 @@ def draw_metrics(fig, designs: list[dict]) -> None:
 
 
 def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True,
-                fields: list[str] | None = None) -> None:
-    """Designs as points of two metrics, the Pareto-optimal ones joined and every one labelled
-    (by its values of `fields`, named in the title, when given; else by its name)."""
+                fields: list[str] | None = None, sigma: dict[str, tuple] | None = None) -> None:
+    """Designs as points of two metrics with ±2σ bars (sigma: pareto_front's), the ones on the
+    ε-Pareto front joined and every one labelled (by its values of `fields`, named in the title,
+    when given; else by its name)."""
     def label(r: dict) -> str:
         return ", ".join(f"{r[f]:g}" if isinstance(r[f], (int, float)) else str(r[f]) for f in fields) \
             if fields else r["design"]
@@ -98,10 +108,12 @@ def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, hig
     if not pts:
         ax.text(0.5, 0.5, "no designs measured yet", ha="center", va="center", transform=ax.transAxes)
         return
-    best = set(pareto_front(rows, x, y, higher_x, higher_y))
+    best = set(pareto_front(rows, x, y, higher_x, higher_y, sigma))
     front = sorted(p for p in pts if p[2] in best)
-    ax.plot([p[0] for p in pts], [p[1] for p in pts], "o", color="0.6")
-    ax.plot([p[0] for p in front], [p[1] for p in front], "o-", color="tab:red", label="Pareto front")
+    bars = [tuple(2 * (s or 0.0) for s in (sigma or {}).get(p[2], (None, None))) for p in pts]
+    ax.errorbar([p[0] for p in pts], [p[1] for p in pts], xerr=[b[0] for b in bars], yerr=[b[1] for b in bars],
+                fmt="o", color="0.6", elinewidth=0.8, capsize=2)
+    ax.plot([p[0] for p in front], [p[1] for p in front], "o-", color="tab:red", label="Pareto front (ε-dominance)")
     for px, py, name in pts:
         ax.annotate(names[name], (px, py), fontsize=7, xytext=(4, 3), textcoords="offset points")
     title = "design study" + (f" (points: {', '.join(f.rsplit('.', 1)[-1] for f in fields)})" if fields else "")
@@ -111,12 +123,17 @@ def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, hig
     ax.legend(fontsize=7)
 
 
-def pareto_front(rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True) -> list[str]:
-    """Names of the designs no other design beats in both metrics."""
-    sx, sy = (1 if higher_x else -1), (1 if higher_y else -1)
-    pts = [(r[x], r[y], r["design"]) for r in rows if r.get(x) is not None and r.get(y) is not None]
-    return [p[2] for p in pts if not any(sx * q[0] >= sx * p[0] and sy * q[1] >= sy * p[1] and q[:2] != p[:2]
-                                         for q in pts)]
+def pareto_front(rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True,
+                 sigma: dict[str, tuple] | None = None) -> list[str]:
+    """Names of the designs no other design ε-dominates in the two metrics (study.epsilon_dominates:
+    better by more than ε on one, worse by no more than ε on the other; ε from the designs'
+    uncertainties, sigma: design name → (σ_x, σ_y); none given: 0, the plain Pareto front)."""
+    from workbench.metrics.study import epsilon_dominates
+    sigma = sigma or {}
+    pts = {r["design"]: tuple(zip((r[x], r[y]), sigma.get(r["design"], (None, None))))
+           for r in rows if r.get(x) is not None and r.get(y) is not None}
+    return [name for name, p in pts.items()
+            if not any(epsilon_dominates(q, p, (higher_x, higher_y)) for other, q in pts.items() if other != name)]
 
 
 def chart_rgba(draw, width_px: int, height_px: int, dpi: float = 100.0) -> np.ndarray:

@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from workbench.errors import InputFileError
 
 
@@ -51,7 +53,8 @@ def trained_model(checkpoint_path: str | Path, state: dict, config, in_channels:
 
 def design_map(project, checkpoint_path: str | Path, data_dir: str | Path, *, bootstrap: int = 0) -> dict:
     """Test mAP@0.5 (and AP per class) of the checkpoint's detector on the data set's test frames
-    at EV 0, seen through `project`'s sensor and ISP."""
+    at EV 0, seen through `project`'s sensor and ISP; with bootstrap > 0 test-set resamples, the
+    standard deviation of their mAP ('map_bootstrap_sd', else None)."""
     import torch
 
     from workbench.detect.data import DetectionDataset, DetectionView
@@ -66,5 +69,7 @@ def design_map(project, checkpoint_path: str | Path, data_dir: str | Path, *, bo
     model = trained_model(checkpoint_path, state, config, input_channels(config.representation, view.sensor.cfa_pattern),
                           len(dataset.class_names))
     res = evaluate_detector(model, view, dataset.class_names, precision=config.precision, bootstrap=bootstrap)
+    maps = [m for m in res.get("bootstrap_map", []) if m is not None]
     return {"map": res["map"], "ap": res["ap"], "test_images": res["images"], "net": config.net,
-            "representation": config.representation}
+            "representation": config.representation,
+            "map_bootstrap_sd": float(np.std(maps, ddof=1)) if len(maps) > 1 else None}

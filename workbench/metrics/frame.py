@@ -12,7 +12,11 @@ with that plane's Nyquist and the closed form optics × pixel beside it, the dem
 sRGB luminance; MTF50 with its bootstrap standard deviation, MTF at 0.25 and at Nyquist; and the
 optics' MTF from its model and the pixel aperture's, metrics.mtf_model), the uniform
 field at a series of exposures (SNR against signal per channel, with the model's), and the Macbeth
-chart (ΔE2000 per patch, and the noise of its six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
+chart (ΔE2000 per patch of the fitted and of held-out patches, flat-fielded; and the noise of its
+six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
+Each summary metric's uncertainty is measured: its standard deviation over NOISE_DRAWS more
+captures of the same charts with other sensor seeds (other temporal noise and, where the sensor has
+it, another unit's fixed-pattern noise; the optics computed once).
 """
 from __future__ import annotations
 
@@ -20,7 +24,7 @@ import math
 
 import numpy as np
 
-from workbench.metrics.colour import macbeth_delta_e
+from workbench.metrics.colour import held_out_delta_e, macbeth_delta_e, patch_means
 from workbench.errors import InvalidValueError
 from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50, mtf50_spread
 from workbench.metrics.mtf_model import optics_mtf, pixel_mtf
@@ -32,6 +36,7 @@ SNR_EV_STEPS = tuple(range(-8, 1))     # the uniform field's exposures: auto-exp
 LOW_LIGHT_CD_M2, LOW_LIGHT_EXPOSURE_S = 10.0, 0.01    # the headline SNR: a road at dusk, a 10 ms exposure
 LOW_LIGHT_SNR_KEY = "snr_at_10cd_m2_10ms_dB"
 COLOUR_CHART_LEVEL = 0.9               # the Macbeth shot's brightest pixels, as a fraction of the swing
+NOISE_DRAWS = 4                        # further noise draws of each chart, for the metrics' uncertainty
 
 
 def _channel_means(values: np.ndarray, tile: np.ndarray, names) -> dict[str, float]:
@@ -77,6 +82,22 @@ def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) 
 
 def _chart(project, kind: str):
     return project.updated(scene=project.scene.updated(kind=kind, fov_deg=None))
+
+
+class ChartShots:
+    """The pipeline of each chart kind, kept: another noise draw of a design (another sensor seed)
+    re-runs only the sensor and the ISP."""
+
+    def __init__(self):
+        self._pipelines: dict = {}
+
+    def run(self, chart_project):
+        from workbench.pipeline import Pipeline
+        pipeline = self._pipelines.get(chart_project.scene.kind)
+        if pipeline is None:
+            pipeline = self._pipelines[chart_project.scene.kind] = Pipeline(chart_project)
+        pipeline.set_project(chart_project)
+        return pipeline.run()
 
 
 MODEL_FREQUENCIES_CY_PX = np.linspace(0.0, 1.0, 101)
@@ -149,15 +170,15 @@ def flat_field(project, shape: tuple[int, int], tile: np.ndarray, uniform=None) 
     return np.where(flat > 0, flat, 1.0)
 
 
-def system_mtf(project, uniform=None) -> list[dict]:
+def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[dict]:
     """e-SFR rows of the slanted-edge chart seen by the project's camera, flat-fielded by a uniform
     chart through the same optics: each raw channel on its own sites at their full-grid positions
     (black level removed; its closed form optics × pixel beside it as model_mtf when the optics has
     one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
     diffraction_limited; other levels have no closed form and no such row) and the pixel aperture
-    alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run."""
-    from workbench.pipeline import Pipeline
-    result = Pipeline(_chart(project, "slanted_edge")).run()
+    alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run;
+    shots: the kept chart pipelines of a series of noise draws."""
+    result = (shots or ChartShots()).run(_chart(project, "slanted_edge"))
     image, isp, sensor = result.sensor_image, result.isp, project.sensor
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
@@ -200,15 +221,14 @@ def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
     return values[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, values.shape[-1]).mean(axis=0)
 
 
-def noise_series(project, uniform=None) -> tuple[list[dict], float]:
+def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tuple[list[dict], float]:
     """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
     scene luminance to sensor-plane illuminance (lux per cd/m²: πT/4N² on axis, less off axis);
     each row also holds its sensor-plane exposure (exposure_lux_s). uniform: the pipeline result of
-    uniform_chart(project), when already run."""
-    from workbench.pipeline import Pipeline
+    uniform_chart(project), when already run; the captures' noise is drawn from the sensor's seed."""
     from workbench.sensor import resolve_exposure
     from workbench.spectra import luminance_from_photons
-    result = uniform if uniform is not None else Pipeline(uniform_chart(project)).run()
+    result = uniform if uniform is not None else (shots or ChartShots()).run(uniform_chart(project))
     rate = result.signal_rate_e_per_s
     t = float(np.mean(resolve_exposure(rate, project.sensor)))
     h, w = rate.shape
@@ -217,7 +237,8 @@ def noise_series(project, uniform=None) -> tuple[list[dict], float]:
     oi, scene = result.optical_image, result.scene
     lux = float(luminance_from_photons(_central_mean(np.asarray(oi.irradiance_photons, np.float64)), oi.wavelengths_nm))
     nits = float(luminance_from_photons(_central_mean(np.asarray(scene.radiance_photons, np.float64)), scene.wavelengths_nm))
-    rows = snr_vs_signal(rate, project.sensor, [t * 2.0 ** ev for ev in SNR_EV_STEPS], region)
+    rows = snr_vs_signal(rate, project.sensor, [t * 2.0 ** ev for ev in SNR_EV_STEPS], region,
+                         seed=project.sensor.seed)
     for row in rows:
         row["exposure_lux_s"] = lux * row["exposure_s"]
     return rows, lux / nits
@@ -228,23 +249,36 @@ def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
     (measured); the SNR of a road at LOW_LIGHT_CD_M2 seen for LOW_LIGHT_EXPOSURE_S and the
     noise-equivalent exposure (lux·s where SNR = 1), both from the read-out's exact statistics at
     that signal (sensor.readout_stats: the closed form's uniform quantisation error was off by up to
-    31 % below ~100 e⁻ with an 8-bit ADC); an analog read-out has no codes and keeps the closed form."""
+    31 % below ~100 e⁻ with an 8-bit ADC); an analog read-out has no codes and keeps the closed form.
+
+    'standard_error': of both, from the robust standard error of the median electrons per lux·s
+    (1.2533 × 1.4826 × MAD / √n over the series' unclipped exposures: how well the series pins the
+    sensitivity, quantisation's bias at low signal included) carried through each figure."""
     from workbench.sensor.readout_stats import exact_snr
     names = [r["channel"] for r in noise]
     ch = next((n for n in ("G", "C", "W", "M", "Y") if n in names), names[0])
     rows = sorted((r for r in noise if r["channel"] == ch and r["clipped"] == 0 and r["mean_e"] > 0),
                   key=lambda r: r["exposure_lux_s"])
-    e_per_lux_s = float(np.median([r["mean_e"] / r["exposure_lux_s"] for r in rows]))
+    ratios = np.array([r["mean_e"] / r["exposure_lux_s"] for r in rows])
+    e_per_lux_s = float(np.median(ratios))
+    rel_se = float(1.2533 * 1.4826 * np.median(np.abs(ratios - e_per_lux_s)) / math.sqrt(ratios.size)
+                   / e_per_lux_s) if e_per_lux_s > 0 else 0.0
     at = lux_per_cd_m2 * LOW_LIGHT_CD_M2 * LOW_LIGHT_EXPOSURE_S
 
     def snr_at(n_e: float, exposure_s: float) -> float:
         return float(exact_snr(n_e, sensor, exposure_s) if sensor.bit_depth else snr_model(n_e, sensor, exposure_s))
-    snr = snr_at(e_per_lux_s * at, LOW_LIGHT_EXPOSURE_S)
+    def snr_db(n_e: float) -> float | None:
+        snr = snr_at(n_e, LOW_LIGHT_EXPOSURE_S)
+        return 20 * float(np.log10(snr)) if snr > 0 else None
+    snr_low = snr_db(e_per_lux_s * at)
+    ends = [snr_db(e_per_lux_s * at * (1 + d)) for d in (-rel_se, rel_se)]
     n_eq = noise_equivalent_e(lambda n: snr_at(n, 0.0))
+    nee = n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None else None
     return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
-            "snr_low_light_dB": 20 * float(np.log10(snr)) if snr > 0 else None,
-            "noise_equivalent_exposure_lux_s": (n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None
-                                                else None)}
+            "snr_low_light_dB": snr_low, "noise_equivalent_exposure_lux_s": nee,
+            "standard_error": {"electrons_per_lux_s": rel_se * e_per_lux_s,
+                               LOW_LIGHT_SNR_KEY: abs(ends[1] - ends[0]) / 2 if None not in ends else None,
+                               "noise_equivalent_exposure_lux_s": None if nee is None else rel_se * nee}}
 
 
 def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float | None:
@@ -264,17 +298,40 @@ def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float |
     return math.sqrt(a * b)
 
 
-def colour_error(project) -> dict:
+def patch_flat_field(project, layout: np.ndarray, shots: ChartShots | None = None) -> np.ndarray:
+    """24×K relative illumination of each Macbeth patch's central part in each sensor channel: the
+    noise-free signal of the uniform white field through the same optics and sensor (the limit of
+    averaging many flat frames), demosaiced as the ISP does, over 1 at the frame's centre. Dividing
+    patch means by it takes the lens's fall-off (cos⁴, vignetting, relative illumination) out."""
+    from workbench.isp.process import raw_to_linear
+    result = (shots or ChartShots()).run(uniform_chart(project))
+    rate = np.asarray(result.signal_rate_e_per_s, np.float64)
+    image = result.sensor_image
+    flat, _ = raw_to_linear((rate / rate.max()).astype(np.float32), image.cfa_tile, list(image.channel_names),
+                            "bilinear")
+    return patch_means(flat, layout) / _central_mean(np.asarray(flat, np.float64), 0.1)
+
+
+def colour_error(project, shots: ChartShots | None = None) -> dict:
     """ΔE2000 of the Macbeth chart through the project's camera, exposed as a colour-checker shot
-    is: the brightest pixels at 90 % of the swing, so white 9.5 is not clipped."""
-    from workbench.pipeline import Pipeline
+    is: the brightest pixels at 90 % of the swing, so white 9.5 is not clipped. 'fitted' and
+    'held_out' (metrics.colour.held_out_delta_e, None without a fitted colour matrix) on
+    flat-fielded patch means (patch_flat_field); 'srgb_output': the sRGB frame as rendered (fitted
+    matrix, fall-off and gamut clipping included)."""
     from workbench.scene.charts import macbeth_layout
+    shots = shots or ChartShots()
     chart = _chart(project, "macbeth")
     chart = chart.updated(sensor=chart.sensor.updated(exposure_s=None, ev_bias=0.0, auto_exposure_method="brightest",
                                                       auto_exposure_level=COLOUR_CHART_LEVEL))
-    result = Pipeline(chart).run()
+    result = shots.run(chart)
     layout = macbeth_layout(result.isp.srgb.shape[:2])
-    out = macbeth_delta_e(result.isp.srgb, layout)
+    out = {"srgb_output": macbeth_delta_e(result.isp.srgb, layout), "fitted": None, "held_out": None,
+           "flat_field": "patch means divided by the noise-free frame of a uniform white field through the same "
+                         "optics and sensor (1 at the centre)"}
+    if result.isp.colour_fit is not None:
+        image = result.sensor_image
+        means = patch_means(result.isp.linear, layout) / patch_flat_field(project, layout, shots)
+        out.update(held_out_delta_e(means, result.isp.linear, image.qe, image.wavelengths_nm, chart.isp))
     out["neutral_noise"] = neutral_patch_noise(result.sensor_image, chart.sensor, layout)
     return out
 
@@ -300,26 +357,49 @@ def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
     return rows
 
 
-def camera_metrics(project) -> dict:
-    """The measurements of module docstring, with a summary of the headline numbers."""
-    from workbench.pipeline import Pipeline
-    uniform = Pipeline(uniform_chart(project)).run()          # run once: the edge's flat field and the noise
-    mtf, (noise, lux_per_cd_m2) = system_mtf(project, uniform), noise_series(project, uniform)
-    colour = colour_error(project)
+def _measure(project, shots: ChartShots) -> dict:
+    """The measurements of module docstring for one noise draw, with a summary of the headline numbers."""
+    uniform = shots.run(uniform_chart(project))          # run once: the edge's flat field and the noise
+    mtf, (noise, lux_per_cd_m2) = system_mtf(project, uniform, shots), noise_series(project, uniform, shots)
+    colour = colour_error(project, shots)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
     mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
            min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
     expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
+    fitted, held = colour["fitted"] or {}, colour["held_out"] or {}
     summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf50_sd_cy_px": srgb["mtf50_sd_cy_px"],
                "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
                "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
                LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],
                "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
-               "delta_e_mean": colour["mean"], "delta_e_max": colour["max"],
+               "delta_e_held_out_mean": held.get("mean"), "delta_e_held_out_max": held.get("max"),
+               "delta_e_mean": fitted.get("mean"), "delta_e_max": fitted.get("max"),
                "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
                "dynamic_range_dB": float(20 * np.log10(project.sensor.full_well_e / max(project.sensor.read_noise_e, 1e-9)))}
     return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "exposure": expo,
             "colour": colour}
+
+
+def camera_metrics(project, noise_draws: int = NOISE_DRAWS) -> dict:
+    """The measurements of module docstring, with a summary of the headline numbers and each one's
+    'uncertainty': its standard deviation over this capture and `noise_draws` more (sensor seeds
+    seed + 1 …), 0 for a noise-free camera or a design parameter, None when a draw lacks it; for
+    the figures read through the electrons per lux·s the larger of that and exposure_figures'
+    standard error."""
+    shots = ChartShots()
+    out = _measure(project, shots)
+    seed = project.sensor.seed
+    summaries = [out["summary"]] + [
+        _measure(project.updated(sensor=project.sensor.updated(seed=seed + i)), shots)["summary"]
+        for i in range(1, noise_draws + 1)]
+    spread = {key: float(np.std([s[key] for s in summaries], ddof=1))
+              if len(summaries) > 1 and all(s[key] is not None for s in summaries) else None
+              for key in out["summary"]}
+    own = out["exposure"]["standard_error"]
+    out["uncertainty"] = {key: max((v for v in (sd, own.get(key)) if v is not None), default=None)
+                          for key, sd in spread.items()}
+    out["noise_draws"] = len(summaries)
+    return out

@@ -15,6 +15,7 @@ import csv
 import io
 import itertools
 import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,11 +27,18 @@ from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
 
 STUDY_FORMAT = "camera-workbench-study"
 # what the measurements mean: 2 = e-SFR flat-fielded, raw planes at full resolution, MTF50's spread;
+# 3 = ΔE fitted and held out on flat-fielded patch means, each metric's uncertainty over noise draws;
 # a resumed study re-measures the designs of another version instead of mixing them into one table
-METRICS_VERSION = 2
+METRICS_VERSION = 3
+DELTA_E_NOTE = ("ΔE2000: the Macbeth chart shot with its brightest pixels at 90 % of the swing, the ISP's XYZ of "
+                "flat-fielded patch means (divided by the noise-free frame of a uniform white field through the same "
+                "optics, so lens fall-off is not counted), exposure matched on neutral 5; delta_e_held_out: each "
+                "patch through the colour matrix fitted to the other 23 (leave-one-out: colours the fit never saw); "
+                "delta_e_mean/max: fitted (training) patches, the matrix fitted to all 24.")
 # summary metrics and whether more is better (for the Pareto front)
 HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": True, "snr_at_10pct_full_well_dB": True,
                     LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
+                    "delta_e_held_out_mean": False, "delta_e_held_out_max": False,
                     "delta_e_mean": False, "delta_e_max": False, "read_noise_e": False, "full_well_e": True,
                     "dynamic_range_dB": True, "map": True}
 
@@ -112,8 +120,9 @@ def measure_design(job: DesignJob) -> dict:
     metrics = camera_metrics(project)
     if job.detector is not None:
         from workbench.metrics.detection import design_map
-        metrics["detection"] = design_map(project, job.detector, job.data)
+        metrics["detection"] = design_map(project, job.detector, job.data, bootstrap=MAP_BOOTSTRAP)
         metrics["summary"]["map"] = metrics["detection"]["map"]
+        metrics["uncertainty"]["map"] = metrics["detection"]["map_bootstrap_sd"]
     return {"design": job.name, "values": job.values, **metrics, "seconds": time.perf_counter() - t0}
 
 
@@ -132,6 +141,23 @@ def _markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def study_sigma(designs: list[dict], x: str, y: str) -> dict[str, tuple]:
+    """Design name → (σ_x, σ_y), the designs' measured uncertainties (None where not measured)."""
+    return {d["design"]: tuple((d.get("uncertainty") or {}).get(m) for m in (x, y)) for d in designs}
+
+
+def epsilon_note(sigma: dict[str, tuple], metrics: tuple[str, str]) -> str:
+    """The ε-dominance rule of a study's front and the ε values its pairs of designs have."""
+    parts = []
+    for i, name in enumerate(metrics):
+        eps = [difference_tolerance(a[i], b[i]) for a, b in itertools.combinations(sigma.values(), 2)]
+        parts.append(f"{name} ε {min(eps):.3g}–{max(eps):.3g}" if eps else f"{name} ε —")
+    return ("The front is by ε-dominance: a design is left off only when another is better by more than ε on one "
+            "metric and worse by no more than ε on the other, ε = the compare tolerance of the pair, "
+            f"{TOLERANCE_SIGMAS:g}·√(σ₁² + σ₂²) of their measured uncertainties (a design measured without "
+            f"them counts σ = 0). Here: {'; '.join(parts)}.\n")
+
+
 def write_study(doc: dict, out: Path, x: str, y: str) -> None:
     """study.json, study.csv, study.md and pareto.png of a study document, atomically."""
     from matplotlib.figure import Figure
@@ -144,14 +170,15 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
         writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True))
+    sigma = study_sigma(doc["designs"], x, y)
+    front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True), sigma)
     md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
           f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n"
           + "".join(f"Note: {n}.\n\n" for n in doc.get("notes", [])) + _markdown(rows) +
-          f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n")
+          f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n\n" + epsilon_note(sigma, (x, y)))
     fig = Figure(figsize=(6.5, 5))
     draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True),
-                fields=list(doc["vary"]))
+                fields=list(doc["vary"]), sigma=sigma)
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
@@ -206,25 +233,55 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
         doc["designs"].append(result)
         write_study(doc, out, x, y)
         yield Progress(len(doc["designs"]), len(grid),
-                       f"{job.name}: MTF50 {summary_value(result['summary'], 'mtf50_cy_px')}")
+                       f"{job.name}: MTF50 {summary_value(result, 'mtf50_cy_px')}")
     write_study(doc, out, x, y)
     return doc
 
 
-def summary_value(summary: dict, key: str) -> str:
-    """A summary metric as text; MTF50 with its standard deviation beside it (± 1σ)."""
-    v = summary.get(key)
+def summary_sigma(metrics: dict, key: str) -> float | None:
+    """A summary metric's uncertainty (σ): over the noise draws when measured, else, for MTF50, the
+    bootstrap standard deviation over the edge's rows."""
+    sigma = metrics.get("uncertainty", {}).get(key)
+    if sigma is None and key == "mtf50_cy_px":
+        sigma = metrics["summary"].get("mtf50_sd_cy_px")
+    return sigma
+
+
+def summary_value(metrics: dict, key: str) -> str:
+    """A summary metric as text, with ± its uncertainty (summary_sigma) when it has one."""
+    v, sd = metrics["summary"].get(key), summary_sigma(metrics, key)
     text = f"{v:.4g}" if isinstance(v, float) else str(v)
-    sd = summary.get("mtf50_sd_cy_px") if key == "mtf50_cy_px" else None
-    return text + (f" ± {sd:.2g}" if isinstance(v, float) and sd is not None else "")
+    return text + (f" ± {sd:.2g}" if isinstance(v, float) and sd else "")
+
+
+def colour_lines(metrics: dict) -> list[str]:
+    """ΔE2000 of a design in words: held out beside fitted (training) patches, and the sRGB output."""
+    colour = metrics["colour"]
+    out = colour["srgb_output"]
+    lines = []
+    if colour.get("held_out") is not None:
+        held, fitted = colour["held_out"], colour["fitted"]
+        lines += [f"ΔE2000 held-out patches (leave-one-out fits): mean {held['mean']:.2f}, max {held['max']:.2f} "
+                  f"({held['worst']})",
+                  f"ΔE2000 fitted (training) patches: mean {fitted['mean']:.2f}, max {fitted['max']:.2f} "
+                  f"({fitted['worst']})"]
+    lines.append(f"ΔE2000 of the sRGB output as rendered (fitted matrix, lens fall-off and gamut clipping "
+                 f"included): mean {out['mean']:.2f}, max {out['max']:.2f}")
+    return lines
 
 
 def metrics_markdown(metrics: dict) -> str:
-    """metrics.md: the summary, then MTF50 (± its bootstrap standard deviation over the edge's rows),
-    MTF(0.25) and MTF(0.5) of every plane, with the closed form optics × pixel beside the raw planes."""
+    """metrics.md: each summary metric with its measured uncertainty, the colour error in words, then
+    MTF50 (± its bootstrap standard deviation over the edge's rows), MTF(0.25) and MTF(0.5) of every
+    plane, with the closed form optics × pixel beside the raw planes."""
     fmt = (lambda v: "—" if v is None else f"{v:.4g}")
-    lines = [f"# Camera metrics of {metrics['project']}", "", "| metric | value |", "|---|---|"]
-    lines += [f"| {k} | {summary_value(metrics['summary'], k)} |" for k in metrics["summary"] if k != "mtf50_sd_cy_px"]
+    rows = [{"metric": k, "value": v, "± σ": summary_sigma(metrics, k)} for k, v in metrics["summary"].items()
+            if k != "mtf50_sd_cy_px"]
+    lines = [f"# Camera metrics of {metrics['project']}", "", _markdown(rows).rstrip("\n"), "",
+             f"σ: the standard deviation over {metrics.get('noise_draws')} noise draws of the charts (for the "
+             "noise-equivalent exposure and the low-light SNR at least the standard error of the sensitivity); "
+             "design parameters are exact.", ""]
+    lines += [f"- {line}" for line in colour_lines(metrics)] + ["", DELTA_E_NOTE]
     lines += ["", "## MTF (ISO 12233 e-SFR, flat-fielded; cycles per sensor pixel)", "",
               "| plane | MTF50 | ± 1σ | MTF(0.25) | MTF(0.5) | plane Nyquist | trusted up to | closed-form MTF50 |",
               "|---|---|---|---|---|---|---|---|"]
@@ -263,25 +320,40 @@ def _output_folder(out_dir) -> Path:
     return prepare_output_folder(out_dir)
 
 
-# how far apart two measurements of a metric must be to call one design better: below this they
-# read "same within ±tolerance" (the measurement's repeatability on the test charts is about this
-# size: MTF50 by the slanted edge ±0.002 cy/px, SNR ±0.1 dB; an exposure 1 %; ΔE ±0.05)
-COMPARE_TOLERANCE = {"mtf50_cy_px": ("abs", 0.002), "mtf_nyquist": ("abs", 0.005), "mtf50_lp_mm": ("rel", 0.01),
-                     "snr_at_10pct_full_well_dB": ("abs", 0.1), LOW_LIGHT_SNR_KEY: ("abs", 0.1),
-                     "noise_equivalent_exposure_lux_s": ("rel", 0.01), "delta_e_mean": ("abs", 0.05),
-                     "delta_e_max": ("abs", 0.05), "read_noise_e": ("rel", 0.01), "full_well_e": ("rel", 0.01),
-                     "dynamic_range_dB": ("abs", 0.1), "map": ("abs", 0.01)}
+# how far apart two designs' measurements of a metric must be to call one better: this many standard
+# deviations of their difference, √(σ_A² + σ_B²), σ each design's measured uncertainty (≈ 95 %)
+TOLERANCE_SIGMAS = 2.0
+MAP_BOOTSTRAP = 200                    # test-set resamples for the uncertainty of a design's mAP
+TOLERANCE_RULE = (f"'better' only where the difference exceeds ±x = {TOLERANCE_SIGMAS:g}·√(σ_A² + σ_B²), σ each "
+                  "design's measured uncertainty (the standard deviation over repeated sensor noise draws of its "
+                  "charts; for the noise-equivalent exposure and the low-light SNR at least the standard error of "
+                  "the sensitivity the exposure series gives; mAP: test-set bootstrap); design parameters (read "
+                  "noise, full well, dynamic range) are exact")
 
 
-def compare_verdict(metric: str, a: float | None, b: float | None) -> str:
-    """'A better', 'B better', 'same within ±x' (COMPARE_TOLERANCE) or '' when one is missing."""
+def difference_tolerance(sigma_a: float | None, sigma_b: float | None) -> float:
+    """±x within which two measurements are the same (TOLERANCE_SIGMAS; an unmeasured σ counts 0)."""
+    return TOLERANCE_SIGMAS * math.hypot(sigma_a or 0.0, sigma_b or 0.0)
+
+
+def compare_verdict(metric: str, a: float | None, b: float | None, sigma_a: float | None = None,
+                    sigma_b: float | None = None) -> str:
+    """'A better', 'B better', 'same within ±x' (difference_tolerance of the two uncertainties)
+    or '' when one is missing."""
     if a is None or b is None:
         return ""
-    kind, tol = COMPARE_TOLERANCE.get(metric, ("rel", 0.01))
-    width = tol * max(abs(a), abs(b)) if kind == "rel" else tol
-    if abs(b - a) <= width:
-        return f"same within ±{tol:g}" + (" (relative)" if kind == "rel" else "")
+    x = difference_tolerance(sigma_a, sigma_b)
+    if abs(b - a) <= x:
+        return f"same within ±{x:.2g}"
     return "B better" if (b > a) == HIGHER_IS_BETTER.get(metric, True) else "A better"
+
+
+def epsilon_dominates(q: tuple, p: tuple, higher: tuple[bool, ...]) -> bool:
+    """Whether design q ε-dominates p: q is better by more than ε on one metric and worse by no
+    more than ε on any; q and p are ((value, σ), …) per metric, ε = difference_tolerance(σ_q, σ_p)."""
+    margins = [(1 if up else -1) * (vq - vp) for (vq, _), (vp, _), up in zip(q, p, higher)]
+    eps = [difference_tolerance(sq, sp) for (_, sq), (_, sp) in zip(q, p)]
+    return all(m >= -e for m, e in zip(margins, eps)) and any(m > e for m, e in zip(margins, eps))
 
 
 def compare_designs(a, b, out_dir) -> dict:
@@ -304,18 +376,21 @@ def compare_designs(a, b, out_dir) -> dict:
         va, vb = ma["summary"].get(key), mb["summary"].get(key)
         if va is None and vb is None:
             continue
+        sa, sb = ma.get("uncertainty", {}).get(key), mb.get("uncertainty", {}).get(key)
         rows.append({"metric": key, "A": va, "B": vb, "B − A": None if va is None or vb is None else vb - va,
-                     "": compare_verdict(key, va, vb)})
+                     "±": difference_tolerance(sa, sb), "": compare_verdict(key, va, vb, sa, sb)})
     what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
             if changed else "A and B are the same design (no parameter differs).")
-    spread = (f"\nMTF50 ± 1σ (bootstrap over the edge's rows): A {summary_value(ma['summary'], 'mtf50_cy_px')}, "
-              f"B {summary_value(mb['summary'], 'mtf50_cy_px')} cy/px.\n")
+    def boot(m: dict) -> str:
+        v, sd = m["summary"].get("mtf50_cy_px"), m["summary"].get("mtf50_sd_cy_px")
+        return "—" if v is None else f"{v:.4g}" + ("" if sd is None else f" ± {sd:.2g}")
+    spread = f"\nMTF50 ± 1σ (bootstrap over the edge's rows): A {boot(ma)}, B {boot(mb)} cy/px.\n"
     md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) + spread +
-          "\nMTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
+          f"\nVerdict: {TOLERANCE_RULE}; noise draws per design: A {ma.get('noise_draws')}, B {mb.get('noise_draws')}.\n\n"
+          "MTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
-          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. ΔE2000: the Macbeth "
-          "chart shot with its brightest pixels at 90 % of the swing, exposure matched on neutral 5; it "
-          "includes the optics' fall-off over the chart. Dynamic range: full well over read noise.\n")
+          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
+          " Dynamic range: full well over read noise.\n")
     fig = Figure(figsize=(11, 8))
     draw_metrics(fig, [ma, mb])
     fig.tight_layout()

@@ -4,8 +4,10 @@ MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edi
 process (gui.side_process: kept alive; a worker thread waits for it, so its Python never holds the
 window's GIL),
 with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
-current design B and the change, the charts draw both, and an A | B | B − A strip compares the
-sRGB frames on one colour scale.
+current design B, the change and, for the measurements, the verdict (study.compare_verdict: better
+only beyond the two designs' measured uncertainties), the charts draw both, and an A | B | B − A
+strip compares the sRGB frames on one colour scale. ΔE2000 is shown for held-out patches (each
+through the colour matrix fitted to the other 23) beside the fitted (training) patches.
 
 Measurements run one at a time; an edit during a measurement queues one more run of the newest
 project (older requests are dropped), so results never arrive out of order."""
@@ -41,8 +43,10 @@ SUMMARY_ROWS = (("mtf50_cy_px", "MTF50 sRGB (cy/px)", lambda v: f"{v:.3f}"),
                 ("snr_at_10pct_full_well_dB", "SNR at 10 % full well (dB)", lambda v: f"{v:.1f}"),
                 ("noise_equivalent_exposure_lux_s", "noise-equivalent exposure (mlx·s)", lambda v: f"{1e3 * v:.3g}"),
                 ("dynamic_range_dB", "sensor dynamic range (dB)", lambda v: f"{v:.1f}"),
-                ("delta_e_mean", "ΔE2000 mean", lambda v: f"{v:.2f}"),
-                ("delta_e_max", "ΔE2000 max", lambda v: f"{v:.2f}"))
+                ("delta_e_held_out_mean", "ΔE2000 mean, held-out patches", lambda v: f"{v:.2f}"),
+                ("delta_e_held_out_max", "ΔE2000 max, held-out patches", lambda v: f"{v:.2f}"),
+                ("delta_e_mean", "ΔE2000 mean, fitted (training) patches", lambda v: f"{v:.2f}"),
+                ("delta_e_max", "ΔE2000 max, fitted (training) patches", lambda v: f"{v:.2f}"))
 
 
 def flat_readouts(readouts: dict | None) -> dict:
@@ -127,8 +131,8 @@ class MetricsPanel(QWidget):
         self.changes = QLabel(self)                 # what differs between A and B (project_differences)
         self.changes.setWordWrap(True)
         self.changes.setVisible(False)
-        self.table = QTableWidget(0, 3, self)
-        self.table.setHorizontalHeaderLabels(["A (pinned)", "B (current)", "B − A"])
+        self.table = QTableWidget(0, 4, self)
+        self.table.setHorizontalHeaderLabels(["A (pinned)", "B (current)", "B − A", "A vs B"])
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
         self.chart = ChartImage("MTF, SNR against signal and ΔE per patch appear here after a measurement", self)
@@ -307,23 +311,29 @@ class MetricsPanel(QWidget):
         self.clear_button.setEnabled(self.pinned is not None)
 
     # -------------------------------------------------------------------------------- table
-    def rows(self) -> list[tuple[str, object, object]]:
-        """(label, A value, B value) of every row the table shows (A None when nothing is pinned)."""
+    def rows(self) -> list[tuple]:
+        """(label, format, A value, B value, verdict) of every row the table shows (A None when nothing
+        is pinned; the verdict '' for a frame read-out)."""
+        from workbench.metrics.study import compare_verdict
         a_read = self.pinned["readouts"] if self.pinned else {}
         a_sum = (self.pinned["metrics"] or {}).get("summary", {}) if self.pinned else {}
         b_sum = (self.metrics or {}).get("summary", {})
         keys = list(READOUT_ROWS) + [(k, k, lambda v: f"{v:.4g}") for k in self._readouts
                                      if k.startswith("electrons ")]
-        out = [(label, fmt, a_read.get(k), self._readouts.get(k)) for k, label, fmt in keys
+        out = [(label, fmt, a_read.get(k), self._readouts.get(k), "") for k, label, fmt in keys
                if k in self._readouts or k in a_read]
-        out += [(label, fmt, a_sum.get(k), b_sum.get(k)) for k, label, fmt in SUMMARY_ROWS if k in b_sum or k in a_sum]
+        a_sigma = (self.pinned["metrics"] or {}).get("uncertainty", {}) if self.pinned else {}
+        b_sigma = (self.metrics or {}).get("uncertainty", {})
+        out += [(label, fmt, a_sum.get(k), b_sum.get(k),
+                 compare_verdict(k, a_sum.get(k), b_sum.get(k), a_sigma.get(k), b_sigma.get(k)))
+                for k, label, fmt in SUMMARY_ROWS if k in b_sum or k in a_sum]
         return out
 
     def _fill_table(self) -> None:
         rows = self.rows()
         self.table.setRowCount(len(rows))
         self.table.setVerticalHeaderLabels([r[0] for r in rows])
-        for i, (_, fmt, a, b) in enumerate(rows):
+        for i, (_, fmt, a, b, verdict) in enumerate(rows):
             change = None
             if isinstance(a, (int, float)) and isinstance(b, (int, float)):
                 change = b - a
@@ -334,8 +344,10 @@ class MetricsPanel(QWidget):
                 item = QTableWidgetItem(text)
                 item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
                 self.table.setItem(i, j, item)
+            self.table.setItem(i, 3, QTableWidgetItem(verdict))
         self.table.setColumnHidden(0, self.pinned is None)
         self.table.setColumnHidden(2, self.pinned is None)
+        self.table.setColumnHidden(3, self.pinned is None)
 
     def shutdown(self) -> None:
         """The window is closing: no new measurement starts (the window stops the side process)."""

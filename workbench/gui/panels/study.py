@@ -22,7 +22,7 @@ from workbench.metrics.study import HIGHER_IS_BETTER, parse_vary
 def study_with_charts(project, vary, out, x, y, token, chart_px):
     """run_study, yielding (Progress, table rows, Pareto RGBA) after each design: a worker's job."""
     from workbench.metrics.charts import draw_pareto
-    from workbench.metrics.study import run_study
+    from workbench.metrics.study import run_study, study_sigma, table_rows
     job = run_study(project, vary, out, x=x, y=y, cancel=token)
     while True:
         try:
@@ -30,20 +30,20 @@ def study_with_charts(project, vary, out, x, y, token, chart_px):
         except StopIteration as stop:
             doc = stop.value
             break
-        rows = _study_rows(out)
+        designs = _study_designs(out)
+        rows, sigma = table_rows(designs), study_sigma(designs, x, y)
         rgba = render_rgba(lambda fig: draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER[x],
-                                                   HIGHER_IS_BETTER[y], fields=list(vary)), *chart_px)
+                                                   HIGHER_IS_BETTER[y], fields=list(vary), sigma=sigma), *chart_px)
         yield progress, rows, rgba
     return doc
 
 
-def _study_rows(out) -> list[dict]:
+def _study_designs(out) -> list[dict]:
     from workbench.datasets.files import read_json_object
-    from workbench.metrics.study import table_rows
     path = out / "study.json"
     if not path.exists():
         return []
-    return table_rows(read_json_object(path, "study file", "").get("designs", []))
+    return read_json_object(path, "study file", "").get("designs", [])
 
 
 class StudyPanel(QWidget):
