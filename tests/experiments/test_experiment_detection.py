@@ -88,7 +88,7 @@ def test_every_exposure_condition_starts_alike_and_trains_as_long():
     from workbench.detect.data import DetectionDataset  # noqa: F401  (the planner needs only the project)
 
     class _Set:
-        project, fingerprint, folder = _project((-1.0, 0.0, 1.0)), "f", "/set"
+        project, fingerprint, folder, split_digest = _project((-1.0, 0.0, 1.0)), "f", "/set", "s"
     jobs = plan_runs("exposure", replace(TINY, nets=("mobile", "resnet18"), epochs={"mobile": 3, "resnet18": 2}),
                      2, _Set(), Path("/ckpt"))
     assert len(jobs) == 2 * 2 * 3                                   # nets × seeds × (EV 0, mix, EV +1)

@@ -29,6 +29,8 @@ MAX_JSON_BYTES = 512 * 2 ** 20          # coco.json of a million frames stays be
 MAX_NPZ_MEMBER_BYTES = 2 * 2 ** 30      # no frame array is larger (a 8192² × 8 float32 film)
 FRAME_FILE = "frames/frame_{:06d}.npz"
 SEED_KEYS = ("index", "arrangement", "pose", "render")
+OPTIONAL_SEED_KEYS = ("city",)          # the city arrangement a frame's pose belongs to (the split's unit);
+                                        # frames written before cities were numbered lack it
 
 
 def read_json_object(path: str | Path, what: str, missing_hint: str, max_bytes: int = MAX_JSON_BYTES) -> dict:
@@ -77,7 +79,8 @@ def manifest_frames(manifest: dict, folder: Path, path: Path) -> list[tuple[int,
         seeds = entry.get("seeds")
         if not isinstance(seeds, dict):
             raise InputFileError(path, f"{where}.seeds must be an object")
-        seeds = {key: _int(seeds.get(key), path, f"{where}.seeds.{key}") for key in SEED_KEYS}
+        seeds = {**{key: _int(seeds.get(key), path, f"{where}.seeds.{key}") for key in SEED_KEYS},
+                 **{key: _int(seeds[key], path, f"{where}.seeds.{key}") for key in OPTIONAL_SEED_KEYS if key in seeds}}
         out.append((index, inside(folder, entry["file"], path, f"{where}.file"), seeds))
     return out
 

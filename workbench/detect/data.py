@@ -161,6 +161,14 @@ class DetectionDataset:
         if not self.frames:
             raise InputFileError(manifest_path, "lists no frames")
 
+    @property
+    def split_digest(self) -> str:
+        """A digest of which frames are test frames: part of a run's identity (a run trained or tested
+        on other frames is another run)."""
+        import hashlib
+        test = [f.index for f in self.frames if f.split == "test"]
+        return hashlib.sha256(",".join(map(str, test)).encode()).hexdigest()[:16]
+
     def indices(self, split: str) -> list[int]:
         """Positions (into self.frames) of the 'train' or 'test' frames."""
         if split not in ("train", "test"):

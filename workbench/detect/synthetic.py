@@ -22,12 +22,13 @@ FOCAL_LENGTH_M, F_NUMBER = 2.3761e-3, 4.0
 
 
 def synthetic_frame(project, seeds) -> FrameData:
-    """One frame of project.sensor's size: 2–4 boxes plus one tiny box, sensor-channel film."""
+    """One frame of project.sensor's size: 2–4 boxes plus one tiny box, sensor-channel film; the
+    boxes are drawn from the frame's arrangement and pose seeds (each pose of a city is another view)."""
     from workbench.sensor.cfa import cfa_layout, channel_qe
 
     rows, cols = project.sensor.rows, project.sensor.cols
     _, names = cfa_layout(project.sensor.cfa_pattern)
-    rng = np.random.default_rng(seeds.arrangement)
+    rng = np.random.default_rng([seeds.arrangement, seeds.pose])
     wl = np.arange(400.0, 701.0, 10.0)
     qe = np.asarray(channel_qe(project.sensor, wl))
     integrals = qe.sum(axis=0) * 10.0

@@ -124,8 +124,8 @@ def _digest(*parts) -> str:
 
 def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Path):
     """The runs of an experiment as (role, DetectionJob) pairs. A run's key (and checkpoint file)
-    names its training configuration and data set only, so the same training is shared by every
-    experiment that tests it."""
+    names its training configuration, data set and split (which frames are test frames) only, so
+    the same training is shared by every experiment that tests it."""
     from workbench.detect.engine import TrainConfig
     from workbench.detect.job import DetectionJob
 
@@ -142,7 +142,8 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
 
     def add(role: dict, config: TrainConfig, test_evs: tuple) -> None:
         ev_tag = "mix" if len(config.train_evs) > 1 else f"ev{config.train_evs[0]:+g}"
-        key = f"{config.net}-{config.representation}-{ev_tag}-s{config.seed}-{_digest(config.to_json(), dataset.fingerprint)}"
+        key = (f"{config.net}-{config.representation}-{ev_tag}-s{config.seed}-"
+               f"{_digest(config.to_json(), dataset.fingerprint, dataset.split_digest)}")
         jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
                                         with_curves=kind == "isp")))
 
