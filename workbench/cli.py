@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import logging
 import sys
 
 from workbench.errors import WorkbenchError
+from workbench.files import json_text
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
 COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "sheet", "metrics")
@@ -21,8 +21,8 @@ def _bench(args: argparse.Namespace) -> int:
         prepare_output_folder(args.out)
     result = fn(args)
     if args.json:
-        print(json.dumps({"title": result.title, "rows": result.rows, "notes": result.notes,
-                          **result.extra}, indent=2, default=float))
+        print(json_text({"title": result.title, "rows": result.rows, "notes": result.notes,
+                         **result.extra}, indent=2))
     else:
         print(format_table(result))
     return 0

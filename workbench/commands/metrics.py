@@ -44,8 +44,9 @@ def register(sub) -> None:
 
 
 def _summary_lines(metrics: dict) -> str:
-    return "\n".join(f"  {k:28s} {v:.4g}" if isinstance(v, float) else f"  {k:28s} {v}"
-                     for k, v in metrics["summary"].items())
+    from workbench.metrics.bounds import shown
+    why = metrics.get("null_reasons", {})
+    return "\n".join(f"  {k:28s} {shown(v, why.get(k))}" for k, v in metrics["summary"].items())
 
 
 def cmd_metrics(args) -> int:
@@ -65,9 +66,11 @@ def cmd_compare(args) -> int:
     from workbench.metrics.study import compare_designs
     from workbench.project import load_project
     doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
+    from workbench.metrics.bounds import shown
     for row in doc["table"]:
-        fmt = (lambda v: "—" if v is None else f"{v:.4g}")
-        print(f"{row['metric']:28s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
+        why = row.get("null_reasons", {})
+        print(f"{row['metric']:28s} A {shown(row['A'], why.get('A')):>10s}  B {shown(row['B'], why.get('B')):>10s}  "
+              f"{row['']}")
     print(f"report: {args.out}/compare.md")
     return 0
 

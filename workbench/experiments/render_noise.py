@@ -22,7 +22,6 @@ The reference's own noise is left in e, so every figure is an upper bound.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -32,6 +31,7 @@ import numpy as np
 
 from workbench.errors import InvalidValueError
 from workbench.jobs import Progress
+from workbench.files import json_text
 
 TARGET_RATIO = 1.0 / 3.0
 TAIL_RATIO = 2.0 / 3.0
@@ -126,5 +126,5 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
               "worst_edge_ratio": worst["edge_ratio"],
               "passes": bool(worst["median_ratio"] <= TARGET_RATIO and worst["p90_ratio"] <= TAIL_RATIO
                              and worst["edge_ratio"] <= TAIL_RATIO)}
-    atomic_write_text(Path(folder) / RESULT_FILE, json.dumps(report, indent=1) + "\n")
+    atomic_write_text(Path(folder) / RESULT_FILE, json_text(report) + "\n")
     return report

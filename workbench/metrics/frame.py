@@ -17,9 +17,11 @@ import math
 
 import numpy as np
 
+from workbench.metrics.bounds import finite_or_none, snr_unbounded_reason
 from workbench.metrics.colour import macbeth_delta_e
 from workbench.metrics.esfr import edge_sfr
 from workbench.metrics.noise import snr_model, snr_vs_signal
+from workbench.sensor.snr import noise_floor_e
 
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
 LOW_SNR = 10.0
@@ -65,7 +67,9 @@ def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) 
             if box.size:
                 snrs.append(float(snr_model(box.mean() * exposure, sensor, exposure)))
         out["road_users"] = len(snrs)
-        out["road_user_snr_median"] = float(np.median(snrs)) if snrs else None
+        out["road_user_snr_median"] = finite_or_none(np.median(snrs)) if snrs else None
+        if snrs and out["road_user_snr_median"] is None:
+            out["road_user_snr_reason"] = snr_unbounded_reason(sensor)
         out["road_user_low_snr_pct"] = float(100 * np.mean(np.asarray(snrs) < LOW_SNR)) if snrs else None
     return out
 
@@ -161,11 +165,20 @@ def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
     def snr_at(n_e: float, exposure_s: float) -> float:
         return float(exact_snr(n_e, sensor, exposure_s) if sensor.bit_depth else snr_model(n_e, sensor, exposure_s))
     snr = snr_at(e_per_lux_s * at, LOW_LIGHT_EXPOSURE_S)
-    n_eq = noise_equivalent_e(lambda n: snr_at(n, 0.0))
-    return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
-            "snr_low_light_dB": 20 * float(np.log10(snr)) if snr > 0 else None,
-            "noise_equivalent_exposure_lux_s": (n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None
-                                                else None)}
+    noise_off = sensor.noise_flag < 1
+    n_eq = None if noise_off else noise_equivalent_e(lambda n: snr_at(n, 0.0))
+    out = {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
+           "snr_low_light_dB": 20 * float(np.log10(snr)) if 0 < snr < math.inf else None,
+           "noise_equivalent_exposure_lux_s": (n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None
+                                               else None)}
+    reasons = {}
+    if out["snr_low_light_dB"] is None:
+        reasons["snr_low_light_dB"] = snr_unbounded_reason(sensor) if snr == math.inf else "undefined (no signal)"
+    if out["noise_equivalent_exposure_lux_s"] is None:
+        reasons["noise_equivalent_exposure_lux_s"] = (
+            "undefined (noise off)" if noise_off
+            else "undefined (SNR 1 is not reached up to 1e6 e⁻)" if n_eq is None else "undefined (no signal)")
+    return out | ({"null_reasons": reasons} if reasons else {})
 
 
 def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float | None:
@@ -216,13 +229,14 @@ def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
             continue
         for row in region_noise(image, sensor, region & (layout == k)):
             row["patch"] = PATCH_NAMES[k]
-            row["snr_model"] = float(snr_model(row["mean_e"], sensor, float(np.mean(image.exposure_s))))
+            row["snr_model"] = finite_or_none(snr_model(row["mean_e"], sensor, float(np.mean(image.exposure_s))))
             rows.append(row)
     return rows
 
 
 def camera_metrics(project) -> dict:
-    """The measurements of module docstring, with a summary of the headline numbers."""
+    """The measurements of module docstring, with a summary of the headline numbers; a summary
+    figure with no finite value (an SNR with the noise off) is None and 'null_reasons' says why."""
     mtf, (noise, lux_per_cd_m2), colour = system_mtf(project), noise_series(project), colour_error(project)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
@@ -230,13 +244,23 @@ def camera_metrics(project) -> dict:
            min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
     expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
+    mid_snr = [r["snr"] for r in mid]
+    floor_e, floor_why = noise_floor_e(project.sensor)
     summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
-               "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
+               "snr_at_10pct_full_well_dB": (float(20 * np.log10(np.mean(mid_snr)))
+                                             if None not in mid_snr and np.mean(mid_snr) > 0 else None),
                LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],
                "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
                "delta_e_mean": colour["mean"], "delta_e_max": colour["max"],
                "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
-               "dynamic_range_dB": float(20 * np.log10(project.sensor.full_well_e / max(project.sensor.read_noise_e, 1e-9)))}
-    return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "exposure": expo,
-            "colour": colour}
+               "dynamic_range_dB": (float(20 * np.log10(project.sensor.full_well_e / floor_e)) if floor_e > 0
+                                    else None)}
+    reasons = {LOW_LIGHT_SNR_KEY: expo.get("null_reasons", {}).get("snr_low_light_dB"),
+               "noise_equivalent_exposure_lux_s": expo.get("null_reasons", {}).get("noise_equivalent_exposure_lux_s"),
+               "snr_at_10pct_full_well_dB": next((r.get("snr_reason") for r in mid if r["snr"] is None),
+                                                 "undefined (no signal)"),
+               "dynamic_range_dB": floor_why}
+    null_reasons = {k: why for k, why in reasons.items() if summary[k] is None and why}
+    return {"project": project.name, "summary": summary, "null_reasons": null_reasons, "mtf": mtf, "noise": noise,
+            "exposure": expo, "colour": colour}
