@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from workbench.errors import ParameterError
 from workbench.metrics.bounds import finite_or_none, snr_unbounded_reason
 from workbench.metrics.colour import macbeth_delta_e
 from workbench.metrics.esfr import edge_sfr
@@ -92,12 +93,38 @@ def _sfr_row(name: str, image: np.ndarray, px_per_sample: float) -> dict:
             "mtf_nyquist": float(np.interp(0.5, freq, sfr.mtf)), "edge_angle_deg": sfr.edge_angle_deg}
 
 
+MIN_EDGE_CONTRAST_DN = 4     # codes between the edge's dark and bright side below which no e-SFR can be measured
+
+
+def check_edge_exposed(image, sensor) -> None:
+    """ParameterError naming the exposure when the slanted-edge shot is too dark (or too bright) to
+    hold an edge: e.g. an exposure of 1e-12 s collects no electrons, and the e-SFR would find only
+    flat rows."""
+    dn = np.asarray(image.dn, np.float64)
+    lo, hi = np.percentile(dn, [5, 95])
+    step = 1.0 if sensor.bit_depth else sensor.conversion_gain_V_per_e * sensor.analog_gain    # analog: 1 e⁻ in V
+    if hi - lo >= MIN_EDGE_CONTRAST_DN * step:
+        return
+    exposure_s = float(np.mean(image.exposure_s))
+    mean_e = float(np.mean(image.electrons))
+    clipped = float(np.mean(dn >= image.max_dn))
+    problem = ("saturated" if clipped > 0.5 else "too dark") + (
+        f": the slanted-edge chart holds {mean_e:.3g} e⁻ per pixel on average at an exposure of {exposure_s:.3g} s, "
+        f"less than {MIN_EDGE_CONTRAST_DN} codes of edge contrast, so no MTF can be measured")
+    if sensor.exposure_s is not None:
+        raise ParameterError("sensor.exposure_s", sensor.exposure_s, f"{problem}; choose an exposure that exposes the "
+                             "chart (or null for auto-exposure)")
+    raise ParameterError("sensor.max_exposure_s", sensor.max_exposure_s, f"{problem}; raise max_exposure_s, "
+                         "auto_exposure_level or the scene's illuminance")
+
+
 def system_mtf(project) -> list[dict]:
     """e-SFR rows of the slanted-edge chart seen by the project's camera (module docstring)."""
     from workbench.pipeline import Pipeline
     from workbench.spectra import xyz_cmfs
     result = Pipeline(_chart(project, "slanted_edge")).run()
     image, isp = result.sensor_image, result.isp
+    check_edge_exposed(image, project.sensor)
     rows = []
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
