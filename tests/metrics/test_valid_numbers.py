@@ -120,3 +120,16 @@ def test_committed_results_are_strict_json_that_json_text_rewrites(path):
     from workbench.files import json_text
     doc = strict_load(path)
     assert json.loads(json_text(doc)) == doc
+
+
+def test_simulate_with_the_noise_off_reports_no_snr_and_says_why(tmp_path):
+    p = load_project("paper_camera")
+    p = p.updated(sensor=p.sensor.updated(rows=12, cols=16, pixel_pitch_um=80.0, noise_flag=0, read_noise_V=0.0))
+    path = save_project(p, tmp_path / "tiny.json")
+    assert main(["simulate", str(path), "--out", str(tmp_path / "sim")]) == 0
+    report = strict_load(tmp_path / "sim" / "report.json")
+    for ch in report["channels"].values():
+        assert ch["snr_dB"] is None and ch["snr_reason"] == "unbounded (noise off)"
+    sensor_range = report["sensor_dynamic_range"]
+    assert sensor_range["dynamic_range_limit"] == "quantisation (no read noise)"
+    assert 0 < sensor_range["dynamic_range_dB"] < 70

@@ -61,6 +61,9 @@ def stage_report(result, project) -> dict:
             "snr_dB": None if np.isnan(snr) else snr,
             "fraction_clipped": float((img.dn[mask] >= img.max_dn).mean()),
         }
+        if np.isnan(snr):                        # null, and why (metrics.bounds)
+            channels[name]["snr_reason"] = ("unbounded (noise off)" if project.sensor.noise_flag < 1
+                                            else "undefined (no signal)")
     exposure = img.exposure_s
     scene_range, sensor_range = scene_range_report(result, project), sensor_dynamic_range(project.sensor)
     exceeds = None
