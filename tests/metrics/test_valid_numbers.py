@@ -100,6 +100,8 @@ def test_characterize_refuses_a_swing_it_cannot_measure(quiet_and_noisy, tmp_pat
     tiny = p.updated(sensor=p.sensor.updated(voltage_swing_V=1e-6))
     with pytest.raises(ParameterError, match=r"sensor\.voltage_swing_V.*0\.0098 e⁻.*at least 100 e⁻"):
         characterize(tiny.sensor, size_px=32, n_levels=12, n_dark=3)
+    with pytest.raises(ParameterError, match=r"sensor\.bit_depth: .*at least 6 bits"):       # was a LinAlgError, exit 3
+        characterize(p.sensor.updated(bit_depth=1), size_px=32, n_levels=12, n_dark=3)
     path = save_project(tiny, tmp_path / "uv.json")
     assert main(["characterize", str(path), "--out", str(tmp_path / "ch")]) == 2
     err = capsys.readouterr().err

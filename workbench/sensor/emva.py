@@ -56,9 +56,17 @@ def _characterisation_camera(params: SensorParams, size_px: int, black_level_fra
 MIN_SATURATION_E = 100.0    # fewer electrons above the black level than this: no photon-transfer curve to fit
 
 
+MIN_ADC_BITS = 6            # fewer codes than 2^6: too few levels below saturation for the photon-transfer fit
+
+
 def check_measurable(params: SensorParams, saturation_e: float) -> None:
     """ParameterError unless the swing above the black level holds MIN_SATURATION_E electrons (a
-    1 µV swing holds 0.01 e⁻: its 'QE' and 'dynamic range' would be fits to quantisation noise)."""
+    1 µV swing holds 0.01 e⁻: its 'QE' and 'dynamic range' would be fits to quantisation noise) and
+    the ADC has MIN_ADC_BITS (a 1-bit ADC has two codes: the fit did not converge)."""
+    if params.bit_depth and params.bit_depth < MIN_ADC_BITS:
+        raise ParameterError("sensor.bit_depth", params.bit_depth,
+                             f"the photon-transfer test needs an ADC of at least {MIN_ADC_BITS} bits (or 0: analog); "
+                             "raise bit_depth")
     if saturation_e < MIN_SATURATION_E:
         raise ParameterError(
             "sensor.voltage_swing_V", params.voltage_swing_V,
