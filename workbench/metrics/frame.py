@@ -102,15 +102,18 @@ def check_edge_exposed(image, sensor) -> None:
     flat rows."""
     dn = np.asarray(image.dn, np.float64)
     lo, hi = np.percentile(dn, [5, 95])
-    step = 1.0 if sensor.bit_depth else sensor.conversion_gain_V_per_e * sensor.analog_gain    # analog: 1 e⁻ in V
-    if hi - lo >= MIN_EDGE_CONTRAST_DN * step:
+    if sensor.bit_depth:                      # a few codes, or a quarter of a coarse ADC's range (1 bit: 2 codes)
+        need = min(MIN_EDGE_CONTRAST_DN, image.max_dn / 4)
+    else:                                     # analog: volts, a few electrons' worth
+        need = MIN_EDGE_CONTRAST_DN * sensor.conversion_gain_V_per_e * sensor.analog_gain
+    if hi - lo >= need:
         return
     exposure_s = float(np.mean(image.exposure_s))
     mean_e = float(np.mean(image.electrons))
     clipped = float(np.mean(dn >= image.max_dn))
     problem = ("saturated" if clipped > 0.5 else "too dark") + (
         f": the slanted-edge chart holds {mean_e:.3g} e⁻ per pixel on average at an exposure of {exposure_s:.3g} s, "
-        f"less than {MIN_EDGE_CONTRAST_DN} codes of edge contrast, so no MTF can be measured")
+        f"less than {need:.3g} {'codes' if sensor.bit_depth else 'V'} of edge contrast, so no MTF can be measured")
     if sensor.exposure_s is not None:
         raise ParameterError("sensor.exposure_s", sensor.exposure_s, f"{problem}; choose an exposure that exposes the "
                              "chart (or null for auto-exposure)")
