@@ -203,8 +203,8 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
         mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
         return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
     except InvalidValueError as exc:           # e.g. NaN irradiance: name the frame that holds it
-        raise InputFileError(record.path, f"{exc} — in this frame: it is damaged; rerun `workbench dataset` on "
-                                          "the folder (or delete the frame to have it rendered again)") from None
+        raise InputFileError(record.path, f"frame {record.index} cannot be used ({exc}): the frame file is damaged; "
+                                          "delete it and rerun `workbench dataset` on the folder to render it again") from None
 
 
 class RateCache:
