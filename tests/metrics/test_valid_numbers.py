@@ -135,3 +135,11 @@ def test_simulate_with_the_noise_off_reports_no_snr_and_says_why(tmp_path):
     sensor_range = report["sensor_dynamic_range"]
     assert sensor_range["dynamic_range_limit"] == "quantisation (no read noise)"
     assert 0 < sensor_range["dynamic_range_dB"] < 70
+
+
+def test_a_refused_vary_value_names_its_section_and_field():
+    """'read_noise_V: must be a valid number' named no section."""
+    from workbench.metrics.study import with_fields
+    p = load_project("paper_camera")
+    with pytest.raises(ParameterError, match=r"^sensor\.read_noise_V: must be a valid number"):
+        with_fields(p, {"sensor.read_noise_V": "abc"})

@@ -65,8 +65,14 @@ def with_fields(project, values: dict):
         if not hasattr(project, section):
             raise ParameterError(field, value, f"a field of a project section; '{section}' is none")
         changes.setdefault(section, {})[name] = value
+    sections = {}
+    for sec, vals in changes.items():
+        try:
+            sections[sec] = getattr(project, sec).updated(**vals)
+        except ValidationError as exc:                  # named with its section: 'sensor.read_noise_V'
+            raise parameter_error(exc, prefix=sec) from None
     try:
-        return project.updated(**{sec: getattr(project, sec).updated(**vals) for sec, vals in changes.items()})
+        return project.updated(**sections)
     except ValidationError as exc:
         raise parameter_error(exc) from None
 
