@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import logging
 import sys
 
 from workbench.errors import WorkbenchError
+from workbench.files import json_text
 
 # Modules under workbench.commands that add sub-commands; each has register(subparsers).
 COMMAND_MODULES = ("core", "render", "lens", "selftest", "experiment", "sheet", "metrics")
@@ -21,8 +21,8 @@ def _bench(args: argparse.Namespace) -> int:
         prepare_output_folder(args.out)
     result = fn(args)
     if args.json:
-        print(json.dumps({"title": result.title, "rows": result.rows, "notes": result.notes,
-                          **result.extra}, indent=2, default=float))
+        print(json_text({"title": result.title, "rows": result.rows, "notes": result.notes,
+                         **result.extra}, indent=2))
     else:
         print(format_table(result))
     return 0
@@ -102,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except (WorkbenchError, OSError) as exc:
+        if getattr(exc, "is_bug", False):               # a job (compute.JobFailed) raised an unchecked error
+            return _internal_error(command, exc, log, logger)
         logger.info("user error", exc_info=True)
         print(f"workbench {command}: error: {_one_line(exc)}", file=sys.stderr)
         return 2
@@ -109,11 +111,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"workbench {command}: cancelled", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 — not bad input: a bug, reported as one
-        logger.exception("internal error")
-        where = f"; the traceback is in {log}" if log is not None else ""
-        print(f"workbench {command}: internal error (a bug, not your input): {type(exc).__name__}: "
-              f"{_one_line(exc)[:200]}{where}", file=sys.stderr)
-        return 3
+        return _internal_error(command, exc, log, logger)
+
+
+def _internal_error(command: str, exc: BaseException, log, logger) -> int:
+    """A bug: the traceback to the log, one line naming the log; exit code 3."""
+    logger.error("internal error", exc_info=exc)
+    where = f"; the traceback is in {log}" if log is not None else ""
+    name = "" if getattr(exc, "is_bug", False) else f"{type(exc).__name__}: "
+    print(f"workbench {command}: internal error (a bug, not your input): {name}{_one_line(exc)[:200]}{where}",
+          file=sys.stderr)
+    return 3
 
 
 if __name__ == "__main__":

@@ -4,10 +4,15 @@ Readers turn every way a file can be unusable (a folder, no permission, too larg
 JSON, JSON nested too deeply, a key given twice) into an InputFileError naming the file; no message
 echoes the file's contents. `atomic_write_text` writes through a symbolic link to its target, keeps
 the target's permission bits, and never leaves a half-written file or a stale temporary behind.
+
+Every JSON file or line the workbench writes goes through `json_text`: strict JSON (no NaN or
+Infinity, which are not JSON), numpy numbers as plain numbers; an infinite or undefined quantity
+is written as null by its measurement, with a field that says why (e.g. "unbounded (noise off)").
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import secrets
 import stat
@@ -114,6 +119,50 @@ def _valid_unicode(data: object) -> bool:
             except UnicodeEncodeError:
                 return False
     return True
+
+
+# ---------------------------------------------------------------- strict JSON
+def _plain(obj):
+    """numpy scalars and arrays, and paths, as JSON values; anything else is a bug."""
+    if hasattr(obj, "tolist"):                   # numpy scalar or array
+        return obj.tolist()
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    raise TypeError(f"JSON output: cannot write a {type(obj).__name__}")
+
+
+def non_finite_place(obj, where: str = "") -> str | None:
+    """The dotted place of the first NaN or ±Infinity in a JSON-ready value, or None."""
+    stack = [(where, obj)]
+    while stack:
+        place, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((f"{place}.{k}" if place else str(k), v) for k, v in node.items())
+        elif isinstance(node, (list, tuple)):
+            stack.extend((f"{place}[{i}]", v) for i, v in enumerate(node))
+        elif isinstance(node, float) or hasattr(node, "dtype"):
+            try:
+                values = node.tolist() if hasattr(node, "tolist") else node
+            except (TypeError, ValueError):
+                continue
+            if isinstance(values, list):
+                stack.append((place, values))
+            elif isinstance(values, float) and not math.isfinite(values):
+                return place or "(the value)"
+    return None
+
+
+def json_text(obj, indent: int | None = 1, default=_plain, **kwargs) -> str:
+    """Strict JSON text of `obj` (allow_nan=False; numpy values as numbers). A NaN or ±Infinity is
+    a bug of the code that made `obj` (it should write null and say why): ValueError naming where."""
+    try:
+        return json.dumps(obj, indent=indent, allow_nan=False, default=default, **kwargs)
+    except ValueError:
+        place = non_finite_place(obj)
+        if place is None:
+            raise
+        raise ValueError(f"JSON output: {place} is not a finite number (NaN or Infinity are not JSON; "
+                         "write null and say why)") from None
 
 
 # ---------------------------------------------------------------- atomic write

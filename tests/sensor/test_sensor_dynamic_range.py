@@ -38,4 +38,8 @@ def test_auto_rccc_range_from_its_data_sheet_numbers():
     assert dr["adc_dB"] == pytest.approx(20 * np.log10(1023))
     gained = sensor_dynamic_range(s.updated(analog_gain=4.0, analog_offset_V=0.1))
     assert gained["saturation_e"] == pytest.approx(((1023 - 0.5) * 2.8 / 1024 - 0.1) / (4 * 110e-6))
-    assert sensor_dynamic_range(s.updated(read_noise_V=0.0))["dynamic_range_dB"] is None
+    quiet = sensor_dynamic_range(s.updated(read_noise_V=0.0))           # no read noise: the ADC step sets the floor
+    quantisation_e = 2.8 / 1024 / 110e-6 / np.sqrt(12)
+    assert quiet["dynamic_range_dB"] == pytest.approx(20 * np.log10(quiet["saturation_e"] / quantisation_e))
+    assert quiet["dynamic_range_limit"] == "quantisation (no read noise)"
+    assert sensor_dynamic_range(s.updated(read_noise_V=0.0, bit_depth=0))["dynamic_range_dB"] is None

@@ -14,6 +14,7 @@ to --out.
 """
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import numpy as np
 
 from workbench.bench import BenchResult, register_bench
 from workbench.bench.timing import timed
+from workbench.files import atomic_write_bytes
 from workbench.optics.formation import mtf
 from workbench.optics.params import OpticsParams
 from workbench.optics.types import OPTICS_MODELS
@@ -176,9 +178,10 @@ def _plot(rows: list[dict], out_dir: str) -> str:
         ax.legend(fontsize=8)
     fig.suptitle(f"Optics levels of detail: {LENS}, f/{F_NUMBER:g}")
     path = Path(out_dir) / "optics_speed_vs_error.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=110, format="png")
+    atomic_write_bytes(path, buf.getvalue())
     return str(path)
 
 

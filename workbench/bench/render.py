@@ -25,6 +25,7 @@ from workbench.bench import BenchResult, register_bench
 from workbench.bench.render_features import WL_RANGE_NM
 from workbench.bench.render_features import bench_qe as _qe
 from workbench.bench.timing import timed
+from workbench.files import atomic_write_bytes
 
 PAPER_CORE_MIN_PER_FRAME = 160.0     # iset3d/PBRT: ~10 min per 640×480 frame on 16 cores
 TARGET_BROADBAND = 0.02
@@ -226,4 +227,6 @@ def _plot(rows: list[dict], out: str) -> None:
     ax.set_ylabel("broadband relative RMS error")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(os.path.join(out, "bench_render.png"), dpi=120)
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=120, format="png")
+    atomic_write_bytes(os.path.join(out, "bench_render.png"), buf.getvalue())

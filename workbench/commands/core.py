@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.files import json_text
+
 
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="run scene → optics → sensor → ISP and write every stage")
@@ -59,6 +61,9 @@ def stage_report(result, project) -> dict:
             "snr_dB": None if np.isnan(snr) else snr,
             "fraction_clipped": float((img.dn[mask] >= img.max_dn).mean()),
         }
+        if np.isnan(snr):                        # null, and why (metrics.bounds)
+            channels[name]["snr_reason"] = ("unbounded (noise off)" if project.sensor.noise_flag < 1
+                                            else "undefined (no signal)")
     exposure = img.exposure_s
     scene_range, sensor_range = scene_range_report(result, project), sensor_dynamic_range(project.sensor)
     exceeds = None
@@ -136,7 +141,7 @@ def write_outputs(result, project, out: Path) -> dict:
                 counts[o.class_name] = counts.get(o.class_name, 0) + 1
         report["visible_objects"] = counts
     report["removed_stale"] = [name for name in SIMULATE_OUTPUTS if name not in written and (out / name).is_file()]
-    files[out / "report.json"] = (json.dumps(report, indent=2) + "\n").encode()
+    files[out / "report.json"] = (json_text(report, indent=2) + "\n").encode()
     atomic_write_files(files)                         # the report last: it describes the others
     remove_stale_outputs(out, written)
     return report
@@ -166,7 +171,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         finally:
             bar.close()
         report = write_outputs(result, project, Path(args.out))
-    print(json.dumps({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
+    print(json_text({k: report[k] for k in ("exposure_s", "fraction_clipped", "stage_times_s")}, indent=2))
     scene_range, sensor_range = report["scene_dynamic_range"], report["sensor_dynamic_range"]
     if report["scene_exceeds_sensor_range"] is not None:          # both ranges known
         print(f"scene dynamic range {scene_range['dB']:.1f} dB (p{scene_range['percentiles'][1]:g}/"
@@ -187,10 +192,10 @@ def cmd_characterize(args: argparse.Namespace) -> int:
     project = load_project(args.project)
     out = prepare_output_folder(args.out)
     result = characterize(project.sensor, seed=project.seed)
-    atomic_write_text(out / "emva.json", json.dumps(result, indent=2, default=float) + "\n")
+    atomic_write_text(out / "emva.json", json_text(result, indent=2) + "\n")
     plot_photon_transfer(result, out / "photon_transfer.png")
     summary = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
-    print(json.dumps(summary, indent=2, default=float))
+    print(json_text(summary, indent=2))
     for note in result.get("notes", []):
         print(f"note: {note}")
     print(f"wrote {out}/emva.json and {out}/photon_transfer.png")

@@ -8,6 +8,7 @@ import logging
 import sys
 
 from workbench.commands.compute_options import add_compute_options, compute_spec
+from workbench.files import json_text
 
 
 def register(sub) -> None:
@@ -143,5 +144,5 @@ def cmd_dataset_noise(args) -> int:
     except WorkbenchError as exc:
         print(f"workbench dataset-noise: error: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(report, indent=1))
+    print(json_text(report))
     return 0

@@ -2,10 +2,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
 from workbench.errors import ParameterError
+from workbench.files import json_text
 
 
 def register(sub) -> None:
@@ -45,7 +45,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         raise ParameterError("--sensor-mm", tuple(args.sensor_mm), "width and height must be finite numbers "
                                                                    "in (0, 1000] mm")
     s = lens_summary(_lens(args), args.max_field_deg, None if args.sensor_mm is None else tuple(args.sensor_mm))
-    print(json.dumps(s, indent=2) if args.json else format_summary(s))
+    print(json_text(s, indent=2) if args.json else format_summary(s))
     return 0
 
 

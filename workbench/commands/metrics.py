@@ -45,10 +45,13 @@ def register(sub) -> None:
 
 
 def _summary_lines(metrics: dict) -> str:
-    """Each summary metric with ± its measured uncertainty (σ), then the colour error in words."""
+    """Each summary metric with ± its measured uncertainty (σ), or the reason it has no value; then
+    the colour error in words."""
     from workbench.metrics.study import colour_lines, summary_value
-    return "\n".join([f"  {k:32s} {summary_value(metrics, k)}" for k in metrics["summary"] if k != "mtf50_sd_cy_px"] +
-                     [f"  (±: σ over {metrics.get('noise_draws')} noise draws)"] +
+    why = metrics.get("null_reasons", {})
+    return "\n".join([f"  {k:32s} {summary_value(metrics, k) if v is not None else why.get(k) or '—'}"
+                      for k, v in metrics["summary"].items() if k != "mtf50_sd_cy_px"] +
+                     ([f"  (±: σ over {metrics['noise_draws']} noise draws)"] if metrics.get("noise_draws") else []) +
                      [f"  {text}" for text in colour_lines(metrics)])
 
 
@@ -69,9 +72,11 @@ def cmd_compare(args) -> int:
     from workbench.metrics.study import compare_designs
     from workbench.project import load_project
     doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
+    from workbench.metrics.bounds import shown
     for row in doc["table"]:
-        fmt = (lambda v: "—" if v is None else f"{v:.4g}")
-        print(f"{row['metric']:32s} A {fmt(row['A']):>10s}  B {fmt(row['B']):>10s}  {row['']}")
+        why = row.get("null_reasons", {})
+        print(f"{row['metric']:32s} A {shown(row['A'], why.get('A')):>10s}  B {shown(row['B'], why.get('B')):>10s}  "
+              f"{row['']}")
     print(f"report: {args.out}/compare.md")
     return 0
 

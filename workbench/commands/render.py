@@ -8,6 +8,7 @@ from dataclasses import asdict
 import numpy as np
 
 from workbench.commands.compute_options import add_compute_options, compute_spec
+from workbench.files import json_text
 
 # Box colours per class id (RGB), cycling for ids beyond the list.
 CLASS_COLOURS = ((230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
@@ -86,7 +87,7 @@ def cmd_render(args) -> int:
                 {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
                  "seeds": asdict(seeds), "project": project.name}, "float32")
     coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
-    atomic_write_text(out / f"{stem}_coco.json", json.dumps(coco, indent=1))
+    atomic_write_text(out / f"{stem}_coco.json", json_text(coco))
     counts: dict[str, int] = {}
     for o in frame.labels.objects:
         if o.visible_px:

@@ -33,7 +33,18 @@ THREAD_BUDGET_ENV = "WORKBENCH_THREADS"      # read by render.variants (Dr.Jit) 
 
 class JobFailed(WorkbenchError, RuntimeError):
     """A job raised (or its worker died more often than allowed); the message names the job and the
-    last error, the original error is the __cause__."""
+    last error, the original error is the __cause__. `is_bug`: the job raised an error no check
+    made (not a WorkbenchError or OSError), which the command line reports as an internal error."""
+
+    is_bug = False
+
+    @classmethod
+    def of(cls, job, exc: BaseException) -> "JobFailed":
+        """The failure of `job` by `exc`: its message, with the error's type where it is a bug."""
+        bug = not isinstance(exc, (WorkbenchError, OSError))
+        failed = cls(f"job {job!r} failed: " + (f"{type(exc).__name__}: {exc}" if bug else str(exc)))
+        failed.is_bug = bug
+        return failed
 
 
 def apply_thread_budget(threads: int | None) -> None:
@@ -118,7 +129,7 @@ def run_jobs(fn: Callable[[J], R], jobs: Iterable[J], workers: int = 1,
             try:
                 result = fn(job)
             except Exception as exc:
-                raise JobFailed(f"job {job!r} failed: {exc}") from exc
+                raise JobFailed.of(job, exc) from exc
             yield job, result
         return
     yield from _run_pool(fn, iter(jobs), workers, cancel, max_tasks_per_child, threads_per_worker,
@@ -174,7 +185,7 @@ def _run_pool(fn, jobs, workers, cancel, max_tasks_per_child, threads, task_prog
                     retry.append(key)
                     continue
                 except Exception as exc:
-                    raise JobFailed(f"job {keys[key]!r} failed: {exc}") from exc
+                    raise JobFailed.of(keys[key], exc) from exc
                 yield keys.pop(key), result
             if broken is not None:
                 # Every job in flight went down with the pool: each counts one death, then a fresh pool.

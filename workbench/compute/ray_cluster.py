@@ -167,7 +167,7 @@ def _result(ray, ref, job, spec):
         return ray.get(ref)
     except ray.exceptions.RayTaskError as exc:            # the job raised: deterministic, not retried
         cause = exc.cause if isinstance(exc.cause, BaseException) else exc
-        raise JobFailed(f"job {job!r} failed: {cause}") from cause
+        raise JobFailed.of(job, cause) from cause
     except ray.exceptions.UnserializableException as exc:  # the job raised an error that cannot travel
         raise JobFailed(f"job {job!r} failed with an error that could not be sent back: {exc}") from exc
     except ray.exceptions.RayError as exc:                # the worker, node or object was lost

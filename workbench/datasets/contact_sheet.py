@@ -18,7 +18,6 @@ with no visible pixel are not drawn.
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -29,6 +28,7 @@ import numpy as np
 
 from workbench.errors import InvalidValueError, ParameterError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
+from workbench.files import json_text
 
 # One colour per road-user class (RGB), chosen to stand out from grey streets and blue skies.
 MAX_FRAMES_PER_SCENE = 64
@@ -309,5 +309,5 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
               "tiles": [{**t.record, "origin_xy": list(layout.tile_origin(k))} for k, t in enumerate(tiles)]}
     json_path = out_png.with_suffix(".json")
     atomic_write_files({out_png: buf.getvalue(),                 # both or neither: no record of a missing sheet
-                        json_path: (json.dumps(record, indent=1, default=float) + "\n").encode()})
+                        json_path: (json_text(record) + "\n").encode()})
     return out_png, json_path

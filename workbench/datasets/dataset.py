@@ -44,6 +44,7 @@ from workbench.jobs import CancelToken, Progress
 from workbench.render import city_frame
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, render_city_frame
 from workbench.render.labels import labels_from_arrays, labels_to_coco
+from workbench.files import json_text
 
 DATASET_FORMAT = "camera-workbench-dataset"
 FRAME_FORMAT = "camera-workbench-frame"
@@ -170,7 +171,7 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
 
 def atomic_write_json(path: Path, obj) -> None:
     from workbench.files import atomic_write_text
-    atomic_write_text(path, json.dumps(obj, indent=1, default=str) + "\n")
+    atomic_write_text(path, json_text(obj, default=str) + "\n")
 
 
 @dataclass(frozen=True)

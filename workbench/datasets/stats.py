@@ -9,13 +9,12 @@ is counted in the last bin. An empty data set gives zeros, never NaN.
 from __future__ import annotations
 
 import io
-import json
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from workbench.files import atomic_write_bytes, atomic_write_text
+from workbench.files import atomic_write_bytes, atomic_write_text, json_text
 
 STATS_NAME, PLOT_NAME = "statistics.json", "statistics.png"
 BOX_HEIGHT_EDGES_PX = (0, 8, 16, 32, 64, 128, 256, 512, 1024)
@@ -118,7 +117,7 @@ def write_statistics(out_dir: str | Path, frames: Sequence) -> tuple[Path, Path]
 
     out = Path(out_dir)
     stats = dataset_statistics(frames)
-    json_path = atomic_write_text(out / STATS_NAME, json.dumps(stats, indent=1) + "\n")
+    json_path = atomic_write_text(out / STATS_NAME, json_text(stats) + "\n")
     fig = Figure(figsize=(18, 4.5), layout="constrained")
     FigureCanvasAgg(fig)
     draw_statistics(stats, fig)

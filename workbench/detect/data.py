@@ -45,7 +45,7 @@ import numpy as np
 
 from workbench.datasets.files import coco_tables, inside, manifest_frames, read_json_object
 from workbench.detect.boxes import clip_boxes, crop_boxes, crop_corner, keep_box, mirror_boxes
-from workbench.errors import InputFileError, ParameterError
+from workbench.errors import InputFileError, InvalidValueError, ParameterError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
@@ -206,9 +206,13 @@ def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np
     if head.get("version") != FRAME_VERSION or head.get("fingerprint") != fingerprint:
         raise InputFileError(record.path, f"frame version {head.get('version')!r} / fingerprint do not match "
                                           "the data set's: a file of another schema or data set")
-    oi = frame_optical_image(data)
-    mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
-    return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
+    try:
+        oi = frame_optical_image(data)
+        mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
+        return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
+    except InvalidValueError as exc:           # e.g. NaN irradiance: name the frame that holds it
+        raise InputFileError(record.path, f"frame {record.index} cannot be used ({exc}): the frame file is damaged; "
+                                          "delete it and rerun `workbench dataset` on the folder to render it again") from None
 
 
 class RateCache:

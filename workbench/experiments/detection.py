@@ -59,6 +59,7 @@ from workbench.experiments.analysis import REPRESENTATION_ORDER, contrasts, summ
 from workbench.experiments.results import (BOOTSTRAP_FILE, RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, read_bootstraps,
                                            read_results)
 from workbench.jobs import CancelToken, Progress
+from workbench.files import json_text
 
 EXPERIMENTS = ("isp", "exposure", "budget")
 BUDGET_TOLERANCE = 0.01            # test mAP gain from B to 2B epochs below which budget B is enough
@@ -259,7 +260,7 @@ def write_outputs(doc: dict, boots: dict, out_dir: Path, project=None) -> None:
     from workbench.files import atomic_write_bytes, atomic_write_text
     if project is not None:
         atomic_write_text(out_dir / PROJECT_FILE, project.model_dump_json(indent=1) + "\n")
-    atomic_write_text(out_dir / "results.json", json.dumps(doc, indent=1, default=float) + "\n")
+    atomic_write_text(out_dir / "results.json", json_text(doc) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
     atomic_write_text(out_dir / "contrasts.csv", _csv_text(doc["contrasts"]))

@@ -22,7 +22,6 @@ The reference's own noise is left in e, so every figure is an upper bound.
 """
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -30,8 +29,9 @@ from typing import Generator
 
 import numpy as np
 
-from workbench.errors import InvalidValueError
+from workbench.errors import InvalidValueError, ParameterError
 from workbench.jobs import Progress
+from workbench.files import json_text
 
 TARGET_RATIO = 1.0 / 3.0
 TAIL_RATIO = 2.0 / 3.0
@@ -83,7 +83,12 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
     from workbench.render.city_frame import FrameSeeds, city_optical_image, city_scene_inputs, city_scene_job
     from workbench.sensor import auto_exposure, irradiance_to_signal_rate
 
+    for field, value in (("--frames", frames), ("--reference-spp", reference_spp), ("chunk_spp", chunk_spp)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ParameterError(field, value, "a whole number ≥ 1")
     dataset = DetectionDataset(folder)
+    if frames > len(dataset.frames):
+        raise ParameterError("--frames", frames, f"at most the data set's {len(dataset.frames)} frames")
     project = dataset.project
     sensor = experiment_sensor(project)
     ev_min = float(min(project.experiment.ev_biases))
@@ -116,7 +121,7 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
         rows.append({"frame": rec.index, "exposure_s": exposure_s,
                      **noise_ratios(rate, ref_rate, exposure_s, edges), "reference_seconds": time.perf_counter() - t0})
         yield Progress(k + 1, len(records), f"frame {rec.index}: median σ ratio {rows[-1]['median_ratio']:.3f}")
-    worst = {k: max(r.get(k, float("nan")) for r in rows) for k in ("median_ratio", "p90_ratio", "edge_ratio")}
+    worst = {k: max((r[k] for r in rows if k in r), default=None) for k in ("median_ratio", "p90_ratio", "edge_ratio")}
     report = {"dataset": str(dataset.folder), "fingerprint": dataset.fingerprint,
               "render": {"sampler": render.sampler, "spp": render.spp, "chunk_spp": render.chunk_spp,
                          "preview_spp": render.preview_spp},
@@ -125,6 +130,8 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
               "worst_median_ratio": worst["median_ratio"], "worst_p90_ratio": worst["p90_ratio"],
               "worst_edge_ratio": worst["edge_ratio"],
               "passes": bool(worst["median_ratio"] <= TARGET_RATIO and worst["p90_ratio"] <= TAIL_RATIO
-                             and worst["edge_ratio"] <= TAIL_RATIO)}
-    atomic_write_text(Path(folder) / RESULT_FILE, json.dumps(report, indent=1) + "\n")
+                             and worst["edge_ratio"] is not None and worst["edge_ratio"] <= TAIL_RATIO)}
+    if worst["edge_ratio"] is None:
+        report["worst_edge_ratio_reason"] = "undefined (no object edges in the measured frames)"
+    atomic_write_text(Path(folder) / RESULT_FILE, json_text(report) + "\n")
     return report

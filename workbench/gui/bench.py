@@ -26,6 +26,8 @@ import time
 
 import numpy as np
 
+from workbench.files import json_text
+
 TICK_MS = 5
 
 
@@ -431,7 +433,7 @@ def main(argv: list[str] | None = None) -> int:
         import shiboken6
         from PySide6.QtWidgets import QApplication
         shiboken6.delete(QApplication.instance())       # leave the X server before it stops
-    print(json.dumps(out, default=float))
+    print(json_text(out, indent=None))
     return 0
 
 

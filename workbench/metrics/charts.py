@@ -41,6 +41,11 @@ def draw_mtf(ax, designs: list[dict]) -> None:
     ax.legend(fontsize=6)
 
 
+def _values(rows: list[dict], key: str) -> np.ndarray:
+    """rows' key as floats, None (a value with no finite figure: metrics.bounds) as NaN, not drawn."""
+    return np.array([np.nan if r.get(key) is None else r[key] for r in rows], np.float64)
+
+
 def draw_snr(ax, designs: list[dict]) -> None:
     """SNR against mean signal (e⁻) per channel, measured (points) and the noise model (line)."""
     for d, metrics in enumerate(designs):
@@ -52,12 +57,12 @@ def draw_snr(ax, designs: list[dict]) -> None:
             e = np.array([r["mean_e"] for r in rows])
             colour = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}.get(ch, "k")
             tag = f" ({metrics['project']})" if len(designs) > 1 else ""
-            ax.loglog(e, [r["snr"] for r in rows], "o", ms=3, color=colour, alpha=0.8 if d == 0 else 0.5,
+            ax.loglog(e, _values(rows, "snr"), "o", ms=3, color=colour, alpha=0.8 if d == 0 else 0.5,
                       label=f"{ch} measured{tag}")
-            ax.loglog(e, [r["snr_model"] for r in rows], DESIGN_STYLES[d % 4], color=colour, lw=0.8)
+            ax.loglog(e, _values(rows, "snr_model"), DESIGN_STYLES[d % 4], color=colour, lw=0.8)
         neutral = metrics.get("colour", {}).get("neutral_noise", [])
         if neutral:
-            ax.loglog([r["mean_e"] for r in neutral], [r["snr"] for r in neutral], "x", ms=4, color="0.3",
+            ax.loglog(_values(neutral, "mean_e"), _values(neutral, "snr"), "x", ms=4, color="0.3",
                       alpha=0.8 if d == 0 else 0.5, label="Macbeth neutrals" + (f" ({metrics['project']})"
                                                                                if len(designs) > 1 else ""))
     ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (•: uniform field, ×: neutrals, lines: model)")

@@ -41,6 +41,9 @@ def trained_model(checkpoint_path: str | Path, state: dict, config, in_channels:
     from workbench.detect.models import build_detector
     from workbench.detect.representations import input_stride
 
+    if not isinstance(state.get("model"), dict):
+        raise InputFileError(Path(checkpoint_path), "holds no trained weights (no 'model' entry); give a checkpoint "
+                             "that `workbench experiment` or training wrote")
     model = build_detector(config.net, in_channels, num_classes, input_stride=input_stride(config.representation))
     try:
         model.load_state_dict(state["model"])

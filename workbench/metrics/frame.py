@@ -24,11 +24,13 @@ import math
 
 import numpy as np
 
+from workbench.errors import InvalidValueError, ParameterError
+from workbench.metrics.bounds import finite_or_none, snr_unbounded_reason
 from workbench.metrics.colour import held_out_delta_e, macbeth_delta_e, patch_means
-from workbench.errors import InvalidValueError
 from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50, mtf50_spread
 from workbench.metrics.mtf_model import optics_mtf, pixel_mtf
 from workbench.metrics.noise import snr_model, snr_vs_signal
+from workbench.sensor.snr import noise_floor_e
 
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
 LOW_SNR = 10.0
@@ -75,7 +77,9 @@ def frame_readouts(image, signal_rate_e_per_s: np.ndarray, sensor, labels=None) 
             if box.size:
                 snrs.append(float(snr_model(box.mean() * exposure, sensor, exposure)))
         out["road_users"] = len(snrs)
-        out["road_user_snr_median"] = float(np.median(snrs)) if snrs else None
+        out["road_user_snr_median"] = finite_or_none(np.median(snrs)) if snrs else None
+        if snrs and out["road_user_snr_median"] is None:
+            out["road_user_snr_reason"] = snr_unbounded_reason(sensor)
         out["road_user_low_snr_pct"] = float(100 * np.mean(np.asarray(snrs) < LOW_SNR)) if snrs else None
     return out
 
@@ -170,6 +174,34 @@ def flat_field(project, shape: tuple[int, int], tile: np.ndarray, uniform=None) 
     return np.where(flat > 0, flat, 1.0)
 
 
+MIN_EDGE_CONTRAST_DN = 4     # codes between the edge's dark and bright side below which no e-SFR can be measured
+
+
+def check_edge_exposed(image, sensor) -> None:
+    """ParameterError naming the exposure when the slanted-edge shot is too dark (or too bright) to
+    hold an edge: e.g. an exposure of 1e-12 s collects no electrons, and the e-SFR would find only
+    flat rows."""
+    dn = np.asarray(image.dn, np.float64)
+    lo, hi = np.percentile(dn, [5, 95])
+    if sensor.bit_depth:                      # a few codes, or a quarter of a coarse ADC's range (1 bit: 2 codes)
+        need = min(MIN_EDGE_CONTRAST_DN, image.max_dn / 4)
+    else:                                     # analog: volts, a few electrons' worth
+        need = MIN_EDGE_CONTRAST_DN * sensor.conversion_gain_V_per_e * sensor.analog_gain
+    if hi - lo >= need:
+        return
+    exposure_s = float(np.mean(image.exposure_s))
+    mean_e = float(np.mean(image.electrons))
+    clipped = float(np.mean(dn >= image.max_dn))
+    problem = ("saturated" if clipped > 0.5 else "too dark") + (
+        f": the slanted-edge chart holds {mean_e:.3g} e⁻ per pixel on average at an exposure of {exposure_s:.3g} s, "
+        f"less than {need:.3g} {'codes' if sensor.bit_depth else 'V'} of edge contrast, so no MTF can be measured")
+    if sensor.exposure_s is not None:
+        raise ParameterError("sensor.exposure_s", sensor.exposure_s, f"{problem}; choose an exposure that exposes the "
+                             "chart (or null for auto-exposure)")
+    raise ParameterError("sensor.max_exposure_s", sensor.max_exposure_s, f"{problem}; raise max_exposure_s, "
+                         "auto_exposure_level or the scene's illuminance")
+
+
 def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[dict]:
     """e-SFR rows of the slanted-edge chart seen by the project's camera, flat-fielded by a uniform
     chart through the same optics: each raw channel on its own sites at their full-grid positions
@@ -180,6 +212,7 @@ def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[d
     shots: the kept chart pipelines of a series of noise draws."""
     result = (shots or ChartShots()).run(_chart(project, "slanted_edge"))
     image, isp, sensor = result.sensor_image, result.isp, project.sensor
+    check_edge_exposed(image, sensor)
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
     flat = flat_field(project, image.dn.shape, tile, uniform)
@@ -267,18 +300,29 @@ def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
 
     def snr_at(n_e: float, exposure_s: float) -> float:
         return float(exact_snr(n_e, sensor, exposure_s) if sensor.bit_depth else snr_model(n_e, sensor, exposure_s))
+
     def snr_db(n_e: float) -> float | None:
         snr = snr_at(n_e, LOW_LIGHT_EXPOSURE_S)
-        return 20 * float(np.log10(snr)) if snr > 0 else None
+        return 20 * float(np.log10(snr)) if 0 < snr < math.inf else None
+    snr = snr_at(e_per_lux_s * at, LOW_LIGHT_EXPOSURE_S)
     snr_low = snr_db(e_per_lux_s * at)
     ends = [snr_db(e_per_lux_s * at * (1 + d)) for d in (-rel_se, rel_se)]
-    n_eq = noise_equivalent_e(lambda n: snr_at(n, 0.0))
+    noise_off = sensor.noise_flag < 1
+    n_eq = None if noise_off else noise_equivalent_e(lambda n: snr_at(n, 0.0))
     nee = n_eq / e_per_lux_s if e_per_lux_s > 0 and n_eq is not None else None
-    return {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
-            "snr_low_light_dB": snr_low, "noise_equivalent_exposure_lux_s": nee,
-            "standard_error": {"electrons_per_lux_s": rel_se * e_per_lux_s,
-                               LOW_LIGHT_SNR_KEY: abs(ends[1] - ends[0]) / 2 if None not in ends else None,
-                               "noise_equivalent_exposure_lux_s": None if nee is None else rel_se * nee}}
+    out = {"channel": ch, "electrons_per_lux_s": e_per_lux_s, "low_light_exposure_lux_s": at,
+           "snr_low_light_dB": snr_low, "noise_equivalent_exposure_lux_s": nee,
+           "standard_error": {"electrons_per_lux_s": rel_se * e_per_lux_s,
+                              LOW_LIGHT_SNR_KEY: abs(ends[1] - ends[0]) / 2 if None not in ends else None,
+                              "noise_equivalent_exposure_lux_s": None if nee is None else rel_se * nee}}
+    reasons = {}
+    if out["snr_low_light_dB"] is None:
+        reasons["snr_low_light_dB"] = snr_unbounded_reason(sensor) if snr == math.inf else "undefined (no signal)"
+    if out["noise_equivalent_exposure_lux_s"] is None:
+        reasons["noise_equivalent_exposure_lux_s"] = (
+            "undefined (noise off)" if noise_off
+            else "undefined (SNR 1 is not reached up to 1e6 e⁻)" if n_eq is None else "undefined (no signal)")
+    return out | ({"null_reasons": reasons} if reasons else {})
 
 
 def noise_equivalent_e(snr_of, lo_e: float = 1e-3, hi_e: float = 1e6) -> float | None:
@@ -352,7 +396,7 @@ def neutral_patch_noise(image, sensor, layout: np.ndarray) -> list[dict]:
             continue
         for row in region_noise(image, sensor, region & (layout == k)):
             row["patch"] = PATCH_NAMES[k]
-            row["snr_model"] = float(snr_model(row["mean_e"], sensor, float(np.mean(image.exposure_s))))
+            row["snr_model"] = finite_or_none(snr_model(row["mean_e"], sensor, float(np.mean(image.exposure_s))))
             rows.append(row)
     return rows
 
@@ -369,18 +413,28 @@ def _measure(project, shots: ChartShots) -> dict:
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
     expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
     fitted, held = colour["fitted"] or {}, colour["held_out"] or {}
+    mid_snr = [r["snr"] for r in mid]
+    floor_e, floor_why = noise_floor_e(project.sensor)
     summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf50_sd_cy_px": srgb["mtf50_sd_cy_px"],
                "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
-               "snr_at_10pct_full_well_dB": float(20 * np.log10(np.mean([r["snr"] for r in mid]))),
+               "snr_at_10pct_full_well_dB": (float(20 * np.log10(np.mean(mid_snr)))
+                                             if None not in mid_snr and np.mean(mid_snr) > 0 else None),
                LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],
                "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
                "delta_e_held_out_mean": held.get("mean"), "delta_e_held_out_max": held.get("max"),
                "delta_e_mean": fitted.get("mean"), "delta_e_max": fitted.get("max"),
                "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
-               "dynamic_range_dB": float(20 * np.log10(project.sensor.full_well_e / max(project.sensor.read_noise_e, 1e-9)))}
-    return {"project": project.name, "summary": summary, "mtf": mtf, "noise": noise, "exposure": expo,
-            "colour": colour}
+               "dynamic_range_dB": (float(20 * np.log10(project.sensor.full_well_e / floor_e)) if floor_e > 0
+                                    else None)}
+    reasons = {LOW_LIGHT_SNR_KEY: expo.get("null_reasons", {}).get("snr_low_light_dB"),
+               "noise_equivalent_exposure_lux_s": expo.get("null_reasons", {}).get("noise_equivalent_exposure_lux_s"),
+               "snr_at_10pct_full_well_dB": next((r.get("snr_reason") for r in mid if r["snr"] is None),
+                                                 "undefined (no signal)"),
+               "dynamic_range_dB": floor_why}
+    null_reasons = {k: why for k, why in reasons.items() if summary[k] is None and why}
+    return {"project": project.name, "summary": summary, "null_reasons": null_reasons, "mtf": mtf, "noise": noise,
+            "exposure": expo, "colour": colour}
 
 
 def camera_metrics(project, noise_draws: int = NOISE_DRAWS) -> dict:

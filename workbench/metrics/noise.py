@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.metrics.bounds import finite_or_none, measured_snr, snr_unbounded_reason
 from workbench.sensor.readout_stats import dn_to_electrons
 
 
@@ -28,7 +29,8 @@ def _detrended_std(values: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> float:
 
 
 def region_noise(image, sensor, region: np.ndarray) -> list[dict]:
-    """Per channel of a SensorImage over a boolean region: mean and σ in DN and e⁻, SNR."""
+    """Per channel of a SensorImage over a boolean region: mean and σ in DN and e⁻, SNR (None, with
+    'snr_reason', where σ is zero: metrics.bounds)."""
     region = np.asarray(region, bool)
     if region.shape != image.dn.shape or region.sum() < 16:
         raise InvalidValueError("noise: the region must match the image and hold at least 16 pixels")
@@ -45,15 +47,18 @@ def region_noise(image, sensor, region: np.ndarray) -> list[dict]:
         e = dn_to_electrons(dn, sensor)
         mean_e, std_e = float(e.mean()), _detrended_std(e, ys, xs)
         clipped = float(np.mean(dn >= image.max_dn))
-        rows.append({"channel": name, "mean_dn": float(dn.mean()), "std_dn": _detrended_std(dn, ys, xs),
-                     "mean_e": mean_e, "std_e": std_e, "snr": mean_e / std_e if std_e > 0 else float("inf"),
-                     "clipped": clipped, "pixels": int(sel.sum())})
+        row = {"channel": name, "mean_dn": float(dn.mean()), "std_dn": _detrended_std(dn, ys, xs),
+               "mean_e": mean_e, "std_e": std_e, "snr": measured_snr(mean_e, std_e),
+               "clipped": clipped, "pixels": int(sel.sum())}
+        if row["snr"] is None:                    # no variation: null in JSON, and why
+            row["snr_reason"] = snr_unbounded_reason(sensor) if mean_e > 0 else "undefined (no signal, no noise)"
+        rows.append(row)
     return rows
 
 
 def snr_model(mean_e, sensor, exposure_s: float = 0.0) -> np.ndarray:
     """SNR the noise model predicts at a mean signal (e⁻): shot √N, read noise, dark-current shot
-    noise and the ADC's quantisation (LSB/√12 in e⁻)."""
+    noise and the ADC's quantisation (LSB/√12 in e⁻); inf where there is no noise."""
     n = np.asarray(mean_e, np.float64)
     dark = sensor.dark_current_e_per_s * exposure_s if sensor.noise_flag == 2 else 0.0
     read = sensor.read_noise_e if sensor.noise_flag == 2 else 0.0
@@ -74,6 +79,6 @@ def snr_vs_signal(rate_e_per_s: np.ndarray, sensor, exposures_s, region: np.ndar
         image = signal_rate_to_sensor_image(rate_e_per_s, sensor, float(t), np.random.default_rng([seed, i]))
         for row in region_noise(image, sensor, region):
             row["exposure_s"] = float(t)
-            row["snr_model"] = float(snr_model(row["mean_e"], sensor, float(t)))
+            row["snr_model"] = finite_or_none(snr_model(row["mean_e"], sensor, float(t)))
             rows.append(row)
     return rows

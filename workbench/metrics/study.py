@@ -23,7 +23,9 @@ from typing import Generator
 
 from workbench.errors import OutputPathError, ParameterError
 from workbench.jobs import Progress
+from workbench.metrics.bounds import shown
 from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
+from workbench.files import json_text
 
 STUDY_FORMAT = "camera-workbench-study"
 # what the measurements mean: 2 = e-SFR flat-fielded, raw planes at full resolution, MTF50's spread;
@@ -74,8 +76,14 @@ def with_fields(project, values: dict):
         if not hasattr(project, section):
             raise ParameterError(field, value, f"a field of a project section; '{section}' is none")
         changes.setdefault(section, {})[name] = value
+    sections = {}
+    for sec, vals in changes.items():
+        try:
+            sections[sec] = getattr(project, sec).updated(**vals)
+        except ValidationError as exc:                  # named with its section: 'sensor.read_noise_V'
+            raise parameter_error(exc, prefix=sec) from None
     try:
-        return project.updated(**{sec: getattr(project, sec).updated(**vals) for sec, vals in changes.items()})
+        return project.updated(**sections)
     except ValidationError as exc:
         raise parameter_error(exc) from None
 
@@ -131,13 +139,14 @@ def table_rows(designs: list[dict]) -> list[dict]:
             for d in designs]
 
 
-def _markdown(rows: list[dict]) -> str:
+def _markdown(rows: list[dict], reasons: list[dict] | None = None) -> str:
+    """A Markdown table of rows; a None cell shows its reason (reasons[i][column]) or a dash."""
     if not rows:
         return "(no designs yet)\n"
     cols = list(rows[0])
-    fmt = (lambda v: f"{v:.4g}" if isinstance(v, float) else str(v))
+    reasons = reasons or [{} for _ in rows]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    lines += ["| " + " | ".join(fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    lines += ["| " + " | ".join(shown(r.get(c), why.get(c)) for c in cols) + " |" for r, why in zip(rows, reasons)]
     return "\n".join(lines) + "\n"
 
 
@@ -174,7 +183,8 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
     front = pareto_front(rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True), sigma)
     md = (f"# Design study of {doc['project']}\n\n{len(rows)} of {doc['planned']} designs measured; machine "
           f"time {sum(d['seconds'] for d in doc['designs']):.1f} s.\n\n"
-          + "".join(f"Note: {n}.\n\n" for n in doc.get("notes", [])) + _markdown(rows) +
+          + "".join(f"Note: {n}.\n\n" for n in doc.get("notes", []))
+          + _markdown(rows, [d.get("null_reasons", {}) for d in doc["designs"]]) +
           f"\nPareto front of {x} and {y}: {', '.join(front) or '—'}\n\n" + epsilon_note(sigma, (x, y)))
     fig = Figure(figsize=(6.5, 5))
     draw_pareto(fig.add_subplot(), rows, x, y, HIGHER_IS_BETTER.get(x, True), HIGHER_IS_BETTER.get(y, True),
@@ -184,7 +194,7 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
     fig.savefig(png, dpi=110, format="png")
     atomic_write_files({out / "pareto.png": png.getvalue(), out / "study.csv": buf.getvalue().encode(),
                         out / "study.md": md.encode(),
-                        out / "study.json": (json.dumps(doc, indent=1, default=float) + "\n").encode()})
+                        out / "study.json": (json_text(doc) + "\n").encode()})
 
 
 def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px",
@@ -256,7 +266,9 @@ def summary_value(metrics: dict, key: str) -> str:
 
 def colour_lines(metrics: dict) -> list[str]:
     """ΔE2000 of a design in words: held out beside fitted (training) patches, and the sRGB output."""
-    colour = metrics["colour"]
+    colour = metrics.get("colour")
+    if not colour:
+        return []
     out = colour["srgb_output"]
     lines = []
     if colour.get("held_out") is not None:
@@ -311,7 +323,7 @@ def write_metrics(metrics: dict, out_dir) -> dict:
     fig.savefig(png, dpi=110, format="png")
     paths = {"json": out / "metrics.json", "md": out / "metrics.md", "png": out / "metrics.png"}
     atomic_write_files({paths["png"]: png.getvalue(), paths["md"]: metrics_markdown(metrics).encode(),
-                        paths["json"]: (json.dumps(metrics, indent=1, default=float) + "\n").encode()})
+                        paths["json"]: (json_text(metrics) + "\n").encode()})
     return paths
 
 
@@ -337,11 +349,13 @@ def difference_tolerance(sigma_a: float | None, sigma_b: float | None) -> float:
 
 
 def compare_verdict(metric: str, a: float | None, b: float | None, sigma_a: float | None = None,
-                    sigma_b: float | None = None) -> str:
-    """'A better', 'B better', 'same within ±x' (difference_tolerance of the two uncertainties)
-    or '' when one is missing."""
+                    sigma_b: float | None = None, why_a: str | None = None, why_b: str | None = None) -> str:
+    """'A better', 'B better', 'same within ±x' (difference_tolerance of the two uncertainties);
+    'not comparable: …' when one has no finite value and a reason (why_a, why_b: an unbounded SNR
+    is no number to compare), else '' when one is missing."""
     if a is None or b is None:
-        return ""
+        whys = [f"{name} {why}" for name, value, why in (("A", a, why_a), ("B", b, why_b)) if value is None and why]
+        return "not comparable: " + ", ".join(whys) if whys else ""
     x = difference_tolerance(sigma_a, sigma_b)
     if abs(b - a) <= x:
         return f"same within ±{x:.2g}"
@@ -371,26 +385,34 @@ def compare_designs(a, b, out_dir) -> dict:
         ma["project"], mb["project"] = f"A: {a.name}", f"B: {b.name}"
     from workbench.project import project_differences
     changed = [{"field": f, "A": va, "B": vb} for f, va, vb in project_differences(a, b)]
-    rows = []
+    rows, reasons = [], []
     for key, better in HIGHER_IS_BETTER.items():
         va, vb = ma["summary"].get(key), mb["summary"].get(key)
-        if va is None and vb is None:
+        why = {"A": ma.get("null_reasons", {}).get(key), "B": mb.get("null_reasons", {}).get(key)}
+        if va is None and vb is None and not any(why.values()):
             continue
         sa, sb = ma.get("uncertainty", {}).get(key), mb.get("uncertainty", {}).get(key)
         rows.append({"metric": key, "A": va, "B": vb, "B − A": None if va is None or vb is None else vb - va,
-                     "±": difference_tolerance(sa, sb), "": compare_verdict(key, va, vb, sa, sb)})
+                     "±": difference_tolerance(sa, sb),
+                     "": compare_verdict(key, va, vb, sa, sb, why["A"], why["B"])})
+        why = {k: v for k, v in why.items() if v and rows[-1][k] is None}
+        if why:
+            rows[-1]["null_reasons"] = why
+        reasons.append(why)
     what = ("Changed from A to B: " + "; ".join(f"{c['field']} {c['A']} → {c['B']}" for c in changed)
             if changed else "A and B are the same design (no parameter differs).")
+
     def boot(m: dict) -> str:
         v, sd = m["summary"].get("mtf50_cy_px"), m["summary"].get("mtf50_sd_cy_px")
         return "—" if v is None else f"{v:.4g}" + ("" if sd is None else f" ± {sd:.2g}")
     spread = f"\nMTF50 ± 1σ (bootstrap over the edge's rows): A {boot(ma)}, B {boot(mb)} cy/px.\n"
-    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(rows) + spread +
+    table = [{k: v for k, v in r.items() if k != "null_reasons"} for r in rows]
+    md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(table, reasons) + spread +
           f"\nVerdict: {TOLERANCE_RULE}; noise draws per design: A {ma.get('noise_draws')}, B {mb.get('noise_draws')}.\n\n"
           "MTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
-          " Dynamic range: full well over read noise.\n")
+          " Dynamic range: full well over the read noise (with none, over the ADC's quantisation noise).\n")
     fig = Figure(figsize=(11, 8))
     draw_metrics(fig, [ma, mb])
     fig.tight_layout()
@@ -398,5 +420,5 @@ def compare_designs(a, b, out_dir) -> dict:
     fig.savefig(png, dpi=110, format="png")
     doc = {"A": ma, "B": mb, "changed": changed, "table": rows}
     atomic_write_files({out / "compare.png": png.getvalue(), out / "compare.md": md.encode(),
-                        out / "compare.json": (json.dumps(doc, indent=1, default=float) + "\n").encode()})
+                        out / "compare.json": (json_text(doc) + "\n").encode()})
     return doc

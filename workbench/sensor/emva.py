@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.errors import InvalidValueError
+from workbench.errors import InvalidValueError, ParameterError
 from workbench.optics.types import OpticalImage
 from workbench.sensor.cfa import cfa_layout, channel_index_map, channel_qe
 from workbench.sensor.expose import signal_rate_to_sensor_image
@@ -53,6 +53,28 @@ def _characterisation_camera(params: SensorParams, size_px: int, black_level_fra
         "rows": size_px, "cols": size_px, "analog_offset_V": offset, "exposure_s": None, "ev_bias": 0.0})
 
 
+MIN_SATURATION_E = 100.0    # fewer electrons above the black level than this: no photon-transfer curve to fit
+
+
+MIN_ADC_BITS = 6            # fewer codes than 2^6: too few levels below saturation for the photon-transfer fit
+
+
+def check_measurable(params: SensorParams, saturation_e: float) -> None:
+    """ParameterError unless the swing above the black level holds MIN_SATURATION_E electrons (a
+    1 µV swing holds 0.01 e⁻: its 'QE' and 'dynamic range' would be fits to quantisation noise) and
+    the ADC has MIN_ADC_BITS (a 1-bit ADC has two codes: the fit did not converge)."""
+    if params.bit_depth and params.bit_depth < MIN_ADC_BITS:
+        raise ParameterError("sensor.bit_depth", params.bit_depth,
+                             f"the photon-transfer test needs an ADC of at least {MIN_ADC_BITS} bits (or 0: analog); "
+                             "raise bit_depth")
+    if saturation_e < MIN_SATURATION_E:
+        raise ParameterError(
+            "sensor.voltage_swing_V", params.voltage_swing_V,
+            f"the swing above the black level holds {saturation_e:.3g} e⁻ (swing − offset over conversion gain × "
+            f"analog gain); the photon-transfer test needs at least {MIN_SATURATION_E:g} e⁻: raise "
+            "voltage_swing_V, or lower conversion_gain_uV_per_e, analog_gain or analog_offset_V")
+
+
 def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_levels: int = 60,
                  n_dark: int = 12, exposure_s: float = 1e-3, black_level_fraction: float = 0.02) -> dict:
     """Run the photon-transfer measurement on `params` and return the EMVA 1288 quantities.
@@ -76,6 +98,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     rate_per_irradiance = irradiance_to_signal_rate(unit_oi, cam)          # e⁻/s per (photon/s/m²/nm)
     to_dn = 1.0 / cam.lsb_V if cam.bit_depth else 1.0              # analog: "DN" are volts
     sat_e = (cam.voltage_swing_V - cam.analog_offset_V) / (cam.conversion_gain_V_per_e * cam.analog_gain)
+    check_measurable(params, sat_e)
     e_sat = sat_e / (exposure_s * float(rate_per_irradiance[mask].mean()))
     levels = np.unique(np.concatenate([np.linspace(0.0, 0.9, n_levels // 2, endpoint=False),
                                        np.linspace(0.9, 1.3, n_levels - n_levels // 2)]))
@@ -104,6 +127,11 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     if fit.sum() < 3:
         raise InvalidValueError("too few unsaturated levels for the photon-transfer fit")
     gain_dn_per_e, _ = np.polyfit(signal[fit], var_y[fit] - var_dark, 1)
+    if not (np.isfinite(gain_dn_per_e) and gain_dn_per_e > 0):
+        raise InvalidValueError("characterize: the temporal noise does not grow with the signal (photon-transfer "
+                                f"slope {gain_dn_per_e:.3g} DN/e⁻), so no conversion gain can be measured; give the "
+                                "sensor a swing of many electrons (sensor.voltage_swing_V, conversion_gain_uV_per_e) "
+                                "and shot noise (noise_flag 1 or 2)")
     quant_var = 1.0 / 12.0 if cam.bit_depth else 0.0
     read_noise_e = float(np.sqrt(max(var_dark - quant_var, 0.0)) / gain_dn_per_e)
     hidden = bool(cam.bit_depth) and var_dark <= 2 * quant_var       # the ADC step hides the read noise
@@ -137,6 +165,13 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
     prnu_var = spatial_y[half] - var_y[half] / 2 - (spatial_dark - var_dark / 2)
     dsnu_var = spatial_dark - var_dark / 2
     k_v_per_e = gain_dn_per_e / to_dn
+    qe_measured = float(resp / gain_dn_per_e)
+    if not (np.isfinite(qe_measured) and qe_measured > 0) or not sat_capacity_e > mu_e_min:
+        raise InvalidValueError(
+            f"characterize: the measurement is not physical (quantum efficiency {qe_measured:.3g}, saturation "
+            f"{sat_capacity_e:.3g} e⁻ against a dark noise floor of {mu_e_min:.3g} e⁻): the sensor's swing must hold "
+            "many electrons above its dark noise; raise sensor.voltage_swing_V or lower read_noise_V, "
+            "conversion_gain_uV_per_e or analog_gain")
     result = {
         "channel": names[k],
         "wavelength_nm": WAVELENGTH_NM,
@@ -149,7 +184,7 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
         "saturation_capacity_e": sat_capacity_e,
         "dynamic_range_dB": float(20 * np.log10(sat_capacity_e / mu_e_min)),
         "snr_max_dB": float(20 * np.log10(np.max(signal[: i_sat + 1] / sigma_y[: i_sat + 1]))),
-        "quantum_efficiency": float(resp / gain_dn_per_e),
+        "quantum_efficiency": qe_measured,
         "dsnu_e": float(np.sqrt(max(dsnu_var, 0.0)) / gain_dn_per_e),
         "prnu_pct": float(100 * np.sqrt(max(prnu_var, 0.0)) / max(signal[half], 1e-30)),
         "black_level_V": cam.analog_offset_V,
@@ -178,14 +213,18 @@ def characterize(params: SensorParams, seed: int = 0, *, size_px: int = 256, n_l
 
 
 def plot_photon_transfer(result: dict, path_png: str | Path) -> Path:
-    """Photon-transfer curve, SNR curve and dark signal against exposure, as a PNG (Agg)."""
+    """Photon-transfer curve, SNR curve and dark signal against exposure, as a PNG (Agg), written
+    atomically (a full disk leaves no partial file and names it)."""
+    import io
+
     from matplotlib.figure import Figure
 
+    from workbench.files import atomic_write_bytes
     fig = Figure(figsize=(13, 4), layout="constrained")
     draw_photon_transfer(result, fig)
-    out = Path(path_png)
-    fig.savefig(out, dpi=100)
-    return out
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=100, format="png")
+    return atomic_write_bytes(path_png, buf.getvalue())
 
 
 def draw_photon_transfer(result: dict, fig) -> None:

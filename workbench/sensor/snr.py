@@ -26,21 +26,37 @@ def snr_dB(mean_e: float, params: SensorParams, exposure_s: float) -> float:
     return 10.0 * math.log10(mean_e ** 2 / var)
 
 
+def noise_floor_e(params: SensorParams) -> tuple[float, str]:
+    """(electrons, what sets it) of the dark noise floor a dynamic range is measured against: the
+    read noise; with none, the ADC's quantisation noise LSB/√12 (EMVA 1288's σ_q, in electrons at
+    the analog gain); (0, 'unbounded …') for an analog read-out without read noise."""
+    if params.read_noise_e > 0:
+        return params.read_noise_e, "read noise"
+    if params.bit_depth:
+        return params.lsb_V / (params.conversion_gain_V_per_e * params.analog_gain) / math.sqrt(12.0), \
+            "quantisation (no read noise)"
+    return 0.0, "unbounded (no read noise and an analog read-out)"
+
+
 def sensor_dynamic_range(params: SensorParams) -> dict:
     """The sensor's electrons at saturation and its dynamic range.
 
     saturation_e: the fewest signal electrons whose pixel reads the largest code: volts
     e·g·gain + offset reach (max_dn − ½)·LSB, where rounding gives max_dn (for an analog read-out,
     the voltage swing). full_well_e: swing / conversion gain. dynamic_range_dB:
-    20·log10(saturation / read noise), the read noise in electrons (it is added before the analog
-    gain): at gain 1 the full well over the read noise, less by the gain above it (None without
-    read noise); adc_dB: 20·log10(max_dn) of the code range (None for an analog read-out)."""
+    20·log10(saturation / noise floor) (noise_floor_e: the read noise in electrons, added before the
+    analog gain, so at gain 1 the full well over the read noise, less by the gain above it; with no
+    read noise the ADC's quantisation; None when unbounded, 'dynamic_range_limit' says why);
+    adc_dB: 20·log10(max_dn) of the code range (None for an analog read-out)."""
     g = params.conversion_gain_V_per_e * params.analog_gain
     clip_V = (params.max_dn - 0.5) * params.lsb_V if params.bit_depth else params.voltage_swing_V
     clip_V = min(clip_V, params.voltage_swing_V)
     saturation_e = (clip_V - params.analog_offset_V) / g
-    read = params.read_noise_e
-    return {"full_well_e": params.full_well_e, "saturation_e": saturation_e, "read_noise_e": read,
-            "dynamic_range_dB": 20.0 * math.log10(saturation_e / read) if read > 0 and saturation_e > 0 else None,
+    floor_e, limit = noise_floor_e(params)
+    if saturation_e <= 0:
+        limit = "undefined (the analog offset fills the swing: no signal reaches the ADC)"
+    return {"full_well_e": params.full_well_e, "saturation_e": saturation_e, "read_noise_e": params.read_noise_e,
+            "dynamic_range_dB": 20.0 * math.log10(saturation_e / floor_e) if floor_e > 0 and saturation_e > 0
+            else None, "dynamic_range_limit": limit,
             "bit_depth": params.bit_depth, "max_dn": params.max_dn,
             "adc_dB": 20.0 * math.log10(params.max_dn) if params.bit_depth else None}

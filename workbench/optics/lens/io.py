@@ -8,7 +8,6 @@ every count or index read from a file is bounded before anything is allocated.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from functools import lru_cache
@@ -21,6 +20,7 @@ from workbench.optics.lens.model import Lens, Surface
 from workbench.optics.lens.paraxial import paraxial, with_aperture_stop
 from workbench.registry import Registry
 from workbench.resource_dir import RESOURCES
+from workbench.files import json_text
 
 LENS_DIR = RESOURCES / "lenses"
 # lens file readers by extension: reader(text, path, name) -> Lens; a new format registers here
@@ -153,7 +153,7 @@ def save_lens(lens: Lens, path) -> Path:
     p = Path(path)
     ext = p.suffix.lower()
     if ext == ".json":
-        text = json.dumps(lens_to_json(lens), indent=1, allow_nan=False)
+        text = json_text(lens_to_json(lens))
     elif ext == ".dat":
         text = lens_to_dat(lens)
     else:

@@ -15,6 +15,8 @@ import numpy as np
 from workbench.errors import InvalidValueError
 from workbench.optics.lens.glass import AIR, Material, material
 
+MAX_SEMI_APERTURE_MM = 1e5      # 100 m: larger than any lens; 1e308 overflowed the ray tracer
+
 
 @dataclass(frozen=True)
 class Surface:
@@ -48,8 +50,9 @@ class Surface:
             if isinstance(v, bool) or not math.isfinite(fv):
                 raise InvalidValueError(f"Surface.{name}={v!r}: must be a finite number")
             object.__setattr__(self, name, fv)
-        if self.semi_aperture_mm <= 0:
-            raise InvalidValueError(f"Surface.semi_aperture_mm={self.semi_aperture_mm}: must be > 0")
+        if not 0 < self.semi_aperture_mm <= MAX_SEMI_APERTURE_MM:       # its square must not overflow the tracer
+            raise InvalidValueError(f"Surface.semi_aperture_mm={self.semi_aperture_mm}: must be > 0 and at most "
+                                    f"{MAX_SEMI_APERTURE_MM:g} mm")
         if self.thickness_mm < 0:
             raise InvalidValueError(f"Surface.thickness_mm={self.thickness_mm}: must be >= 0")
         if not all(math.isfinite(a) for a in self.asphere_coeffs):

@@ -304,15 +304,22 @@ def draw_no_lens(fig) -> None:
 
 
 def write_plots(lens: Lens, out_dir, max_field: float | None = None) -> list[Path]:
-    """One PNG per chart of CHARTS (layout.png, spots.png, …, relative_illumination.png)."""
+    """One PNG per chart of CHARTS (layout.png, spots.png, …, relative_illumination.png), written
+    together (files.atomic_write_files: all or none, so a full disk leaves no empty PNG and names
+    the file)."""
+    import io
+
     from matplotlib.figure import Figure
+
+    from workbench.files import atomic_write_files
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     fields = field_angles(lens, max_field)
-    written = []
+    pngs = {}
     for name, (draw, size) in CHARTS.items():
         fig = Figure(figsize=size, layout="tight")
         draw(fig, lens, fields)
-        fig.savefig(out / f"{name}.png", dpi=110)
-        written.append(out / f"{name}.png")
-    return written
+        buf = io.BytesIO()
+        fig.savefig(buf, dpi=110, format="png")
+        pngs[out / f"{name}.png"] = buf.getvalue()
+    atomic_write_files(pngs)
+    return list(pngs)
