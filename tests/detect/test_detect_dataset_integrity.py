@@ -49,10 +49,15 @@ def rewrite_frame(path, change) -> None:
 
 
 def reseal(folder, index: int) -> None:
-    """Record frame `index`'s present bytes in manifest.json, as if the set had been written so:
-    the checks behind the hash are then what refuses it."""
+    """Record frame `index`'s present bytes in manifest.json (and the manifest's own digest), as if
+    the set had been written so: the checks behind the hashes are then what refuses it."""
+    from workbench.datasets.integrity import manifest_digest
     digest = hashlib.sha256(frame_path(folder, index).read_bytes()).hexdigest()
-    _edit(folder, "manifest.json", lambda d: d["frames"][index].update(sha256=digest))
+
+    def change(d):
+        d["frames"][index]["sha256"] = digest
+        d["manifest_sha256"] = manifest_digest(d)
+    _edit(folder, "manifest.json", change)
 
 
 def _first_read(folder, item: int = 0):
@@ -91,6 +96,19 @@ def test_an_annotation_of_an_unknown_category_is_refused(copy):
 def test_a_box_outside_its_frame_is_refused(copy):
     _edit(copy, "coco.json", lambda d: d["annotations"][0].update(bbox=[60.0, 0.0, 30.0, 10.0]))
     with pytest.raises(InputFileError, match=r"annotations\[0\].bbox .* reaches outside its 64×48 image"):
+        DetectionDataset(copy)
+
+
+def test_categories_renamed_are_refused(copy):
+    _edit(copy, "coco.json", lambda d: [c.update(name={"car": "bus", "bus": "car"}.get(c["name"], c["name"]))
+                                        for c in d["categories"]])
+    with pytest.raises(InputFileError, match=r"coco.json: its categories are not those the data set was written with"):
+        DetectionDataset(copy)
+
+
+def test_an_edited_manifest_is_refused(copy):
+    _edit(copy, "manifest.json", lambda d: d["project"]["isp"].update(demosaic="malvar2004"))
+    with pytest.raises(InputFileError, match=r"manifest.json: its content is not what was written"):
         DetectionDataset(copy)
 
 
@@ -196,7 +214,8 @@ def _strip_hashes(folder):
         for e in d["frames"]:
             for key in ("sha256", "irradiance_shape", "irradiance_scale", "labels_sha256"):
                 e.pop(key)
-        d.pop("integrity")
+        for key in ("integrity", "categories_sha256", "manifest_sha256"):
+            d.pop(key)
     _edit(folder, "manifest.json", strip)
 
 

@@ -61,7 +61,8 @@ ZIP_DATE = (1980, 1, 1, 0, 0, 0)       # member date in frame files (zip's earli
 INTEGRITY_NOTE = ("frames[].sha256: sha256 of the frame file's bytes; irradiance_shape, irradiance_scale: "
                   "what its header and irradiance must hold; labels_sha256: sha256 of its coco.json image "
                   "and annotations as canonical JSON (sorted keys, separators ',' ':'); checked by readers "
-                  "and `workbench dataset-verify`")
+                  "and `workbench dataset-verify`; categories_sha256: of coco.json's categories; "
+                  "manifest_sha256: of this manifest without that field")
 IRRADIANCE_NOTE = ("float16: E/2^k stored, 2^k puts the frame maximum in (2^14, 2^15]; relative error "
                    "<= 2^-11 above 2^-28 * max, absolute error <= 2^-25 * 2^k below; float32: exact")
 
@@ -429,7 +430,7 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
     (a job step: yields Progress). Each manifest entry records what a reader checks the frame
     against (datasets.integrity): the sha256 of its bytes, its irradiance shape and scale, and
     the digest of its labels in coco.json."""
-    from workbench.datasets.integrity import labels_digest
+    from workbench.datasets.integrity import json_digest, labels_digest, manifest_digest
     yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []
     for i in range(frames):
@@ -465,9 +466,11 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
         "irradiance": {"units": "photons/s/m^2/nm", "dtype": irradiance_dtype,
                        "max_rel_error": FLOAT16_REL_ERROR if irradiance_dtype == "float16" else 0.0,
                        "note": IRRADIANCE_NOTE},
-        "integrity": INTEGRITY_NOTE,
+        "integrity": INTEGRITY_NOTE, "categories_sha256": json_digest(written["categories"]),
         "coco": coco_path.name, "written_utc": datetime.now(timezone.utc).isoformat(),
     }
+    manifest = json.loads(json.dumps(manifest, default=str))      # as a reader will see it
+    manifest["manifest_sha256"] = manifest_digest(manifest)
     write_statistics(out, [labels for _, labels in coco_frames])
     atomic_write_json(manifest_path, manifest)
     return manifest_path, coco_path

@@ -85,16 +85,11 @@ def inside(folder: Path, name: object, path: Path, where: str) -> Path:
     return folder / name
 
 
-def manifest_frames(manifest: dict, folder: Path, path: Path, rerender_hint: str) -> list[FrameEntry]:
-    """Every frame a manifest lists, checked (module docstring). A manifest written before frames
-    carried hashes is refused with `rerender_hint` (the command whose resume pass writes them)."""
+def manifest_frames(manifest: dict, folder: Path, path: Path) -> list[FrameEntry]:
+    """Every frame a manifest lists, checked (module docstring)."""
     frames = manifest.get("frames")
     if not isinstance(frames, list) or not frames:
         raise InputFileError(path, "'frames' must be a non-empty list of frame entries")
-    if all(isinstance(e, dict) and "sha256" not in e for e in frames):
-        raise InputFileError(path, "was written before data sets recorded a sha256 per frame, so its frames "
-                                   f"cannot be checked; {rerender_hint} once: it re-renders nothing, checks "
-                                   "every frame and writes the hashes")
     out, seen = [], set()
     for k, entry in enumerate(frames):
         where = f"frames[{k}]"

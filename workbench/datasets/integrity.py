@@ -5,7 +5,11 @@ Recorded per frame when the index is written (datasets.dataset.write_index): the
 frame file's bytes, its irradiance shape (H, W, bands) and scale, and labels_sha256, the sha256 of
 its coco.json image record and annotations as canonical JSON (labels_digest: sorted keys, no
 spaces; so labels swapped between frames, edited or doubled are refused naming the frame, while
-a re-indented coco.json is still the same labels).
+a re-indented coco.json is still the same labels). For the whole set: categories_sha256 (coco's
+category table) and manifest_sha256, the digest of the manifest's own content (the project the
+views use included), so an edited or damaged manifest is refused too. These guard against
+accidents (copies, swaps, truncation, bit rot, hand edits), not against someone who rewrites
+the digests with the files.
 
 Checked when a set is opened (read_index, index_problems; no frame file is read): spec, manifest
 and coco.json as untrusted files (datasets.files); every listed frame a regular file; each
@@ -32,10 +36,20 @@ RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDE
 VERIFY_COMMAND = "workbench dataset-verify"
 
 
-def labels_digest(image: dict, annotations: list[dict]) -> str:
-    """sha256 of a frame's coco.json image record and annotations as canonical JSON."""
-    text = json.dumps([image, annotations], sort_keys=True, separators=(",", ":"))
+def json_digest(value) -> str:
+    """sha256 of a decoded JSON value as canonical JSON (sorted keys, no spaces)."""
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+def labels_digest(image: dict, annotations: list[dict]) -> str:
+    """sha256 of a frame's coco.json image record and annotations (json_digest)."""
+    return json_digest([image, annotations])
+
+
+def manifest_digest(manifest: dict) -> str:
+    """sha256 of a manifest's content, its own manifest_sha256 left out (json_digest)."""
+    return json_digest({k: v for k, v in manifest.items() if k != "manifest_sha256"})
 
 
 @dataclass
@@ -44,7 +58,7 @@ class DatasetIndex:
 
     folder: Path
     manifest_path: Path
-    fingerprint: str
+    manifest: dict
     project: object
     entries: list[FrameEntry]
     coco_path: Path
@@ -53,6 +67,10 @@ class DatasetIndex:
     images: dict[int, dict]
     annotations: dict[int, list[dict]]
     rerender_hint: str
+
+    @property
+    def fingerprint(self) -> str:
+        return self.manifest["fingerprint"]
 
 
 def rerender_hint(folder: Path, frames: int, project_name: object) -> str:
@@ -88,12 +106,16 @@ def read_index(folder: str | os.PathLike) -> DatasetIndex:
         raise InputFileError(manifest_path, f"its project cannot be used: {exc}") from None
     frames = manifest.get("frames")
     hint = rerender_hint(folder, len(frames) if isinstance(frames, list) else 0, project.name)
-    entries = manifest_frames(manifest, folder, manifest_path, hint)
+    if "manifest_sha256" not in manifest:
+        raise InputFileError(manifest_path, "was written before data sets recorded a sha256 per frame, so its "
+                                            f"frames cannot be checked; {hint} once: it re-renders nothing, "
+                                            "checks every frame and writes the hashes")
+    entries = manifest_frames(manifest, folder, manifest_path)
     coco_path = inside(folder, manifest.get("coco", "coco.json"), manifest_path, "coco")
     coco = read_json_object(coco_path, "COCO label file", "the data set is half-written; rerun "
                             "`workbench dataset` to finish it")
     categories, images, annotations = coco_tables(coco, coco_path)
-    return DatasetIndex(folder, manifest_path, manifest["fingerprint"], project, entries, coco_path, coco,
+    return DatasetIndex(folder, manifest_path, manifest, project, entries, coco_path, coco,
                         categories, images, annotations, hint)
 
 
@@ -152,6 +174,10 @@ def index_problems(index: DatasetIndex) -> list[InputFileError]:
                                                        f"{image.get('width')!r}×{image.get('height')!r} px, "
                                                        f"not the frames' {cols}×{rows}"))
     out += annotation_problems(index)
+    if json_digest(index.coco["categories"]) != index.manifest.get("categories_sha256"):
+        out.append(InputFileError(index.coco_path, "its categories are not those the data set was written with "
+                                                   "(categories_sha256 in manifest.json): edited or of another data "
+                                                   f"set; {index.rerender_hint} to write coco.json again"))
     for entry in index.entries:
         image = index.images.get(entry.index)
         if image is None:
@@ -162,6 +188,10 @@ def index_problems(index: DatasetIndex) -> list[InputFileError]:
                                                        "not those the data set was written with (labels_sha256 in "
                                                        "manifest.json): swapped with another frame's, edited or "
                                                        f"doubled; {index.rerender_hint} to write coco.json again"))
+    if manifest_digest(index.manifest) != index.manifest["manifest_sha256"]:
+        out.append(InputFileError(index.manifest_path, "its content is not what was written (manifest_sha256 does "
+                                                       f"not match it): edited or damaged; {index.rerender_hint} to "
+                                                       "write it again"))
     return out
 
 
