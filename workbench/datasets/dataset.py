@@ -42,7 +42,7 @@ from workbench.compute.folder_lock import hold_folder_lock
 from workbench.datasets.files import check_npz, file_sha256, positive_finite, read_json_object
 from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
-from workbench.files import atomic_write_bytes, atomic_write_text, parse_json
+from workbench.files import atomic_write_bytes, parse_json
 from workbench.jobs import CancelToken, Progress
 from workbench.render import city_frame
 from workbench.render.city_frame import FrameData, FrameSeeds, city_frame_inputs, render_city_frame
@@ -155,7 +155,8 @@ def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameD
     if not irradiance:
         return FrameData(np.zeros((*labels.shape, 0), np.float32), arrays["wavelengths_nm"], labels,
                          head.get("meta", {})), head
-    irr = decode_irradiance(arrays.pop("irradiance"), scale)
+    with np.errstate(over="ignore", invalid="ignore"):      # an overflow is counted and refused below
+        irr = decode_irradiance(arrays.pop("irradiance"), scale)
     bad = irr.size - np.count_nonzero(np.isfinite(irr) & (irr >= 0))
     if bad:
         raise InputFileError(path, f"its irradiance holds {bad:,} NaN, infinite or negative value(s); a frame "
@@ -165,7 +166,8 @@ def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameD
 
 def verify_frame(path: str | os.PathLike, fingerprint: str, index: int) -> bool:
     """True when the file is a complete, readable frame `index` of the data set `fingerprint`
-    (every member decompresses with a good CRC and the header matches)."""
+    (every member decompresses with a good CRC, the header matches and read_frame's checks of
+    the irradiance and labels pass)."""
     try:
         data, head = read_frame(path)
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
@@ -197,6 +199,7 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
 
 
 def atomic_write_json(path: Path, obj) -> None:
+    from workbench.files import atomic_write_text
     atomic_write_text(path, json.dumps(obj, indent=1, default=str) + "\n")
 
 
@@ -328,7 +331,7 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
             if cancel is not None:
                 cancel.check()
             path = frame_path(out, i)
-            if verify_frame(path, fingerprint, i) and recorded.get(i, "") in ("", file_sha256(path)):
+            if verify_frame(path, fingerprint, i) and (i not in recorded or recorded[i] == file_sha256(path)):
                 reused.append(i)
             yield Progress(len(reused), frames, f"checked frame {i}")
         if len(reused) < frames:
@@ -431,6 +434,7 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
     against (datasets.integrity): the sha256 of its bytes, its irradiance shape and scale, and
     the digest of its labels in coco.json."""
     from workbench.datasets.integrity import json_digest, labels_digest, manifest_digest
+    from workbench.files import atomic_write_text
     yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []
     for i in range(frames):

@@ -28,6 +28,7 @@ import os
 import re
 import stat
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -199,7 +200,7 @@ def check_npz(path: str | Path, max_member_bytes: int = MAX_NPZ_MEMBER_BYTES) ->
                 out[name[:-4]] = (tuple(shape), dtype)
     except InputFileError:
         raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, zlib.error) as exc:
         raise InputFileError(p, f"cannot be read as an .npz ({type(exc).__name__}); damaged or not a frame") from None
     return out
 
