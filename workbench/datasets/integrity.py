@@ -225,7 +225,10 @@ def read_verified_frame(entry: FrameEntry, fingerprint: str, hint: str):
         raise InputFileError(entry.path, f"its bytes are not those manifest.json recorded for frame {entry.index} "
                                          f"(sha256 {digest[:12]}… ≠ {entry.sha256[:12]}…; {why}); {hint} to render "
                                          "it again")
-    data, head = read_frame(entry.path)
+    try:
+        data, head = read_frame(entry.path)
+    except InputFileError as exc:
+        raise InputFileError(exc.path, f"{exc.problem}; {hint} to render it again") from None
     found = {"index": head.get("index"), "fingerprint": head.get("fingerprint"), "version": head.get("version"),
              "irradiance_shape": data.irradiance_photons.shape, "irradiance_scale": head.get("irradiance_scale")}
     wanted = {"index": entry.index, "fingerprint": fingerprint, "version": FRAME_VERSION,
