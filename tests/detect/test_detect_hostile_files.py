@@ -146,3 +146,16 @@ def test_a_hostile_results_file_is_refused_naming_it(tmp_path):
         (folder / "results.json").write_text(text)
         with pytest.raises(InputFileError, match="results.json"):
             read_results(folder)
+
+
+def test_a_frame_whose_array_header_is_cut_is_refused_not_a_tokenizer_error(tmp_path):
+    """A flipped byte left an unclosed bracket in an .npy header: numpy's header parser raised
+    tokenize.TokenError, which check_npz let through (found by the data-set fuzz)."""
+    from workbench.datasets.files import check_npz
+    header = b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, "
+    header += b" " * (63 - (10 + len(header)) % 64) + b"\n"
+    npy = b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(12)
+    path = tmp_path / "frame_000000.npz"
+    path.write_bytes(_npz({"irradiance.npy": npy}))
+    with pytest.raises(InputFileError, match=r"frame_000000.npz: cannot be read as an .npz \(TokenError\)"):
+        check_npz(path)

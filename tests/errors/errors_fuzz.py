@@ -391,6 +391,8 @@ def _frame_mutation(draw, folder_ops: list, applied: list) -> None:
 
         def apply(folder):
             data = bytearray(_read(_frame(folder, i)))
+            if not data:
+                raise _CannotApply("an empty file has no byte to flip")
             data[int(where * len(data))] ^= mask
             _frame(folder, i).write_bytes(bytes(data))
         what = f"flip byte at {where:.3f} of frame {i}"
@@ -527,6 +529,8 @@ def dataset_mutations(draw) -> tuple[str, object, list[str]]:
 
             def apply(folder, where=where, mask=mask, style=style):
                 data = bytearray(_read(folder / kind))
+                if not data:
+                    raise _CannotApply("an empty file has no byte to flip or cut")
                 if style == "truncate":
                     del data[int(where * len(data)):]
                 else:

@@ -29,7 +29,6 @@ import re
 import subprocess
 import time
 import zipfile
-import zlib
 from dataclasses import asdict, dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -39,7 +38,7 @@ import numpy as np
 
 from workbench.compute import ComputeSpec, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
-from workbench.datasets.files import check_npz, file_sha256, positive_finite, read_json_object
+from workbench.datasets.files import NPZ_ERRORS, check_npz, file_sha256, positive_finite, read_json_object
 from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes, parse_json
@@ -141,7 +140,7 @@ def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameD
         labels = labels_from_arrays(arrays, head.get("label_meta"))
     except InputFileError:
         raise
-    except (OSError, ValueError, KeyError, IndexError, TypeError, zipfile.BadZipFile, EOFError, zlib.error) as exc:
+    except (*NPZ_ERRORS, KeyError, IndexError, TypeError) as exc:
         raise InputFileError(path, f"cannot be read as a frame ({type(exc).__name__}): damaged or not a "
                                    "workbench frame") from None
     grids = {np.shape(getattr(labels, k)) for k in ("depth_m", "planar_depth_m", "class_id", "instance_id")}

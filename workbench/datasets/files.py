@@ -27,6 +27,7 @@ import math
 import os
 import re
 import stat
+import tokenize
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -42,6 +43,8 @@ MAX_NPZ_MEMBER_BYTES = 2 * 2 ** 30      # no frame array is larger (a 8192² × 
 FRAME_FILE = "frames/frame_{:06d}.npz"
 SEED_KEYS = ("index", "arrangement", "pose", "render")
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
+# What zipfile, zlib and numpy raise on a damaged .npz (numpy tokenizes a damaged 1.0 array header).
+NPZ_ERRORS = (zipfile.BadZipFile, ValueError, OSError, EOFError, zlib.error, tokenize.TokenError)
 
 
 @dataclass(frozen=True)
@@ -200,7 +203,7 @@ def check_npz(path: str | Path, max_member_bytes: int = MAX_NPZ_MEMBER_BYTES) ->
                 out[name[:-4]] = (tuple(shape), dtype)
     except InputFileError:
         raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError, zlib.error) as exc:
+    except NPZ_ERRORS as exc:
         raise InputFileError(p, f"cannot be read as an .npz ({type(exc).__name__}); damaged or not a frame") from None
     return out
 

@@ -142,8 +142,8 @@ def annotation_problems(index: DatasetIndex) -> list[InputFileError]:
             out.append(f"{where}.category_id {a['category_id']} is not one of the categories listed in "
                        f"coco.json ({', '.join(map(str, sorted(index.categories)))})")
         x, y, w, h = a["bbox"]
-        if x < 0 or y < 0 or x + w > image.get("width", 0) or y + h > image.get("height", 0):
-            out.append(f"{where}.bbox {a['bbox']} reaches outside its {image.get('width')}×{image.get('height')} "
+        if x < 0 or y < 0 or x + w > image["width"] or y + h > image["height"]:
+            out.append(f"{where}.bbox {a['bbox']} reaches outside its {image['width']}×{image['height']} "
                        f"image (frame {image['frame_index']})")
         key = (a["image_id"], a["category_id"], tuple(a["bbox"]))
         if key in seen:
@@ -169,10 +169,10 @@ def index_problems(index: DatasetIndex) -> list[InputFileError]:
         if frame not in listed:
             out.append(InputFileError(index.coco_path, f"has an image for frame {frame}, which manifest.json does "
                                                        "not list: a file of another data set"))
-        elif (image.get("width"), image.get("height")) != (cols, rows):
+        elif (image["width"], image["height"]) != (cols, rows):
             out.append(InputFileError(index.coco_path, f"image {image['id']} (frame {frame}) is "
-                                                       f"{image.get('width')!r}×{image.get('height')!r} px, "
-                                                       f"not the frames' {cols}×{rows}"))
+                                                       f"{image['width']}×{image['height']} px, not the frames' "
+                                                       f"{cols}×{rows}"))
     out += annotation_problems(index)
     if json_digest(index.coco["categories"]) != index.manifest.get("categories_sha256"):
         out.append(InputFileError(index.coco_path, "its categories are not those the data set was written with "
