@@ -45,6 +45,14 @@ MANIFEST_CASES = {
     "coco outside the folder": lambda d: d.update(coco="/etc/hostname"),
     "coco up a level": lambda d: d.update(coco="../coco.json"),
     "fingerprint of another set": lambda d: d.update(fingerprint="0" * 40),
+    "a sha256 that is not hex": lambda d: d["frames"][0].update(sha256="z" * 64),
+    "a sha256 that is a number": lambda d: d["frames"][1].update(sha256=12),
+    "no labels digest": lambda d: d["frames"][0].pop("labels_sha256"),
+    "an irradiance shape as text": lambda d: d["frames"][0].update(irradiance_shape="48x64x3"),
+    "an irradiance shape of two numbers": lambda d: d["frames"][0].update(irradiance_shape=[48, 64]),
+    "an irradiance scale 'abc'": lambda d: d["frames"][0].update(irradiance_scale="abc"),
+    "an irradiance scale of -1": lambda d: d["frames"][0].update(irradiance_scale=-1),
+    "no manifest digest": lambda d: d.pop("manifest_sha256"),
 }
 COCO_CASES = {
     "bbox text": lambda d: d["annotations"][0].update(bbox="abcd"),
@@ -54,6 +62,13 @@ COCO_CASES = {
     "annotations an object": lambda d: d.update(annotations={}),
     "category without a name": lambda d: d["categories"][0].pop("name"),
     "occlusion 7": lambda d: d["annotations"][0].update(occlusion=7),
+    "image width as text": lambda d: d["images"][0].update(width="64"),
+    "image height 0": lambda d: d["images"][0].update(height=0),
+    "an annotation of no image": lambda d: d["annotations"][0].update(image_id=999),
+    "an annotation listed twice": lambda d: d["annotations"].append(d["annotations"][0]),
+    "an unknown category": lambda d: d["annotations"][0].update(category_id=42),
+    "a box past the right edge": lambda d: d["annotations"][0].update(bbox=[60, 0, 10, 10]),
+    "a box left of the frame": lambda d: d["annotations"][0].update(bbox=[-1, 0, 10, 10]),
 }
 
 
@@ -131,3 +146,16 @@ def test_a_hostile_results_file_is_refused_naming_it(tmp_path):
         (folder / "results.json").write_text(text)
         with pytest.raises(InputFileError, match="results.json"):
             read_results(folder)
+
+
+def test_a_frame_whose_array_header_is_cut_is_refused_not_a_tokenizer_error(tmp_path):
+    """A flipped byte left an unclosed bracket in an .npy header: numpy's header parser raised
+    tokenize.TokenError, which check_npz let through (found by the data-set fuzz)."""
+    from workbench.datasets.files import check_npz
+    header = b"{'descr': '<f4', 'fortran_order': False, 'shape': (3, "
+    header += b" " * (63 - (10 + len(header)) % 64) + b"\n"
+    npy = b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header + bytes(12)
+    path = tmp_path / "frame_000000.npz"
+    path.write_bytes(_npz({"irradiance.npy": npy}))
+    with pytest.raises(InputFileError, match=r"frame_000000.npz: cannot be read as an .npz \(TokenError\)"):
+        check_npz(path)

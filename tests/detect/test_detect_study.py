@@ -15,7 +15,7 @@ from workbench.metrics.study import run_study
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     folder = tmp_path_factory.mktemp("study_set")
-    make_synthetic_dataset(folder, frames=10, rows=96, cols=128)
+    make_synthetic_dataset(folder, frames=18, rows=96, cols=128)      # 3 cities of 6 poses: the third is a test city
     config = TrainConfig(net="mobile", representation="srgb", epochs=2, batch_size=4, threads=1, device="cpu",
                          curve_points=0)
     train_detector(DetectionDataset(folder), config, folder / "net.pt")
@@ -32,6 +32,16 @@ def test_study_reports_map_per_design(trained, tmp_path):
     assert all(d["detection"]["test_images"] == len(DetectionDataset(folder).indices("test")) for d in doc["designs"])
     assert "map" in (tmp_path / "s" / "study.md").read_text()
     assert json.loads((tmp_path / "s" / "study.json").read_text())["detector"] == str(ckpt.resolve())
+
+
+def test_a_study_of_a_set_without_a_test_city_is_refused(tmp_path):
+    """10 frames are 2 cities, both training cities: the bootstrap of no test frames divided by zero."""
+    from workbench.errors import InputFileError
+    from workbench.metrics.detection import design_map
+    folder = tmp_path / "small"
+    make_synthetic_dataset(folder, frames=10, rows=48, cols=64)
+    with pytest.raises(InputFileError, match="no test frames.*at least 3 cities"):
+        design_map(DetectionDataset(folder).project, tmp_path / "none.pt", folder)
 
 
 def test_study_refuses_designs_that_need_other_frames_before_measuring(trained, tmp_path):

@@ -1,16 +1,22 @@
-"""Hypothesis strategies and checks for fuzzing project documents and lens files.
+"""Hypothesis strategies and checks for fuzzing project documents, lens files and data-set folders.
 
 A project document is a sample project mutated 1–3 times (a value replaced by a wrong type, NaN,
 ±inf, an extreme or odd unicode, or scaled; a field deleted; an unknown field added; rarely the
 text truncated). `check_document` loads it and, if it loads, simulates it at 16×12 pixels (≤ 64 spp) and
 checks that every output is finite and that save → load gives the same project; it returns the
-outcome and fails on anything else (another exception, a refusal that names no field, NaN)."""
+outcome and fails on anything else (another exception, a refusal that names no field, NaN).
+
+A data-set folder is a synthetic 4-frame set with 1–2 mutations of its manifest.json, coco.json,
+dataset_spec.json or frame files (`dataset_mutations`); `check_dataset` reads it as a detection
+run does (every frame verified and turned into signal rates) and runs dataset-verify on it: it
+must be refused naming a file of the set, or read with exactly the unmutated set's content."""
 from __future__ import annotations
 
 import json
 import math
 import contextlib
 import io
+import os
 from pathlib import Path
 
 import numpy as np
@@ -52,29 +58,33 @@ def _parent(doc, path):
     return doc
 
 
+def mutate_json(draw, doc, paths=None) -> str:
+    """Mutate a decoded JSON document in place once (a value replaced by a wrong type, NaN, an
+    extreme or odd unicode, or scaled; a field deleted; an unknown field added) at one of `paths`
+    (default every location); returns what was done."""
+    path = draw(st.sampled_from(paths or _paths(doc)))
+    parent, key = _parent(doc, path), path[-1]
+    op = draw(st.sampled_from(["nasty", "nasty", "scale", "scale", "scale", "delete", "add"]))
+    if op == "scale" and isinstance(parent[key], (int, float)) and not isinstance(parent[key], bool):
+        factor = draw(st.sampled_from([-1, 0, 0.5, 2, 10, 1e3, 1e-3]))
+        value = parent[key] * factor
+        parent[key] = int(value) if isinstance(parent[key], int) else value
+    elif op == "delete" and isinstance(parent, dict):
+        del parent[key]
+    elif op == "add":
+        target = parent if isinstance(parent, dict) else doc
+        target[draw(st.sampled_from(ODD_STRINGS[1:] + ["extra", "rows", "seed"]))] = draw(NASTY)
+    else:
+        parent[key] = draw(NASTY)
+    return f"{op}:{'.'.join(map(str, path))}"
+
+
 @st.composite
 def project_texts(draw, samples=tuple(SAMPLES)) -> tuple[str, str, list[str]]:
     """(sample name, document text, the mutations applied)."""
     name = draw(st.sampled_from(sorted(samples)))
     doc = json.loads(json.dumps(SAMPLES[name]))
-    applied = []
-    for _ in range(draw(st.integers(1, 3))):
-        paths = _paths(doc)
-        path = draw(st.sampled_from(paths))
-        parent, key = _parent(doc, path), path[-1]
-        op = draw(st.sampled_from(["nasty", "nasty", "scale", "scale", "scale", "delete", "add"]))
-        if op == "scale" and isinstance(parent[key], (int, float)) and not isinstance(parent[key], bool):
-            factor = draw(st.sampled_from([-1, 0, 0.5, 2, 10, 1e3, 1e-3]))
-            value = parent[key] * factor
-            parent[key] = int(value) if isinstance(parent[key], int) else value
-        elif op == "delete" and isinstance(parent, dict):
-            del parent[key]
-        elif op == "add":
-            target = parent if isinstance(parent, dict) else doc
-            target[draw(st.sampled_from(ODD_STRINGS[1:] + ["extra", "rows", "seed"]))] = draw(NASTY)
-        else:
-            parent[key] = draw(NASTY)
-        applied.append(f"{op}:{'.'.join(map(str, path))}")
+    applied = [mutate_json(draw, doc) for _ in range(draw(st.integers(1, 3)))]
     text = json.dumps(doc, indent=1)
     if draw(st.integers(0, 19)) == 0:
         text = text[: draw(st.integers(0, len(text) - 1))]
@@ -227,3 +237,357 @@ def check_lens_file(suffix: str, data: bytes, folder: Path) -> str:
     assert code == 0 or (code == 2 and len(lines) == 1 and lines[0].startswith("workbench lens info: error:")), \
         err.getvalue()
     return "loaded" if code == 0 else "loaded_info_refused"
+
+
+# ---------------------------------------------------------------- data-set folders
+DATASET_FRAMES = 4
+_BASE: dict = {}
+
+
+def base_dataset() -> tuple[Path, dict]:
+    """(folder, content) of a synthetic 4-frame data set made once per process (dataset_content)."""
+    if not _BASE:
+        import atexit
+        import shutil
+        import tempfile
+
+        from workbench.detect.synthetic import make_synthetic_dataset
+        folder = Path(tempfile.mkdtemp(prefix="fuzz-dataset-")) / "set"
+        atexit.register(shutil.rmtree, folder.parent, True)
+        make_synthetic_dataset(folder, frames=DATASET_FRAMES)
+        _BASE.update(folder=folder, content=dataset_content(folder))
+    return _BASE["folder"], _BASE["content"]
+
+
+def dataset_content(folder: Path) -> dict:
+    """Everything a detection run takes from a data-set folder: the project, the frame records
+    (seeds, split, boxes) and each frame's data and signal rates, every frame read and verified
+    as a view reads it. InputFileError (or another exception) when the folder is refused."""
+    import hashlib
+
+    from workbench.datasets.integrity import read_verified_frame
+    from workbench.detect.data import DetectionDataset, experiment_sensor, load_signal_rates
+    ds = DetectionDataset(folder)
+    sensor = experiment_sensor(ds.project)
+    frames = []
+    for rec in ds.frames:
+        data, _ = read_verified_frame(rec.entry, ds.fingerprint, rec.rerender_hint)
+        arrays = {"irradiance": data.irradiance_photons, "wavelengths": data.wavelengths_nm,
+                  **data.labels.to_arrays(), **dict(enumerate(load_signal_rates(rec, sensor, ds.fingerprint)))}
+        frames.append({"index": rec.index, "file": rec.path.name, "seeds": rec.seeds, "split": rec.split,
+                       "boxes": [a.tolist() for a in (rec.boxes_xyxy, rec.classes, rec.truncation, rec.ignored_xyxy,
+                                                      rec.ignored_classes)],
+                       "meta": json.dumps([data.meta, data.labels.meta], sort_keys=True, default=str),
+                       "arrays": {str(k): hashlib.sha256(np.ascontiguousarray(v).tobytes()).hexdigest()
+                                  + str(v.dtype) + str(v.shape) for k, v in arrays.items()}})
+    return {"project": ds.project.model_dump_json(), "fingerprint": ds.fingerprint, "classes": ds.class_names,
+            "image_hw": ds.image_hw, "frames": frames}
+
+
+def _rewrite_frame(path: Path, change) -> None:
+    """Rewrite a frame file with change(arrays, header) applied (a valid .npz, other bytes)."""
+    import zipfile
+    try:
+        with np.load(io.BytesIO(_read(path)), allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        head = json.loads(str(arrays["header_json"]))
+        change(arrays, head)
+    except (ValueError, KeyError, IndexError, TypeError, EOFError, OSError, zipfile.BadZipFile) as exc:
+        raise _CannotApply(path) from exc
+    arrays["header_json"] = np.asarray(json.dumps(head))
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, arr in arrays.items():
+            with zf.open(f"{name}.npy", "w") as fh:
+                np.lib.format.write_array(fh, np.asanyarray(arr), allow_pickle=False)
+    path.write_bytes(buf.getvalue())
+
+
+def _reseal(folder: Path, indices) -> None:
+    """Record the present bytes of frames `indices` in manifest.json, and its own digest, as a
+    writer would: what refuses the frame is then the check behind the hash."""
+    import hashlib
+
+    from workbench.datasets.integrity import manifest_digest
+    path = folder / "manifest.json"
+    doc = _load_json(path)
+    for i in indices:
+        doc["frames"][i]["sha256"] = hashlib.sha256(_read(_frame(folder, i))).hexdigest()
+    doc["manifest_sha256"] = manifest_digest(doc)
+    path.write_text(json.dumps(doc, indent=1))
+
+
+def _frame(folder: Path, i: int) -> Path:
+    return folder / "frames" / f"frame_{i:06d}.npz"
+
+
+class _CannotApply(Exception):
+    """A mutation that cannot be applied to what an earlier one left (a frame made a FIFO, a file
+    no longer JSON or no longer an .npz)."""
+
+
+def _read(path: Path) -> bytes:
+    """A mutated file's bytes; _CannotApply unless it is still a regular file (never a FIFO or device)."""
+    if path.is_symlink() or not path.is_file():
+        raise _CannotApply(path)
+    return path.read_bytes()
+
+
+def _load_json(path: Path):
+    try:
+        return json.loads(_read(path))
+    except ValueError:
+        raise _CannotApply(path) from None
+
+
+# Frame edits whose content a writer could never have recorded: refused behind a matching hash too.
+HEADER_EDITS = {
+    "index+1": lambda a, h: h.update(index=h["index"] + 1),
+    "fingerprint": lambda a, h: h.update(fingerprint="0" * 40),
+    "version": lambda a, h: h.update(version=h["version"] + 1),
+    "format": lambda a, h: h.update(format="another-format"),
+    "scale x2": lambda a, h: h.update(irradiance_scale=h["irradiance_scale"] * 2),
+    "scale abc": lambda a, h: h.update(irradiance_scale="abc"),
+    "scale -1": lambda a, h: h.update(irradiance_scale=-1.0),
+    "scale 0": lambda a, h: h.update(irradiance_scale=0),
+    "scale NaN": lambda a, h: h.update(irradiance_scale=math.nan),
+    "scale 1e300": lambda a, h: h.update(irradiance_scale=1e300),
+    "scale list": lambda a, h: h.update(irradiance_scale=[1.0]),
+    "scale missing": lambda a, h: h.pop("irradiance_scale"),
+    "header a list": lambda a, h: (h.clear(), a.update(header_json=np.asarray("[1, 2]"))),
+}
+ARRAY_EDITS = {
+    "irradiance half size": lambda a: a.update(irradiance=a["irradiance"][::2, ::2]),
+    "irradiance transposed": lambda a: a.update(irradiance=np.ascontiguousarray(a["irradiance"].transpose(1, 0, 2))),
+    "irradiance 2 bands": lambda a: a.update(irradiance=a["irradiance"][:, :, :2]),
+    "irradiance 2-D": lambda a: a.update(irradiance=a["irradiance"][:, :, 0]),
+    "labels half size": lambda a: a.update(depth_m=a["depth_m"][::2, ::2], class_id=a["class_id"][::2, ::2],
+                                           instance_id=a["instance_id"][::2, ::2],
+                                           planar_depth_m=a["planar_depth_m"][::2, ::2]),
+    "one label map off": lambda a: a.update(depth_m=a["depth_m"][:-1]),
+    "wavelengths short": lambda a: a.update(wavelengths_nm=a["wavelengths_nm"][:-1]),
+    "negative irradiance": lambda a: a.update(irradiance=-a["irradiance"]),
+    "a NaN": lambda a: a["irradiance"].__setitem__((0, 0, 0), np.nan),
+    "an Inf": lambda a: a["irradiance"].__setitem__((1, 1, 0), np.inf),
+    "integer irradiance": lambda a: a.update(irradiance=a["irradiance"].astype(np.int32)),
+    "float64 irradiance": lambda a: a.update(irradiance=a["irradiance"].astype(np.float64)),
+    "complex irradiance": lambda a: a.update(irradiance=a["irradiance"].astype(np.complex64)),
+    "no irradiance": lambda a: a.pop("irradiance"),
+    "no labels": lambda a: a.pop("instance_id"),
+    "object table short": lambda a: a.update(obj_bbox_xywh=a["obj_bbox_xywh"][:-1]),
+    "object ids as text": lambda a: a.update(obj_instance_id=np.asarray(["x"] * len(a["obj_instance_id"]))),
+}
+
+
+def _frame_mutation(draw, folder_ops: list, applied: list) -> None:
+    """One frame-file mutation (bytes, copies, swaps, header, arrays, odd files); some resealed."""
+    i = draw(st.integers(0, DATASET_FRAMES - 1))
+    j = draw(st.integers(0, DATASET_FRAMES - 1).filter(lambda k: k != i))
+    op = draw(st.sampled_from(["flip", "flip", "truncate", "append", "copy", "swap", "header", "header",
+                               "arrays", "arrays", "odd", "same"]))
+    reseal = draw(st.booleans()) and op not in ("odd", "same")
+    if op == "flip":
+        where, mask = draw(st.floats(0, 1, exclude_max=True)), draw(st.integers(1, 255))
+
+        def apply(folder):
+            data = bytearray(_read(_frame(folder, i)))
+            if not data:
+                raise _CannotApply("an empty file has no byte to flip")
+            data[int(where * len(data))] ^= mask
+            _frame(folder, i).write_bytes(bytes(data))
+        what = f"flip byte at {where:.3f} of frame {i}"
+    elif op == "truncate":
+        keep = draw(st.floats(0, 1, exclude_max=True))
+
+        def apply(folder):
+            data = _read(_frame(folder, i))
+            _frame(folder, i).write_bytes(data[:int(keep * len(data))])
+        what = f"truncate frame {i} to {keep:.3f}"
+    elif op == "append":
+        junk = draw(st.binary(min_size=1, max_size=64))
+
+        def apply(folder):
+            _frame(folder, i).write_bytes(_read(_frame(folder, i)) + junk)
+        what = f"append {len(junk)} bytes to frame {i}"
+    elif op == "copy":
+        def apply(folder):
+            _frame(folder, i).write_bytes(_read(_frame(folder, j)))
+        what = f"frame {j} copied over frame {i}"
+    elif op == "swap":
+        def apply(folder):
+            a, b = _read(_frame(folder, i)), _read(_frame(folder, j))
+            _frame(folder, i).write_bytes(b)
+            _frame(folder, j).write_bytes(a)
+        what = f"frames {i} and {j} swapped"
+    elif op == "header":
+        name = draw(st.sampled_from(sorted(HEADER_EDITS)))
+
+        def apply(folder):
+            _rewrite_frame(_frame(folder, i), HEADER_EDITS[name])
+        what = f"header of frame {i}: {name}"
+    elif op == "arrays":
+        name = draw(st.sampled_from(sorted(ARRAY_EDITS)))
+
+        def apply(folder):
+            _rewrite_frame(_frame(folder, i), lambda a, h: ARRAY_EDITS[name](a))
+        what = f"arrays of frame {i}: {name}"
+    elif op == "odd":
+        kind = draw(st.sampled_from(["fifo", "dev-zero", "link to another frame", "folder", "missing", "empty"]))
+
+        def apply(folder):
+            path = _frame(folder, i)
+            if path.is_dir() and not path.is_symlink():
+                raise _CannotApply(path)
+            path.unlink()
+            if kind == "fifo":
+                os.mkfifo(path)
+            elif kind == "dev-zero":
+                path.symlink_to("/dev/zero")
+            elif kind == "link to another frame":
+                path.symlink_to(_frame(folder, j))
+            elif kind == "folder":
+                path.mkdir()
+            elif kind == "empty":
+                path.write_bytes(b"")
+        what = f"frame {i} replaced by: {kind}"
+    else:
+        def apply(folder):
+            _frame(folder, i).write_bytes(_read(_frame(folder, i)))
+        what = f"frame {i} rewritten with its own bytes"
+    folder_ops.append(apply)
+    if reseal:
+        folder_ops.append(lambda folder: _reseal(folder, {i, j} if op == "swap" else {i}))
+        what += " (resealed)"
+    applied.append(what)
+
+
+def _coco_specials(draw) -> tuple[str, object]:
+    """A targeted coco.json edit: (what, change(doc))."""
+    k = draw(st.integers(0, 1000))
+
+    def ann(d):
+        return d["annotations"][k % len(d["annotations"])]
+
+    def swap_images(d):
+        for a in d["annotations"]:
+            a["image_id"] = {1: 2, 2: 1}.get(a["image_id"], a["image_id"])
+    edits = {
+        "an annotation doubled": lambda d: d["annotations"].append(dict(ann(d))),
+        "every annotation doubled": lambda d: d.update(annotations=d["annotations"] * 2),
+        "unknown category": lambda d: ann(d).update(category_id=99),
+        "another valid category": lambda d: ann(d).update(category_id=1 + ann(d)["category_id"] % 3),
+        "labels of frames 0 and 1 swapped": swap_images,
+        "frame indices of two images swapped": lambda d: (d["images"][0].update(frame_index=1),
+                                                          d["images"][1].update(frame_index=0)),
+        "box shifted outside": lambda d: ann(d).update(bbox=[ann(d)["bbox"][0] + 1000] + ann(d)["bbox"][1:]),
+        "box moved by a pixel": lambda d: ann(d).update(bbox=[ann(d)["bbox"][0] + 1] + ann(d)["bbox"][1:]),
+        "image size doubled": lambda d: d["images"][0].update(width=128, height=96),
+        "an annotation dropped": lambda d: d["annotations"].pop(k % len(d["annotations"])),
+        "categories renamed": lambda d: [c.update(name=c["name"][::-1]) for c in d["categories"]],
+        "an image dropped": lambda d: d["images"].pop(k % len(d["images"])),
+        "images listed in reverse (same labels)": lambda d: d["images"].reverse(),
+        "info edited (not read)": lambda d: d.update(info={"description": "edited"}),
+    }
+    name = draw(st.sampled_from(sorted(edits)))
+    return name, edits[name]
+
+
+@st.composite
+def dataset_mutations(draw) -> tuple[str, object, list[str]]:
+    """(file kind, apply(folder), the mutations applied): 1–2 mutations of one kind of file of a
+    synthetic data set: manifest.json, coco.json, dataset_spec.json (JSON edits, targeted edits,
+    truncation, byte flips, re-indenting) or frame files (_frame_mutation)."""
+    kind = draw(st.sampled_from(("frame", "coco.json", "manifest.json", "frame", "coco.json", "manifest.json", "frame",
+                                 "dataset_spec.json")))
+    ops, applied = [], []
+    doc = None if kind == "frame" else json.loads((base_dataset()[0] / kind).read_text())
+    for _ in range(draw(st.integers(1, 2))):
+        if kind == "frame":
+            _frame_mutation(draw, ops, applied)
+            continue
+        style = draw(st.sampled_from(["json", "json", "json", "special", "truncate", "flip", "reindent"]))
+        if style == "special" and kind == "coco.json":
+            name, change = _coco_specials(draw)
+            applied.append(name)
+            ops.append(lambda folder, change=change: _edit_json(folder / kind, change))
+        elif style == "special" and kind == "manifest.json":
+            i = draw(st.integers(0, DATASET_FRAMES - 1))
+            field = draw(st.sampled_from(["sha256", "labels_sha256", "irradiance_shape", "irradiance_scale", "seeds",
+                                          "index", "entry"]))
+
+            def change(d, i=i, field=field):
+                other = d["frames"][(i + 1) % len(d["frames"])]
+                if field == "entry":
+                    d["frames"][i], d["frames"][(i + 1) % len(d["frames"])] = other, d["frames"][i]
+                else:
+                    d["frames"][i][field] = other[field]
+            applied.append(f"frames[{i}].{field} taken from the next frame")
+            ops.append(lambda folder, change=change: _edit_json(folder / kind, change))
+        elif style in ("truncate", "flip"):
+            where = draw(st.floats(0, 1, exclude_max=True))
+            mask = draw(st.integers(1, 255))
+
+            def apply(folder, where=where, mask=mask, style=style):
+                data = bytearray(_read(folder / kind))
+                if not data:
+                    raise _CannotApply("an empty file has no byte to flip or cut")
+                if style == "truncate":
+                    del data[int(where * len(data)):]
+                else:
+                    data[int(where * len(data))] ^= mask
+                (folder / kind).write_bytes(bytes(data))
+            applied.append(f"{style} at {where:.3f}")
+            ops.append(apply)
+        elif style == "reindent":
+            applied.append("re-indented, keys sorted (same content)")
+            ops.append(lambda folder: (folder / kind).write_text(
+                json.dumps(_load_json(folder / kind), indent=3, sort_keys=True)))
+        else:
+            applied.append(mutate_json(draw, doc))
+            text = json.dumps(doc)
+            ops.append(lambda folder, text=text: (folder / kind).write_text(text, errors="surrogatepass"))
+
+    def apply_all(folder):
+        for op in ops:
+            try:
+                op(folder)
+            except _CannotApply:       # a later edit of a file an earlier one broke: the earlier stands
+                pass
+    return kind, apply_all, applied
+
+
+def _edit_json(path: Path, change) -> None:
+    doc = _load_json(path)
+    try:
+        change(doc)
+    except (KeyError, IndexError, TypeError, AttributeError, ZeroDivisionError) as exc:
+        raise _CannotApply(path) from exc
+    path.write_text(json.dumps(doc))
+
+
+def check_dataset(case, folder: Path) -> str:
+    """Copy the base data set into `folder`, mutate it, read it as a detection run would and
+    verify it: 'refused' (an InputFileError naming a file of the set, one line; dataset-verify
+    reports ≥ 1 problem) or 'accepted_same' (the same content as the unmutated set; dataset-verify
+    reports none). 'accepted_wrong' and 'verify_disagrees' are failures; any other exception
+    reaches the caller (an internal error)."""
+    import shutil
+
+    from workbench.datasets.integrity import verify_dataset
+    base, content = base_dataset()
+    _kind, apply, _applied = case
+    target = folder / "set"
+    shutil.copytree(base, target)
+    apply(target)
+    try:
+        got = dataset_content(target)
+    except InputFileError as exc:
+        assert "\n" not in str(exc) and exc.path.startswith(str(target)), f"refusal names no file of the set: {exc}"
+        outcome = "refused"
+    else:
+        outcome = "accepted_same" if got == content else "accepted_wrong"
+    problems = verify_dataset(target)
+    assert all(p.path.startswith(str(target)) and "\n" not in str(p) for p in problems), problems[:3]
+    if bool(problems) != (outcome == "refused"):
+        return "verify_disagrees"
+    return outcome

@@ -1,6 +1,10 @@
 """Fuzzing: generated project documents and lens files either load (and a project simulates at
 16×12 px and at most 64 spp with finite outputs, and survives save → load) or are refused with a
 WorkbenchError naming the field or file — never another exception, never NaN in an output.
+Mutated data-set folders are refused with an InputFileError naming a file of the set or read
+with the unmutated set's content (never accepted changed); dataset-verify agrees. The suite runs
+16 of them; WORKBENCH_DATASET_FUZZ=N runs N (and WORKBENCH_FUZZ_REPORT=f.json writes the counts):
+    WORKBENCH_DATASET_FUZZ=400 pytest tests/errors/test_errors_fuzz.py -k data_set
 
 The fast subset runs in the normal tests; the big run is marked slow and runs 120 documents and
 60 lens files in the suite (CI's 12-minute budget); the full probe of 1,200 and 600:
@@ -14,7 +18,8 @@ from pathlib import Path
 
 import pytest
 import torch
-from errors_fuzz import CHART_SAMPLES, SAMPLES, check_document, check_lens_file, lens_files, project_texts
+from errors_fuzz import (CHART_SAMPLES, SAMPLES, check_dataset, check_document, check_lens_file, dataset_mutations,
+                         lens_files, project_texts)
 from hypothesis import HealthCheck, given, settings
 
 FAST = settings(max_examples=60, deadline=None, derandomize=True, database=None,
@@ -86,3 +91,31 @@ def test_big_fuzz_run():
         Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1))
     assert docs["traceback"] == 0 and lenses["traceback"] == 0, report["failures"][:5]
     assert sum(docs.values()) >= 100 * scale
+
+
+@pytest.fixture
+def _memory_cap():
+    """At most 3 GiB more address space while frames are replaced by links to /dev/zero: a reader
+    that read one would fail here, not take the machine's memory."""
+    import resource
+    before = resource.getrlimit(resource.RLIMIT_AS)
+    size_kib = int(next(line.split()[1] for line in open("/proc/self/status") if line.startswith("VmSize")))
+    resource.setrlimit(resource.RLIMIT_AS, (size_kib * 1024 + (3 << 30), before[1]))
+    yield
+    resource.setrlimit(resource.RLIMIT_AS, before)
+
+
+def test_mutated_data_sets_are_refused_naming_a_file_or_read_unchanged(_memory_cap):
+    n = int(os.environ.get("WORKBENCH_DATASET_FUZZ", "16"))
+    distinct = set()
+
+    def check(case, folder):
+        distinct.add(json.dumps([case[0], case[-1]]))
+        return check_dataset(case, folder)
+    counts, per_kind, failures = _big_run(dataset_mutations(), check, n)
+    report = {"data_sets": {"tried": sum(counts.values()), "distinct": len(distinct), **counts},
+              "per_file": dict(sorted(per_kind.items())), "failures": failures[:50]}
+    if os.environ.get("WORKBENCH_FUZZ_REPORT"):
+        Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1))
+    assert set(counts) <= {"refused", "accepted_same"}, report
+    assert sum(counts.values()) >= n * 0.9 and counts["refused"] > 0 and counts["accepted_same"] > 0, report

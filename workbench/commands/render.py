@@ -1,4 +1,5 @@
-"""`workbench render` (one labelled city frame) and `workbench dataset` (a resumable set of them)."""
+"""`workbench render` (one labelled city frame), `workbench dataset` (a resumable set of them) and the
+folder commands `dataset-stats` and `dataset-verify`."""
 from __future__ import annotations
 
 import json
@@ -39,6 +40,11 @@ def register(sub) -> None:
     p = sub.add_parser("dataset-stats", help="write statistics.json and statistics.png of a data-set folder")
     p.add_argument("folder", help="data-set folder (made by `workbench dataset`)")
     p.set_defaults(func=cmd_dataset_stats)
+
+    p = sub.add_parser("dataset-verify", help="check every file of a data-set folder (frames against the "
+                                              "manifest's hashes, labels against the frames) and list all problems")
+    p.add_argument("folder", help="data-set folder (made by `workbench dataset`)")
+    p.set_defaults(func=cmd_dataset_verify)
 
 
 def label_overlay(rgb01: np.ndarray, labels, classes=OVERLAY_CLASSES):
@@ -148,4 +154,26 @@ def cmd_dataset_stats(args) -> int:
         print(f"workbench dataset-stats: error: {exc}", file=sys.stderr)
         return 2
     print(json.dumps({"statistics": str(json_path), "plot": str(png_path)}))
+    return 0
+
+
+def cmd_dataset_verify(args) -> int:
+    """Print every problem of a data-set folder, one a line; exit 2 when there is any."""
+    from tqdm import tqdm
+
+    from workbench.datasets.integrity import verify_dataset
+
+    with tqdm(desc="dataset-verify", unit="frame", leave=False) as bar:
+        def on_frame(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+        problems = verify_dataset(args.folder, on_frame)
+        frames = bar.total
+    for problem in problems:
+        print(problem)
+    if problems:
+        print(f"workbench dataset-verify: error: {len(problems)} problem{'s' if len(problems) > 1 else ''} in "
+              f"{args.folder} (listed above)", file=sys.stderr)
+        return 2
+    print(json.dumps({"folder": str(args.folder), "valid": True, "frames": frames}))
     return 0

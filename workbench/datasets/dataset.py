@@ -9,7 +9,9 @@ Layout of out_dir:
   frames/frame_000007.npz  one frame, written whole or not at all (temporary name + os.replace) by
                            the driver process, whichever worker rendered it
   coco.json, manifest.json written (atomically) once every frame exists; removed when a run starts
-                           with frames missing, so they never claim a frame that is not on disk
+                           with frames missing, so they never claim a frame that is not on disk;
+                           the manifest records each frame's sha256, irradiance shape and scale
+                           and its labels' digest, which readers check (datasets.integrity)
   .workbench.lock          held (flock) by the run writing the folder; a second run is refused
 
 Irradiance storage: 'float16' keeps E / 2^k as float16 with the power of two 2^k chosen so that the
@@ -36,7 +38,7 @@ import numpy as np
 
 from workbench.compute import ComputeSpec, report_progress, run_jobs
 from workbench.compute.folder_lock import hold_folder_lock
-from workbench.datasets.files import check_npz, read_json_object
+from workbench.datasets.files import NPZ_ERRORS, check_npz, file_sha256, positive_finite, read_json_object
 from workbench.datasets.stats import PLOT_NAME, STATS_NAME, write_statistics
 from workbench.errors import InputFileError, InvalidValueError, OutputPathError, ParameterError
 from workbench.files import atomic_write_bytes, parse_json
@@ -56,6 +58,11 @@ FRAME_NAME = re.compile(r"frame_(\d{6,})\.npz")
 SPEC_NAME = "dataset_spec.json"
 MAX_FRAMES = 1_000_000
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)       # member date in frame files (zip's earliest): same frame, same bytes
+INTEGRITY_NOTE = ("frames[].sha256: sha256 of the frame file's bytes; irradiance_shape, irradiance_scale: "
+                  "what its header and irradiance must hold; labels_sha256: sha256 of its coco.json image "
+                  "and annotations as canonical JSON (sorted keys, separators ',' ':'); checked by readers "
+                  "and `workbench dataset-verify`; categories_sha256: of coco.json's categories; "
+                  "manifest_sha256: of this manifest without that field")
 IRRADIANCE_NOTE = ("float16: E/2^k stored, 2^k puts the frame maximum in (2^14, 2^15]; relative error "
                    "<= 2^-11 above 2^-28 * max, absolute error <= 2^-25 * 2^k below; float32: exact")
 
@@ -113,25 +120,54 @@ def read_frame(path: str | os.PathLike, irradiance: bool = True) -> tuple[FrameD
     """Load a frame file: (FrameData with decoded irradiance, header dict). With
     irradiance=False only the labels are read (the irradiance is then an empty H×W×0 array).
     The members' sizes are checked from their headers before any array is read
-    (datasets.files.check_npz); a file that is no frame is an InputFileError naming it."""
+    (datasets.files.check_npz); a file that is no frame, an irradiance that is not H×W×bands on
+    the labels' pixel grid, an irradiance_scale that is not a finite number > 0, or (when read)
+    irradiance with NaN/Inf or negative values is an InputFileError naming the file."""
     members = check_npz(path)
     if "header_json" not in members or "irradiance" not in members:
         raise InputFileError(path, "lacks a frame's members (header_json, irradiance): not a workbench frame")
-    with np.load(path, allow_pickle=False) as z:
-        keys = [k for k in z.files if irradiance or k != "irradiance"]
-        arrays = {k: z[k] for k in keys}
-    head = parse_json(str(arrays.pop("header_json")), path, "frame header")
-    if not isinstance(head, dict) or head.get("format") != FRAME_FORMAT:
-        raise InputFileError(path, "its header is not a workbench frame's")
-    labels = labels_from_arrays(arrays, head.get("label_meta"))
-    irr = (decode_irradiance(arrays.pop("irradiance"), head["irradiance_scale"]) if irradiance
-           else np.zeros((*labels.shape, 0), np.float32))
+    shape, dtype = members["irradiance"]
+    bands = members.get("wavelengths_nm", ((),))[0]
+    if len(shape) != 3 or dtype.name not in IRRADIANCE_DTYPES or bands != shape[2:]:
+        raise InputFileError(path, f"its irradiance is a {shape} {dtype.name} array with wavelengths {bands}; a "
+                                   f"frame's is H×W×bands, {' or '.join(IRRADIANCE_DTYPES)}, one wavelength a band")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            keys = [k for k in z.files if irradiance or k != "irradiance"]
+            arrays = {k: z[k] for k in keys}
+        head = parse_json(str(arrays.pop("header_json")), path, "frame header")
+        if not isinstance(head, dict) or head.get("format") != FRAME_FORMAT:
+            raise InputFileError(path, "its header is not a workbench frame's")
+        labels = labels_from_arrays(arrays, head.get("label_meta"))
+    except InputFileError:
+        raise
+    except (*NPZ_ERRORS, KeyError, IndexError, TypeError) as exc:
+        raise InputFileError(path, f"cannot be read as a frame ({type(exc).__name__}): damaged or not a "
+                                   "workbench frame") from None
+    grids = {np.shape(getattr(labels, k)) for k in ("depth_m", "planar_depth_m", "class_id", "instance_id")}
+    if grids != {shape[:2]}:
+        raise InputFileError(path, f"its irradiance is {shape[0]}×{shape[1]} px but its label maps are "
+                                   f"{' / '.join(sorted('×'.join(map(str, g)) for g in grids))}: they must share one "
+                                   "pixel grid")
+    scale = head.get("irradiance_scale")
+    if not positive_finite(scale):
+        raise InputFileError(path, f"its header's irradiance_scale ({str(scale)[:20]!r}) must be a finite number > 0")
+    if not irradiance:
+        return FrameData(np.zeros((*labels.shape, 0), np.float32), arrays["wavelengths_nm"], labels,
+                         head.get("meta", {})), head
+    with np.errstate(over="ignore", invalid="ignore"):      # an overflow is counted and refused below
+        irr = decode_irradiance(arrays.pop("irradiance"), scale)
+    bad = irr.size - np.count_nonzero(np.isfinite(irr) & (irr >= 0))
+    if bad:
+        raise InputFileError(path, f"its irradiance holds {bad:,} NaN, infinite or negative value(s); a frame "
+                                   "holds finite irradiance ≥ 0")
     return FrameData(irr, arrays["wavelengths_nm"], labels, head.get("meta", {})), head
 
 
 def verify_frame(path: str | os.PathLike, fingerprint: str, index: int) -> bool:
     """True when the file is a complete, readable frame `index` of the data set `fingerprint`
-    (every member decompresses with a good CRC and the header matches)."""
+    (every member decompresses with a good CRC, the header matches and read_frame's checks of
+    the irradiance and labels pass)."""
     try:
         data, head = read_frame(path)
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError):
@@ -265,8 +301,9 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
                 compute: ComputeSpec | None = None) -> Generator[Progress, None, DatasetResult]:
     """Render frames 0…frames−1 of `project` into out_dir (a long job: yields Progress).
 
-    A rerun resumes: complete frames that verify are kept, half-written temporary files are
-    removed, missing or damaged frames are rendered. coco.json and manifest.json are written
+    A rerun resumes: complete frames that verify (and whose bytes are those the folder's last
+    manifest recorded, if any) are kept, half-written temporary files are removed, missing or
+    damaged frames are rendered. coco.json and manifest.json are written
     when all frames exist. Where frames render: `compute` (any backend), else `workers` local
     processes (0 = in this process); whichever renders a frame, this process alone writes it
     (atomically), under a lock on out_dir that a second run is refused. renderer(project, seeds)
@@ -290,6 +327,7 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         for tmp in (out / FRAMES_DIR).glob(".*.tmp"):
             tmp.unlink()                      # left by a run that was killed mid-write
         found, odd = scan_frames(out, frames)
+        recorded = recorded_hashes(out, fingerprint)
         if odd or len(found) < frames:
             remove_index(out)
         if odd:
@@ -299,7 +337,8 @@ def run_dataset(project, frames: int, out_dir: str | os.PathLike, *, workers: in
         for i in found:
             if cancel is not None:
                 cancel.check()
-            if verify_frame(frame_path(out, i), fingerprint, i):
+            path = frame_path(out, i)
+            if verify_frame(path, fingerprint, i) and (i not in recorded or recorded[i] == file_sha256(path)):
                 reused.append(i)
             yield Progress(len(reused), frames, f"checked frame {i}")
         if len(reused) < frames:
@@ -398,7 +437,11 @@ def remove_index(out: Path) -> None:
 
 def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dtype: str, renderer):
     """Write coco.json, manifest.json and the statistics (datasets.stats) from the frames on disk
-    (a job step: yields Progress)."""
+    (a job step: yields Progress). Each manifest entry records what a reader checks the frame
+    against (datasets.integrity): the sha256 of its bytes, its irradiance shape and scale, and
+    the digest of its labels in coco.json."""
+    from workbench.datasets.integrity import json_digest, labels_digest, manifest_digest
+    from workbench.files import atomic_write_text
     yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []
     for i in range(frames):
@@ -410,12 +453,21 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
         rel = frame_path(out, i).relative_to(out).as_posix()
         coco_frames.append((rel, data.labels))
         entries.append({"index": i, "file": rel, "seeds": head["seeds"],
-                        "objects": len(data.labels.objects), "meta": head.get("meta", {})})
+                        "objects": len(data.labels.objects), "meta": head.get("meta", {}),
+                        "sha256": file_sha256(path), "irradiance_shape": list(check_npz(path)["irradiance"][0]),
+                        "irradiance_scale": head["irradiance_scale"]})
     coco = labels_to_coco(coco_frames)
     for image, entry in zip(coco["images"], entries):
         image["frame_index"] = entry["index"]
+    coco_text = json.dumps(coco, indent=1, default=str) + "\n"
+    written = json.loads(coco_text)                 # the labels as a reader will see them
+    anns: dict[int, list] = {}
+    for a in written["annotations"]:
+        anns.setdefault(a["image_id"], []).append(a)
+    for image, entry in zip(written["images"], entries):
+        entry["labels_sha256"] = labels_digest(image, anns.get(image["id"], []))
     coco_path, manifest_path = out / "coco.json", out / "manifest.json"
-    atomic_write_json(coco_path, coco)
+    atomic_write_text(coco_path, coco_text)
     manifest = {
         "format": DATASET_FORMAT, "fingerprint": fingerprint, "frames": entries,
         "project": json.loads(project.model_dump_json()),
@@ -425,16 +477,32 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
         "irradiance": {"units": "photons/s/m^2/nm", "dtype": irradiance_dtype,
                        "max_rel_error": FLOAT16_REL_ERROR if irradiance_dtype == "float16" else 0.0,
                        "note": IRRADIANCE_NOTE},
+        "integrity": INTEGRITY_NOTE, "categories_sha256": json_digest(written["categories"]),
         "coco": coco_path.name, "written_utc": datetime.now(timezone.utc).isoformat(),
     }
+    manifest = json.loads(json.dumps(manifest, default=str))      # as a reader will see it
+    manifest["manifest_sha256"] = manifest_digest(manifest)
     write_statistics(out, [labels for _, labels in coco_frames])
     atomic_write_json(manifest_path, manifest)
     return manifest_path, coco_path
 
 
+def recorded_hashes(out: Path, fingerprint: str) -> dict[int, str]:
+    """Frame index → sha256 as the folder's manifest.json recorded them (empty when there is no
+    readable manifest of this data set): a resume re-renders a frame whose bytes changed since."""
+    try:
+        manifest = read_json_object(out / "manifest.json", "data-set manifest", "")
+    except InputFileError:
+        return {}
+    frames = manifest.get("frames") if manifest.get("fingerprint") == fingerprint else None
+    return {e["index"]: e["sha256"] for e in frames if isinstance(e, dict) and isinstance(e.get("index"), int)
+            and isinstance(e.get("sha256"), str)} if isinstance(frames, list) else {}
+
+
 def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
     """Write statistics.json and statistics.png of the frames now in a data-set folder (finished or
-    not); InputFileError when the folder has no frames folder or a frame cannot be read."""
+    not); InputFileError when the folder has no frames folder, or an entry with a frame's name is
+    not a regular file (a FIFO, a link) or cannot be read as a frame."""
     out = Path(out_dir)
     if not out.is_dir():
         raise InputFileError(out, "does not exist or is not a folder; give a data-set folder")
@@ -442,9 +510,11 @@ def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
         raise InputFileError(out, f"is not a data-set folder (no {FRAMES_DIR}/ folder in it)")
     labels = []
     for path in sorted((out / FRAMES_DIR).iterdir()):
-        if FRAME_NAME.fullmatch(path.name) and path.is_file():
-            try:
-                labels.append(read_frame(path, irradiance=False)[0].labels)
-            except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
-                raise InputFileError(path, f"cannot be read as a frame ({type(exc).__name__}: {exc})") from None
+        if not FRAME_NAME.fullmatch(path.name):
+            continue
+        if path.is_symlink() or not path.is_file():
+            raise InputFileError(path, "has a frame's name but is not a regular file (a link, FIFO or device); "
+                                       "remove it, or render the frame with `workbench dataset PROJECT --frames N "
+                                       f"--out {out}`")
+        labels.append(read_frame(path, irradiance=False)[0].labels)
     return write_statistics(out, labels)

@@ -8,16 +8,29 @@ that names it, before using or allocating anything:
     read_json_object  size ≤ max_bytes, UTF-8, JSON depth and duplicate keys (files.parse_json), an
                       object at the top
     manifest_frames   the manifest's frame list: integer indices and seeds, each index and file
-                      once, every file a `frames/frame_NNNNNN.npz` inside the folder
+                      once, every file a `frames/frame_NNNNNN.npz` inside the folder, and what the
+                      frame must be (FrameEntry: its sha256, irradiance shape and scale, the
+                      digest of its labels in coco.json)
     coco_tables       coco.json's categories, images and annotations, with types and finite,
                       non-negative boxes, each image id and frame index once
     inside            a path named by a file, confined to the folder
     check_npz         an .npz's members, shapes and dtypes from their headers, within a byte budget
+    file_sha256       the sha256 of a regular file's bytes, read in blocks
+
+A FIFO, a device or a link to one is refused by check_npz and file_sha256 before it is opened
+(opening a FIFO waits for a writer; /dev/zero never ends).
 """
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import re
+import stat
+import tokenize
 import zipfile
+import zlib
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +44,24 @@ FRAME_FILE = "frames/frame_{:06d}.npz"
 SEED_KEYS = ("index", "arrangement", "pose", "render")
 OPTIONAL_SEED_KEYS = ("city",)          # the city arrangement a frame's pose belongs to (the split's unit);
                                         # frames written before cities were numbered lack it
+SHA256_HEX = re.compile(r"[0-9a-f]{64}")
+# What zipfile, zlib and numpy raise on a damaged .npz (numpy tokenizes a damaged 1.0 array header).
+NPZ_ERRORS = (zipfile.BadZipFile, ValueError, OSError, EOFError, zlib.error, tokenize.TokenError)
+
+
+@dataclass(frozen=True)
+class FrameEntry:
+    """One frame as manifest.json lists it: index, file, seeds, and what the file must hold: the
+    sha256 of its bytes, its irradiance array's shape (H, W, bands) and scale, and the sha256 of
+    its image record and annotations in coco.json (datasets.integrity.labels_digest)."""
+
+    index: int
+    path: Path
+    seeds: dict
+    sha256: str
+    irradiance_shape: tuple[int, int, int]
+    irradiance_scale: float
+    labels_sha256: str
 
 
 def read_json_object(path: str | Path, what: str, missing_hint: str, max_bytes: int = MAX_JSON_BYTES) -> dict:
@@ -60,8 +91,8 @@ def inside(folder: Path, name: object, path: Path, where: str) -> Path:
     return folder / name
 
 
-def manifest_frames(manifest: dict, folder: Path, path: Path) -> list[tuple[int, Path, dict]]:
-    """(index, frame file, seeds) of every frame a manifest lists, checked (module docstring)."""
+def manifest_frames(manifest: dict, folder: Path, path: Path) -> list[FrameEntry]:
+    """Every frame a manifest lists, checked (module docstring)."""
     frames = manifest.get("frames")
     if not isinstance(frames, list) or not frames:
         raise InputFileError(path, "'frames' must be a non-empty list of frame entries")
@@ -81,8 +112,25 @@ def manifest_frames(manifest: dict, folder: Path, path: Path) -> list[tuple[int,
             raise InputFileError(path, f"{where}.seeds must be an object")
         seeds = {**{key: _int(seeds.get(key), path, f"{where}.seeds.{key}") for key in SEED_KEYS},
                  **{key: _int(seeds[key], path, f"{where}.seeds.{key}") for key in OPTIONAL_SEED_KEYS if key in seeds}}
-        out.append((index, inside(folder, entry["file"], path, f"{where}.file"), seeds))
+        for key in ("sha256", "labels_sha256"):
+            if not isinstance(entry.get(key), str) or not SHA256_HEX.fullmatch(entry[key]):
+                raise InputFileError(path, f"{where}.{key} must be 64 lower-case hex digits (a sha256)")
+        shape = entry.get("irradiance_shape")
+        if not isinstance(shape, list) or len(shape) != 3:
+            raise InputFileError(path, f"{where}.irradiance_shape must be [H, W, bands]")
+        shape = tuple(_int(v, path, f"{where}.irradiance_shape", low=1) for v in shape)
+        scale = entry.get("irradiance_scale")
+        if not positive_finite(scale):
+            raise InputFileError(path, f"{where}.irradiance_scale must be a finite number > 0")
+        out.append(FrameEntry(index, inside(folder, entry["file"], path, f"{where}.file"), seeds,
+                              entry["sha256"], shape, float(scale), entry["labels_sha256"]))
     return out
+
+
+def positive_finite(value) -> bool:
+    """True for an int or float (not a bool) that is finite and > 0."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and value > 0)
 
 
 def _finite_list(value, n: int) -> bool:
@@ -109,6 +157,8 @@ def coco_tables(coco: dict, path: Path) -> tuple[dict[int, str], dict[int, dict]
             raise InputFileError(path, f"images[{k}] must be an object")
         image_id = _int(im.get("id"), path, f"images[{k}].id")
         frame = _int(im.get("frame_index"), path, f"images[{k}].frame_index")
+        for key in ("width", "height"):
+            _int(im.get(key), path, f"images[{k}].{key}", low=1)
         if image_id in ids or frame in images:
             raise InputFileError(path, f"images[{k}]: image {image_id} / frame {frame} is listed twice")
         ids.add(image_id)
@@ -135,6 +185,7 @@ def check_npz(path: str | Path, max_member_bytes: int = MAX_NPZ_MEMBER_BYTES) ->
     an array; InputFileError for a member that is not a plain .npy array (objects, pickles) or
     that would take more than max_member_bytes."""
     p = Path(path)
+    regular_file(p, "an .npz")
     out = {}
     try:
         with zipfile.ZipFile(p) as zf:
@@ -155,6 +206,31 @@ def check_npz(path: str | Path, max_member_bytes: int = MAX_NPZ_MEMBER_BYTES) ->
                 out[name[:-4]] = (tuple(shape), dtype)
     except InputFileError:
         raise
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    except NPZ_ERRORS as exc:
         raise InputFileError(p, f"cannot be read as an .npz ({type(exc).__name__}); damaged or not a frame") from None
     return out
+
+
+def regular_file(path: Path, what: str) -> os.stat_result:
+    """The stat of path (links followed) when it is a regular file, else an InputFileError:
+    checked before opening, as a FIFO would block and a device never end."""
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise InputFileError(path, f"cannot be read ({exc.strerror or type(exc).__name__})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode) else \
+            "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file"
+        raise InputFileError(path, f"is {kind}, not {what} file; refused without reading it")
+    return st
+
+
+def file_sha256(path: str | Path) -> str:
+    """Hex sha256 of a regular file's bytes (read in blocks, so any size fits in memory)."""
+    p = Path(path)
+    regular_file(p, "a data-set")
+    try:
+        with open(p, "rb") as fh:
+            return hashlib.file_digest(fh, "sha256").hexdigest()
+    except OSError as exc:
+        raise InputFileError(p, f"cannot be read ({exc.strerror or type(exc).__name__})") from None

@@ -36,23 +36,22 @@ from __future__ import annotations
 
 import math
 import time
-import zipfile
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from workbench.datasets.files import coco_tables, inside, manifest_frames, read_json_object
+from workbench.datasets.files import FrameEntry
+from workbench.datasets.integrity import index_problems, raise_first, read_index, read_verified_frame
 from workbench.detect.boxes import clip_boxes, crop_boxes, crop_corner, keep_box, mirror_boxes
-from workbench.errors import InputFileError, InvalidValueError, ParameterError
+from workbench.errors import InputFileError, ParameterError, WorkbenchError
 from workbench.datasets.stats import CLASSES_OF_INTEREST
 
 DETECT_CLASSES = CLASSES_OF_INTEREST            # the road users the data statistics count too
 TEST_FRACTION = 1.0 / 3.0
 AUGMENT_TAG = 0x61756700                # 'aug': the mirror and crop stream, the same at every EV
 TEST_NOISE_SEED = 0x74657374           # 'test': the seed of every test view's captures
-RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDER`"
 
 
 def split_of(seeds: dict, test_fraction: float = TEST_FRACTION) -> str:
@@ -73,7 +72,8 @@ def _check_same_frames(project, rendered, manifest_path: Path) -> None:
 @dataclass(frozen=True)
 class FrameRecord:
     """One frame's file, seeds, split and boxes (x0, y0, x1, y1 in pixels; classes index
-    DetectionDataset.class_names), kept (with their truncation, 0…1) and ignored."""
+    DetectionDataset.class_names), kept (with their truncation, 0…1) and ignored; its manifest
+    entry (what the file must hold) and the command that renders it again."""
 
     index: int
     path: Path
@@ -84,6 +84,8 @@ class FrameRecord:
     truncation: np.ndarray
     ignored_xyxy: np.ndarray
     ignored_classes: np.ndarray
+    entry: FrameEntry
+    rerender_hint: str
 
 
 def _xyxy(anns: list[dict]) -> np.ndarray:
@@ -103,40 +105,22 @@ class DetectionDataset:
     the frames were rendered from); its frame settings (datasets.dataset.FRAME_PROJECT_SECTIONS and
     the sensor's grid and channels) must be the data set's.
     Raises InputFileError naming the file when the folder is missing, half-written (no
-    manifest.json / coco.json, or a listed frame absent) or of another format or version."""
+    manifest.json / coco.json, or a listed frame absent), of another format or version, or when
+    its labels are not those the manifest recorded or do not fit its frames and categories
+    (datasets.integrity); each frame is verified when a view first reads it."""
 
     def __init__(self, folder: str | Path, classes: tuple[str, ...] = DETECT_CLASSES,
                  test_fraction: float = TEST_FRACTION, project=None):
-        from workbench.project import project_from_dict
-        from workbench.datasets.dataset import DATASET_FORMAT
-
-        self.folder = Path(folder)
-        if not self.folder.is_dir():
-            raise InputFileError(self.folder, f"no such data-set folder; {RENDER_HINT}")
-        spec_path = self.folder / "dataset_spec.json"
-        spec = read_json_object(spec_path, "data-set spec", f"not a workbench data set folder; {RENDER_HINT}")
-        if spec.get("format") != DATASET_FORMAT:
-            raise InputFileError(spec_path, f"format is not '{DATASET_FORMAT}': a file of another schema")
-        manifest_path = self.folder / "manifest.json"
-        manifest = read_json_object(manifest_path, "data-set manifest", "the data set is half-written (its "
-                                    "frames were not all rendered); rerun the same `workbench dataset` command to finish it")
-        if manifest.get("format") != DATASET_FORMAT or manifest.get("fingerprint") != spec.get("fingerprint") \
-                or not isinstance(spec.get("fingerprint"), str):
-            raise InputFileError(manifest_path, "does not belong to dataset_spec.json (format or fingerprint "
-                                                "differ): a file of another schema or another data set")
-        try:
-            self.project = project_from_dict(manifest.get("project"), str(manifest_path))
-        except (InputFileError, ParameterError) as exc:
-            raise InputFileError(manifest_path, f"its project cannot be used: {exc}") from None
+        index = read_index(folder)
+        self.folder = index.folder
+        raise_first(index_problems(index), self.folder)
+        self.project = index.project
         if project is not None:
-            _check_same_frames(project, self.project, manifest_path)
+            _check_same_frames(project, self.project, index.manifest_path)
             self.project = project
-        self.fingerprint = manifest["fingerprint"]
-        entries = manifest_frames(manifest, self.folder, manifest_path)
-        coco_path = inside(self.folder, manifest.get("coco", "coco.json"), manifest_path, "coco")
-        coco = read_json_object(coco_path, "COCO label file", "the data set is half-written; rerun "
-                                "`workbench dataset` to finish it")
-        cat_names, images, anns_of = coco_tables(coco, coco_path)
+        self.fingerprint = index.fingerprint
+        self.rerender_hint = index.rerender_hint
+        cat_names, images, anns_of = index.categories, index.images, index.annotations
         self.image_hw = (self.project.sensor.rows, self.project.sensor.cols)
         rows = self.image_hw[0]
         present = {cat_names.get(int(a["category_id"])) for anns in anns_of.values() for a in anns
@@ -144,22 +128,16 @@ class DetectionDataset:
         self.class_names = tuple(c for c in classes if c in present) or tuple(classes)
         cls_index = {c: k for k, c in enumerate(self.class_names)}
         self.frames: list[FrameRecord] = []
-        for index, path, seeds in entries:
-            if not path.is_file():
-                raise InputFileError(path, "listed in manifest.json but missing: the data set is damaged; "
-                                           "rerun `workbench dataset` on the folder to render it again")
-            image = images.get(index)
-            if image is None:
-                raise InputFileError(coco_path, f"has no image for frame {index}; a file of another data set")
+        for entry in index.entries:
+            image = images[entry.index]
             anns = [a for a in anns_of.get(int(image["id"]), []) if cat_names.get(int(a["category_id"])) in cls_index]
             kept = [a for a in anns if keep_box(a, rows)]
             ignored = [a for a in anns if not keep_box(a, rows)]
-            self.frames.append(FrameRecord(index, path, seeds, split_of(seeds, test_fraction),
+            self.frames.append(FrameRecord(entry.index, entry.path, entry.seeds, split_of(entry.seeds, test_fraction),
                                            _xyxy(kept), _class_indices(kept, cat_names, cls_index),
                                            np.asarray([a.get("truncation", 0.0) for a in kept], np.float32),
-                                           _xyxy(ignored), _class_indices(ignored, cat_names, cls_index)))
-        if not self.frames:
-            raise InputFileError(manifest_path, "lists no frames")
+                                           _xyxy(ignored), _class_indices(ignored, cat_names, cls_index),
+                                           entry, index.rerender_hint))
 
     @property
     def split_digest(self) -> str:
@@ -168,6 +146,17 @@ class DetectionDataset:
         import hashlib
         test = [f.index for f in self.frames if f.split == "test"]
         return hashlib.sha256(",".join(map(str, test)).encode()).hexdigest()[:16]
+
+    def test_indices(self) -> list[int]:
+        """indices('test'), refused when there are none (a set of fewer than three cities): a test
+        mAP of no frames is no number."""
+        test = self.indices("test")
+        if not test:
+            per_city = self.project.pose.poses_per_arrangement if self.project.pose is not None else 1
+            raise InputFileError(self.folder, f"holds no test frames: every third city is a test city (cities 2, 5, "
+                                              f"…), so render at least 3 cities ({3 * per_city} frames with "
+                                              f"{per_city} pose(s) a city)")
+        return test
 
     def indices(self, split: str) -> list[int]:
         """Positions (into self.frames) of the 'train' or 'test' frames."""
@@ -191,28 +180,19 @@ class DetectionDataset:
 
 def load_signal_rates(record: FrameRecord, sensor, fingerprint: str) -> tuple[np.ndarray, np.ndarray]:
     """(rate, mirrored-scene rate): mean e⁻/s per pixel of the frame and of its mirror image
-    (irradiance flipped left-right before the CFA samples it). Errors name the frame file."""
+    (irradiance flipped left-right before the CFA samples it). The frame is verified against the
+    manifest as it is read (datasets.integrity.read_verified_frame); errors name the frame file."""
     from workbench.render.city_frame import frame_optical_image
-    from workbench.datasets.dataset import FRAME_VERSION, read_frame
     from workbench.sensor import irradiance_to_signal_rate
 
-    try:
-        data, head = read_frame(record.path)
-    except InputFileError:
-        raise
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
-        raise InputFileError(record.path, f"cannot be read ({exc.__class__.__name__}: {exc}); the frame is "
-                                          "damaged or half-written: rerun `workbench dataset` on the folder") from None
-    if head.get("version") != FRAME_VERSION or head.get("fingerprint") != fingerprint:
-        raise InputFileError(record.path, f"frame version {head.get('version')!r} / fingerprint do not match "
-                                          "the data set's: a file of another schema or data set")
+    data, _ = read_verified_frame(record.entry, fingerprint, record.rerender_hint)
     try:
         oi = frame_optical_image(data)
         mirrored = replace(oi, irradiance_photons=np.ascontiguousarray(oi.irradiance_photons[:, ::-1]), depth_m=None)
         return irradiance_to_signal_rate(oi, sensor), irradiance_to_signal_rate(mirrored, sensor)
-    except InvalidValueError as exc:           # e.g. NaN irradiance: name the frame that holds it
-        raise InputFileError(record.path, f"frame {record.index} cannot be used ({exc}): the frame file is damaged; "
-                                          "delete it and rerun `workbench dataset` on the folder to render it again") from None
+    except WorkbenchError as exc:
+        raise InputFileError(record.path, f"frame {record.index} cannot be used as a frame of this data set: {exc}; "
+                                          f"{record.rerender_hint}") from None
 
 
 class RateCache:

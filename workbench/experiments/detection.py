@@ -373,6 +373,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     if unknown:
         raise ParameterError("nets", list(nets), f"nets of the profile ({', '.join(prof.nets)})")
     dataset = DetectionDataset(data_dir, project=project)
+    dataset.test_indices()                              # refused before any training: a set with no test city
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise OutputPathError(out, "is a file; --out needs a folder")

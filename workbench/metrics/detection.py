@@ -66,9 +66,10 @@ def design_map(project, checkpoint_path: str | Path, data_dir: str | Path, *, bo
     from workbench.detect.representations import input_channels
 
     torch.set_num_threads(choose_threads())
-    state, config = read_trained(checkpoint_path)
     dataset = DetectionDataset(data_dir, project=project)
-    view = DetectionView(dataset, dataset.indices("test"), config.representation, (0.0,))
+    test = dataset.test_indices()
+    state, config = read_trained(checkpoint_path)
+    view = DetectionView(dataset, test, config.representation, (0.0,))
     model = trained_model(checkpoint_path, state, config, input_channels(config.representation, view.sensor.cfa_pattern),
                           len(dataset.class_names))
     res = evaluate_detector(model, view, dataset.class_names, precision=config.precision, bootstrap=bootstrap)
