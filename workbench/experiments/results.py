@@ -47,6 +47,7 @@ and a thin one the two-level interval (seeds and test frames).
 """
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
 
@@ -102,7 +103,31 @@ def read_results(path: str | Path) -> dict:
         raise InputFileError(p, f"'contrasts' must be a list of rows with {', '.join(CONTRAST_KEYS)}")
     if not isinstance(doc.get("runs"), list):
         raise InputFileError(p, "'runs' must be a list")
+    _check_numbers(p, doc)
+    from workbench.experiments.records import check_runs
+    check_runs(p, doc)
     return doc
+
+
+def _is_number(value, low: float = -math.inf, high: float = math.inf) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and low <= value <= high \
+        and math.isfinite(value)
+
+
+def _check_numbers(p: Path, doc: dict) -> None:
+    """The summary's means are mAPs in 0…1; its intervals and the contrasts' numbers are finite
+    (or None where an interval needs two seeds); test EVs are numbers."""
+    for row in doc["summary"]:
+        if not (_is_number(row["mean_map"], 0.0, 1.0) and _is_number(row["test_ev"]) and all(
+                row.get(k) is None or _is_number(row[k]) for k in ("ci95_low", "ci95_high", "boot_low", "boot_high"))):
+            raise InputFileError(p, f"a summary row ({str(row.get('net'))[:40]}, {str(row.get('condition'))[:40]}) "
+                                    "holds a mean that is not a mAP in 0…1 or an interval that is not a number")
+    for row in doc["contrasts"]:
+        if not (_is_number(row["mean"]) and (row["test_ev"] == "all" or _is_number(row["test_ev"]))
+                and all(row.get(k) is None or _is_number(row[k])
+                        for k in ("t_low", "t_high", "boot_low", "boot_high", "h_low", "h_high"))):
+            raise InputFileError(p, f"a contrast row ({str(row.get('contrast'))[:40]}) holds a number that is "
+                                    "not finite")
 
 
 def read_bootstraps(folder: str | Path) -> dict:
