@@ -32,6 +32,8 @@ def register(sub) -> None:
                         "--address, the CPUs of the local Ray cluster started for the run")
     p.add_argument("--float32", action="store_true",
                    help="store irradiance as float32 (default float16 with scale, ≤ 0.05 %% error)")
+    p.add_argument("--confirm-large", action="store_true",
+                   help="render more than 2,000 frames (refused without it, with an estimate of the time)")
     add_compute_options(p)
     p.set_defaults(func=cmd_dataset)
 
@@ -107,6 +109,8 @@ def cmd_dataset(args) -> int:
 
     try:
         project = load_project(args.project)
+        from workbench.datasets.size_limit import check_dataset_size
+        check_dataset_size(project, args.frames, max(args.workers, 1), args.confirm_large)
         job = run_dataset(project, args.frames, args.out, compute=compute_spec(args, max_tasks_per_child=16),
                           irradiance_dtype="float32" if args.float32 else "float16")
         steps = iter(())
