@@ -67,3 +67,28 @@ def test_a_diverging_run_stops_without_a_checkpoint(synthetic_dir, tmp_path, mon
     with pytest.raises(StageError, match="diverged"):
         train_detector(DetectionDataset(synthetic_dir), TrainConfig(**TINY), tmp_path / "run.pt")
     assert not (tmp_path / "run.pt").exists()
+
+
+def test_a_checkpoint_changed_after_training_wrote_it_is_refused(synthetic_dir, tmp_path, finished):
+    path = tmp_path / "run.pt"
+    for edit in ({"elapsed_s": finished["elapsed_s"] + 1}, {"curve": [{**finished["curve"][-1], "train_map": 0.99}]},
+                 {"step": finished["step"] + 1}):
+        torch.save({**finished, **edit}, path)               # the old checksum kept
+        with pytest.raises(InputFileError, match="run.pt") as info:
+            train_detector(DetectionDataset(synthetic_dir), TrainConfig(**TINY), path)
+        assert "checksum" in str(info.value) or "counters" in str(info.value)
+
+
+def test_a_checkpoint_without_a_checksum_still_resumes(synthetic_dir, tmp_path, finished):
+    path = tmp_path / "run.pt"
+    torch.save({k: v for k, v in finished.items() if k != "checksum"}, path)    # written before checksums
+    _, result = train_detector(DetectionDataset(synthetic_dir), TrainConfig(**TINY), path)
+    assert result.epochs == 2
+
+
+def test_a_study_detector_checkpoint_with_nan_weights_is_refused(tmp_path, finished):
+    from workbench.metrics.detection import read_trained
+    path = tmp_path / "run.pt"
+    save_checkpoint(path, {k: v for k, v in _nan_weights(finished).items() if k != "format"})
+    with pytest.raises(InputFileError, match="NaN"):
+        read_trained(path)

@@ -3,7 +3,8 @@
 A checkpoint is a dict saved with torch.save under a format tag; it is read with
 torch.load(weights_only=True), so a checkpoint file (untrusted input) cannot run code, and
 `check_training_state` refuses one that is not what training wrote: a history that does not
-match its epoch or its "done", or weights and optimizer moments that hold NaN or Inf.
+match its epoch or its "done", weights and optimizer moments that hold NaN or Inf, or (for one
+written with a checksum: all since issue 34) any change to what training reads from it.
 """
 from __future__ import annotations
 
@@ -16,13 +17,49 @@ from workbench.errors import InputFileError
 CHECKPOINT_FORMAT = "camera-workbench-detector-checkpoint"
 
 
+# the entries of a training state its checksum covers (what a resumed or finished run reads)
+CHECKED_FIELDS = ("config", "model", "optimizer", "epoch", "step", "elapsed_s", "history", "curve", "images",
+                  "step_s", "done")
+
+
+def _feed(h, node) -> None:
+    """Add a (nested) state to the hash h: tensors by dtype, shape and bytes, the rest as JSON."""
+    import torch
+    if isinstance(node, torch.Tensor):
+        t = node.detach().cpu().contiguous().reshape(-1)
+        h.update(f"T{t.dtype}{tuple(node.shape)}".encode())
+        h.update(t.view(torch.uint8).numpy().tobytes())
+    elif isinstance(node, dict):
+        h.update(b"{")
+        for key in sorted(node, key=repr):
+            h.update(repr(key).encode())
+            _feed(h, node[key])
+        h.update(b"}")
+    elif isinstance(node, (list, tuple)):
+        h.update(b"[")
+        for item in node:
+            _feed(h, item)
+        h.update(b"]")
+    else:
+        h.update(repr((type(node).__name__, node)).encode())
+
+
+def state_checksum(state: dict) -> str:
+    """SHA-256 (hex) of the CHECKED_FIELDS of a training state, weights included."""
+    import hashlib
+    h = hashlib.sha256()
+    _feed(h, {k: state.get(k) for k in CHECKED_FIELDS})
+    return h.hexdigest()
+
+
 def save_checkpoint(path: str | Path, state: dict) -> None:
-    """torch.save the state, then write it whole or not at all (files.atomic_write_bytes)."""
+    """torch.save the state with its checksum, then write it whole or not at all
+    (files.atomic_write_bytes)."""
     import torch
 
     from workbench.files import atomic_write_bytes
     buf = io.BytesIO()
-    torch.save({"format": CHECKPOINT_FORMAT, **state}, buf)
+    torch.save({"format": CHECKPOINT_FORMAT, **state, "checksum": state_checksum(state)}, buf)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -91,6 +128,8 @@ def check_training_state(path: str | Path, state: dict, epochs: int) -> None:
     weight and optimizer moment finite. Refused, not retrained: the same seed would train the
     same run, so a damaged file is something to look at, and deleting it retrains it."""
     problem = _history_problem(state, epochs)
+    if problem is None and "checksum" in state and state["checksum"] != state_checksum(state):
+        problem = "it was changed after training wrote it (its checksum does not match)"
     if problem is None and not (isinstance(state.get("model"), dict) and isinstance(state.get("optimizer"), dict)):
         problem = "it holds no model or optimizer state"
     if problem is None and not _finite_tensors(state["model"]):

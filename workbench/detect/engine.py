@@ -227,6 +227,9 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                                                   " delete it to train this run again") from None
         epoch, step, elapsed_s = int(state["epoch"]), int(state["step"]), float(state["elapsed_s"])
         history, curve, images = list(state["history"]), list(state["curve"]), int(state["images"])
+        if step != epoch * steps_per_epoch or images != epoch * len(view):
+            raise InputFileError(checkpoint_path, f"its counters ({step} steps, {images} images) are not those of "
+                                                  f"{epoch} epochs on this data set; delete it to train this run again")
         step_s = float(state["step_s"])
         log.info("resumed %s at epoch %d from %s", config.net, epoch, checkpoint_path)
     done = bool(state and state.get("done"))
