@@ -55,6 +55,7 @@ def _copy_with(folder: Path, tmp_path: Path, edit) -> Path:
 
 def test_new_records_carry_their_digest_and_checksums(sealed):
     doc = read_results(sealed)
+    assert doc["checksum"]
     fingerprint = doc["dataset"]["fingerprint"]
     for run in doc["runs"]:
         assert run["digest"] == config_digest(run["config"], fingerprint)
@@ -95,6 +96,8 @@ def _set_test(name, value):
     (lambda d: d["runs"][0].update(role={**d["runs"][0]["role"], "seed": 3}), "plan"),
     (lambda d: d["dataset"].update(fingerprint="0" * 16), "key does not name its config on this data set"),
     (lambda d: d["summary"][0].update(mean_map=2.5), "summary row"),
+    (lambda d: d["summary"][0].update(mean_map=0.999), "changed after it was written"),
+    (lambda d: d.update(complete=False), "changed after it was written"),
 ])
 def test_a_record_the_plan_did_not_make_is_refused_naming_the_file_and_run(sealed, tmp_path, edit, fragment):
     folder = _copy_with(sealed, tmp_path, edit)
@@ -102,7 +105,7 @@ def test_a_record_the_plan_did_not_make_is_refused_naming_the_file_and_run(seale
         read_results(folder)
     message = str(info.value)
     assert str(folder / "results.json") in message and "\n" not in message
-    if "summary" not in fragment:
+    if "summary" not in fragment and "written" not in fragment:
         assert "run '" in message
 
 
@@ -114,6 +117,7 @@ def test_an_experiment_refuses_to_resume_on_a_damaged_folder(synthetic_dir, seal
 
 def test_records_written_before_sealing_still_count(synthetic_dir, sealed, tmp_path):
     def unseal(doc):
+        doc.pop("checksum")
         for run in doc["runs"]:
             run.pop("digest")
             run.pop("checksum")

@@ -269,7 +269,8 @@ def write_outputs(doc: dict, boots: dict, out_dir: Path, project=None) -> None:
     from workbench.files import atomic_write_bytes, atomic_write_text
     if project is not None:
         atomic_write_text(out_dir / PROJECT_FILE, project.model_dump_json(indent=1) + "\n")
-    atomic_write_text(out_dir / "results.json", json.dumps(doc, indent=1, default=float) + "\n")
+    from workbench.experiments.records import seal_document
+    atomic_write_text(out_dir / "results.json", json.dumps(seal_document(doc), indent=1) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
     atomic_write_text(out_dir / "contrasts.csv", _csv_text(doc["contrasts"]))

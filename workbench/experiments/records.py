@@ -5,7 +5,8 @@ ends in a digest of its training configuration and the data set's fingerprint (`
 record whose config, data set or key was changed no longer matches. A record this code writes is
 also sealed (`seal_record`): 'digest' (the full SHA-256 of config and fingerprint) and 'checksum'
 (SHA-256 of the record less its role and tests; each test carries its own, so a record lent to
-another experiment may keep a subset of its tests). Records written before sealing (no 'checksum')
+another experiment may keep a subset of its tests); the document as a whole carries a checksum
+too (`seal_document`), so its analysis cannot be edited unseen either. Records written before sealing (no 'checksum')
 are checked for all but an edit of their numbers within range. `check_runs` refuses a document
 whose records are not unique, not in the plan its settings make, not the config they name, or
 hold a metric outside its range (AP, mAP in 0…1, losses finite): the file and the run are named.
@@ -40,12 +41,29 @@ def run_key(config: dict, fingerprint: str) -> str:
             f"{config_digest(config, fingerprint)[:10]}")
 
 
-def _checksum(node) -> str:
-    return hashlib.sha256(json.dumps(node, sort_keys=True, allow_nan=False).encode()).hexdigest()
+def _checksum(node, allow_nan: bool = False) -> str:
+    return hashlib.sha256(json.dumps(node, sort_keys=True, allow_nan=allow_nan).encode()).hexdigest()
 
 
 def _body(run: dict) -> dict:
     return {k: v for k, v in run.items() if k not in ("role", "tests", "checksum")}
+
+
+def seal_document(doc: dict) -> dict:
+    """A results document as results.json stores it (plain JSON) with a checksum of the rest, so an
+    edit of its analysis (summary, contrasts, verdicts) is seen too."""
+    plain = json.loads(json.dumps(doc, default=float))
+    plain.pop("checksum", None)
+    return {**plain, "checksum": _checksum(plain, allow_nan=True)}
+
+
+def document_problem(doc: dict) -> str | None:
+    """Why a sealed results document is not what was written, or None (an unsealed one: None)."""
+    if "checksum" in doc and doc["checksum"] != _checksum({k: v for k, v in doc.items() if k != "checksum"},
+                                                         allow_nan=True):
+        return ("it was changed after it was written (its checksum does not match); restore it, or remove "
+                "'checksum' to take the edit as yours")
+    return None
 
 
 def seal_record(run: dict, fingerprint: str) -> dict:

@@ -104,8 +104,11 @@ def read_results(path: str | Path) -> dict:
     if not isinstance(doc.get("runs"), list):
         raise InputFileError(p, "'runs' must be a list")
     _check_numbers(p, doc)
-    from workbench.experiments.records import check_runs
+    from workbench.experiments.records import check_runs, document_problem
     check_runs(p, doc)
+    problem = document_problem(doc)
+    if problem is not None:
+        raise InputFileError(p, problem)
     return doc
 
 
