@@ -300,10 +300,10 @@ def borrowed_runs(folders, jobs, fingerprint: str) -> tuple[list[dict], dict]:
     runs, boots = [], {}
     for folder in folders:
         doc = read_results(folder)
-        theirs = str((doc.get("dataset") or {}).get("fingerprint"))
-        if theirs != fingerprint:
-            raise OutputPathError(folder, f"holds results of another data set (fingerprint {theirs[:12]}… ≠ "
-                                          f"{fingerprint[:12]}…)")
+        their_fingerprint = str((doc.get("dataset") or {}).get("fingerprint"))
+        if their_fingerprint != fingerprint:
+            raise OutputPathError(folder, f"holds results of another data set (fingerprint {their_fingerprint[:12]}… "
+                                          f"≠ {fingerprint[:12]}…)")
         theirs = read_bootstraps(folder)
         for run in doc["runs"]:
             evs = wanted.get(run["key"])

@@ -22,7 +22,11 @@ results.json (schema_version 3):
                 "config": {...}, "train": {... "train_map", "curve", "history", "train_map_half",
                                           "train_map_end", "half_gain", "converged", "convergence" ...},
                 "tests": [{"ev": float, "map": float | null, "ap": {class: float}, ...}, ...],
-                "machine": {"cpu", "bf16_native", "threads", "wall_s", "cpu_s", "code_version"}}, ...],
+                "machine": {"cpu", "bf16_native", "threads", "wall_s", "cpu_s", "code_version"},
+                "digest": str, "checksum": str}, ...],     # since issue 34 (experiments.records); each
+                                                          # test carries a "checksum" too
+      "superseded_runs": [run, ...],                # records an earlier profile planned, outside the analysis
+      "checksum": str,                              # since issue 34: of the rest of the document
       "summary": [                                  # required; what the main charts draw
         {"net": str, "representation": "raw" | "linear" | "srgb",
          "condition": "ev0_trained" | "ev_mix" | "per_ev", "test_ev": float, "n": int,
@@ -84,7 +88,8 @@ def _rows_ok(rows, keys) -> bool:
 
 def read_results(path: str | Path) -> dict:
     """The results document of a result folder (or of a results.json path), checked against the
-    schema above; errors name the file and what is wrong."""
+    schema above and its records against the plan (experiments.records.check_runs); errors name
+    the file (and the run) and what is wrong."""
     p = Path(path)
     if p.is_dir():
         p = p / RESULTS_FILE
