@@ -110,8 +110,9 @@ def _history_problem(state: dict, epochs: int) -> str | None:
     if not isinstance(history, list) or len(history) != epoch:
         return f"its loss history holds {len(history) if isinstance(history, list) else 'no'} entries for {epoch} epochs"
     for k, entry in enumerate(history, 1):
-        if not (isinstance(entry, dict) and entry.get("epoch") == k and _is_number(entry.get("loss"))):
-            return f"its loss history entry {k} is not epoch {k} with a finite loss"
+        if not (isinstance(entry, dict) and entry.get("epoch") == k and _is_number(entry.get("loss")) and all(
+                _is_number(v) and v >= 0 for name, v in entry.items() if name != "epoch")):
+            return f"its loss history entry {k} is not epoch {k} with finite losses ≥ 0"
     if not isinstance(curve, list) or not all(
             isinstance(c, dict) and _is_int(c.get("epoch"), 1, epoch) and
             (c.get("train_map") is None or _is_number(c["train_map"]) and 0.0 <= c["train_map"] <= 1.0)

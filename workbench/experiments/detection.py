@@ -475,7 +475,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
         result["role"] = role_of[job.key]
         my_boots[job.key] = _split_bootstrap(result)
         result = seal_record(result, dataset.fingerprint)
-        problem = record_problem(result, dataset.fingerprint, set(evs))
+        problem = record_problem(result, dataset.fingerprint, set(evs), list(dataset.class_names))
         if problem is not None:                    # never a NaN or out-of-range number in a results.json
             raise StageError("experiment", f"run {job.key}: {problem}; its record is not written")
         mine = [r for r in mine if r["key"] != job.key] + [result]

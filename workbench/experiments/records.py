@@ -98,16 +98,43 @@ def _config_problem(config) -> str | None:
     return None
 
 
+def _time(value) -> bool:
+    """None, or a finite duration or rate ≥ 0."""
+    return value is None or _number(value) and value >= 0
+
+
+# the other fields of a record and what each must be where present (what the CSV and charts print)
+FIELD_RULES = {
+    "train": {"steps": _count, "images": _count, "seconds": _time, "sensor_isp_ms_per_image": _time,
+              "train_map_ev": _number, "converged": lambda v: v is None or isinstance(v, bool),
+              "convergence": lambda v: isinstance(v, str), "autocast": lambda v: isinstance(v, str)},
+    "test": {"images": _count, "seconds": _time, "infer_ms_per_image": _time, "sensor_isp_ms_per_image": _time,
+             "n_ground_truth": lambda v: isinstance(v, dict) and all(_count(n) for n in v.values())},
+    "machine": {"cpu": lambda v: isinstance(v, str), "bf16_native": lambda v: isinstance(v, bool),
+                "threads": lambda v: _count(v, 1), "wall_s": _time, "cpu_s": _time,
+                "code_version": lambda v: isinstance(v, str)},
+}
+
+
+def _fields_problem(part: str, node: dict) -> str | None:
+    bad = [name for name, ok in FIELD_RULES[part].items() if name in node and not ok(node[name])]
+    return f"{part}.{bad[0]} {str(node[bad[0]])[:40]!r} is not of its kind" if bad else None
+
+
 def _train_problem(train, epochs: int) -> str | None:
     if not isinstance(train, dict):
         return "its 'train' is not an object"
+    problem = _fields_problem("train", train)
+    if problem:
+        return problem
     for name in ("train_map", "train_map_half", "train_map_end"):
         if not _fraction(train.get(name)):
             return f"train.{name} {train.get(name)!r} is not a mAP in 0…1"
     history, curve = train.get("history"), train.get("curve")
     if not isinstance(history, list) or len(history) != epochs or not all(
-            isinstance(h, dict) and h.get("epoch") == k and _number(h.get("loss")) for k, h in enumerate(history, 1)):
-        return f"its loss history is not one finite loss per epoch of its {epochs}"
+            isinstance(h, dict) and h.get("epoch") == k and _number(h.get("loss"))
+            and all(_time(v) for name, v in h.items() if name != "epoch") for k, h in enumerate(history, 1)):
+        return f"its loss history is not one set of finite losses ≥ 0 per epoch of its {epochs}"
     if not isinstance(curve, list) or not all(isinstance(c, dict) and _count(c.get("epoch"), 1)
                                               and c["epoch"] <= epochs and _fraction(c.get("train_map"))
                                               for c in curve):
@@ -131,6 +158,9 @@ def _tests_problem(tests, classes: list, evs: set) -> str | None:
         if not _number(ev) or float(ev) not in evs or float(ev) in seen:
             return f"test EV {ev!r} is not one of the experiment's EV biases, or is listed twice"
         seen.add(float(ev))
+        problem = _fields_problem("test", t)
+        if problem:
+            return problem
         if not _fraction(t.get("map")) or not _fraction(t.get("coco_ap50")):
             return f"its test mAP at EV {ev:+g} ({t.get('map')!r}) is not in 0…1"
         ap = t.get("ap")
@@ -151,18 +181,22 @@ def _seal_problem(run: dict, fingerprint: str) -> str | None:
     return None
 
 
-def record_problem(run, fingerprint: str, evs: set) -> str | None:
-    """What makes `run` not a record of a finished run on the data set of `fingerprint` tested at
-    some of `evs`, or None."""
+def record_problem(run, fingerprint: str, evs: set, doc_classes: list | None = None) -> str | None:
+    """What makes `run` not a record of a finished run on the data set of `fingerprint` (classes
+    doc_classes, when given) tested at some of `evs`, or None."""
     if not isinstance(run, dict) or not isinstance(run.get("key"), str):
         return "not a run record with a key"
     problem = _config_problem(run.get("config"))
     if problem is None and run["key"] != run_key(run["config"], fingerprint):
         problem = (f"its key does not name its config on this data set (expected "
                    f"{run_key(run['config'], fingerprint)})")
-    classes = run.get("classes")
-    if problem is None and not (isinstance(classes, list) and all(isinstance(c, str) for c in classes)):
-        problem = "its 'classes' is not a list of class names"
+    classes, machine = run.get("classes"), run.get("machine", {})
+    if problem is None and not (isinstance(classes, list) and classes == list(doc_classes or classes)
+                                and len(set(map(str, classes))) == len(classes)
+                                and all(isinstance(c, str) for c in classes)):
+        problem = "its 'classes' is not the document's list of class names"
+    if problem is None:
+        problem = _fields_problem("machine", machine) if isinstance(machine, dict) else "its 'machine' is not an object"
     return (problem or _train_problem(run.get("train"), run["config"]["epochs"])
             or _tests_problem(run.get("tests"), classes, evs) or _seal_problem(run, fingerprint))
 
@@ -195,9 +229,12 @@ def check_runs(path: str | Path, doc: dict) -> None:
     if not (runs or superseded):
         return
     fingerprint, evs = dataset["fingerprint"], tuple(float(e) for e in ev_list)
+    classes = doc.get("classes")
+    if not (classes is None or isinstance(classes, list) and classes and all(isinstance(c, str) for c in classes)):
+        raise InputFileError(path, "'classes' must be the list of class names")
     seen = set()
     for run in runs + superseded:
-        problem = record_problem(run, fingerprint, set(evs))
+        problem = record_problem(run, fingerprint, set(evs), classes)
         key = run.get("key") if isinstance(run, dict) else None
         if problem is None and key in seen:
             problem = "it is listed twice"
