@@ -129,13 +129,13 @@ def check_training_state(path: str | Path, state: dict, epochs: int) -> None:
     weight and optimizer moment finite. Refused, not retrained: the same seed would train the
     same run, so a damaged file is something to look at, and deleting it retrains it."""
     problem = _history_problem(state, epochs)
-    if problem is None and "checksum" in state and state["checksum"] != state_checksum(state):
-        problem = "it was changed after training wrote it (its checksum does not match)"
     if problem is None and not (isinstance(state.get("model"), dict) and isinstance(state.get("optimizer"), dict)):
         problem = "it holds no model or optimizer state"
     if problem is None and not _finite_tensors(state["model"]):
         problem = "its weights hold NaN or Inf"
     if problem is None and not _finite_tensors(state["optimizer"]):
         problem = "its optimizer state holds NaN or Inf"
+    if problem is None and "checksum" in state and state["checksum"] != state_checksum(state):
+        problem = "it was changed after training wrote it (its checksum does not match)"
     if problem is not None:
         raise InputFileError(path, f"not a checkpoint training wrote: {problem}; delete it to train this run again")
