@@ -93,7 +93,8 @@ def test_big_fuzz_run():
 # ------------------------------------------------ read-back files: results, study, checkpoint (issue 34)
 # A few of each in the suite (seconds); WORKBENCH_READBACK_FUZZ=N runs N of each kind and
 # WORKBENCH_FUZZ_REPORT=FILE writes the counts:
-#     WORKBENCH_READBACK_FUZZ=100 WORKBENCH_FUZZ_REPORT=readback.json pytest tests/errors/test_errors_fuzz.py -k readback
+#     WORKBENCH_READBACK_FUZZ=100 WORKBENCH_FUZZ_REPORT=readback.json \
+#         pytest tests/errors/test_errors_fuzz.py -k readback
 READBACK_N = int(os.environ.get("WORKBENCH_READBACK_FUZZ", "0"))
 
 

@@ -108,7 +108,8 @@ def _history_problem(state: dict, epochs: int) -> str | None:
             and _is_number(state.get("elapsed_s")) and _is_number(state.get("step_s"))):
         return "its step, image or time counters are not counts"
     if not isinstance(history, list) or len(history) != epoch:
-        return f"its loss history holds {len(history) if isinstance(history, list) else 'no'} entries for {epoch} epochs"
+        entries = len(history) if isinstance(history, list) else "no"
+        return f"its loss history holds {entries} entries for {epoch} epochs"
     for k, entry in enumerate(history, 1):
         if not (isinstance(entry, dict) and entry.get("epoch") == k and _is_number(entry.get("loss")) and all(
                 _is_number(v) and v >= 0 for name, v in entry.items() if name != "epoch")):

@@ -288,7 +288,8 @@ def _load_previous(out: Path, kind: str, fingerprint: str, profile: str) -> tupl
     if doc["kind"] != kind or (doc.get("dataset") or {}).get("fingerprint") != fingerprint \
             or doc.get("profile") != profile:
         raise OutputPathError(out, f"holds results of another experiment ({doc['kind']}, profile "
-                                   f"{str(doc.get('profile'))[:40]}, another data set or project); choose another --out")
+                                   f"{str(doc.get('profile'))[:40]}, another data set or project); choose another "
+                                   "--out")
     return doc["runs"] + doc.get("superseded_runs", []), read_bootstraps(out)
 
 
