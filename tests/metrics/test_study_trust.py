@@ -113,6 +113,7 @@ COMMANDS = {
     "compare": lambda cam, out: ["compare", str(cam), str(cam), "--out", str(out)],
     "characterize": lambda cam, out: ["characterize", str(cam), "--out", str(out)],
     "lens plot": lambda cam, out: ["lens", "plot", "dgauss.50mm", "--out", str(out)],
+    "render": lambda cam, out: ["render", "city_detection_quick", "--out", str(out)],
 }
 
 

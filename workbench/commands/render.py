@@ -72,30 +72,32 @@ def cmd_render(args) -> int:
     if args.frame < 0:
         raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
     out = prepare_output_folder(args.out)
-    if long_render_note(project):
-        print(long_render_note(project), file=sys.stderr, flush=True)
-    seeds = project_frame_seeds(project, args.frame)
-    progress = tqdm_progress(f"render frame {args.frame}")
-    try:
-        frame = render_city_frame(project, seeds, on_progress=progress)
-    finally:
-        progress.close()
-    stem = f"frame_{args.frame:06d}"
-    rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
-    save_png(out / f"{stem}_irradiance.png", rgb)
-    save_image(out / f"{stem}_labels.png", label_overlay(rgb, frame.labels))
-    write_frame(out / f"{stem}.npz", frame,
-                {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
-                 "seeds": asdict(seeds), "project": project.name}, "float32")
-    coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
-    atomic_write_text(out / f"{stem}_coco.json", json.dumps(coco, indent=1))
-    counts: dict[str, int] = {}
-    for o in frame.labels.objects:
-        if o.visible_px:
-            counts[o.class_name] = counts.get(o.class_name, 0) + 1
-    print(json.dumps({"frame": args.frame, "out": str(out), "shape": list(frame.labels.shape),
-                      "visible_objects": counts, **{k: frame.meta[k] for k in ("variant", "spp")
-                                                    if k in frame.meta}}, indent=1))
+    from workbench.compute.folder_lock import hold_folder_lock
+    with hold_folder_lock(out, "workbench render"):      # a second render into this folder is refused
+        if long_render_note(project):
+            print(long_render_note(project), file=sys.stderr, flush=True)
+        seeds = project_frame_seeds(project, args.frame)
+        progress = tqdm_progress(f"render frame {args.frame}")
+        try:
+            frame = render_city_frame(project, seeds, on_progress=progress)
+        finally:
+            progress.close()
+        stem = f"frame_{args.frame:06d}"
+        rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
+        save_png(out / f"{stem}_irradiance.png", rgb)
+        save_image(out / f"{stem}_labels.png", label_overlay(rgb, frame.labels))
+        write_frame(out / f"{stem}.npz", frame,
+                    {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
+                     "seeds": asdict(seeds), "project": project.name}, "float32")
+        coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
+        atomic_write_text(out / f"{stem}_coco.json", json.dumps(coco, indent=1))
+        counts: dict[str, int] = {}
+        for o in frame.labels.objects:
+            if o.visible_px:
+                counts[o.class_name] = counts.get(o.class_name, 0) + 1
+        print(json.dumps({"frame": args.frame, "out": str(out), "shape": list(frame.labels.shape),
+                          "visible_objects": counts, **{k: frame.meta[k] for k in ("variant", "spp")
+                                                        if k in frame.meta}}, indent=1))
     return 0
 
 
