@@ -591,3 +591,272 @@ def check_dataset(case, folder: Path) -> str:
     if bool(problems) != (outcome == "refused"):
         return "verify_disagrees"
     return outcome
+# ---------------------------------------------------------------- read-back files (issue 34)
+# Files the workbench wrote and reads back — a results.json, a study.json, a training checkpoint —
+# mutated 1–3 times (a value replaced by a wrong type or NaN, scaled, deleted, an entry duplicated
+# or added; then rarely the bytes flipped or truncated). Each must be refused with an
+# InputFileError naming the file (or, for a study, OutputPathError naming a folder of another
+# study), or accepted with the same meaning as the file that was written. A file whose 'checksum'
+# entry itself was deleted is the format written before sealing (accepted on structural checks):
+# its outcome is counted apart ('…_unsealed').
+
+def _mutate_json(draw, doc, applied: list[str]):
+    """Apply one mutation to a decoded JSON document in place (or return a replacement root)."""
+    paths = _paths(doc)
+    if not paths:
+        return doc
+    path = draw(st.sampled_from(paths))
+    parent, key = _parent(doc, path), path[-1]
+    op = draw(st.sampled_from(["nasty", "nasty", "scale", "delete", "add", "duplicate", "out_of_range"]))
+    value = parent[key]
+    if op == "scale" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        factor = draw(st.sampled_from([-1, 0, 0.5, 2, 10, 1e3, 1e-3]))
+        parent[key] = int(value * factor) if isinstance(value, int) else value * factor
+    elif op == "out_of_range" and isinstance(value, (int, float)) and not isinstance(value, bool):
+        parent[key] = draw(st.sampled_from([2.5, -0.1, 1.0000001, math.nan, math.inf, -math.inf, 1e308]))
+    elif op == "delete":
+        del parent[key]
+    elif op == "add":
+        target = parent if isinstance(parent, dict) else doc
+        if isinstance(target, dict):
+            target[draw(st.sampled_from(["extra", "seed", "key", "map", "design", "role", "checksum"]))] = draw(NASTY)
+    elif op == "duplicate" and isinstance(value, list) and value:
+        value.append(json.loads(json.dumps(draw(st.sampled_from(value)))))
+    elif op == "duplicate" and isinstance(parent, list):
+        parent.append(json.loads(json.dumps(value)))
+    else:
+        parent[key] = draw(NASTY)
+        op = "nasty"
+    applied.append(f"{op}:{'.'.join(map(str, path))[:60]}")
+    return doc
+
+
+def _mutate_bytes(draw, data: bytes, applied: list[str]) -> bytes:
+    """Rarely (1 in 5) flip, truncate or insert bytes."""
+    if not data or draw(st.integers(0, 4)) != 0:
+        return data
+    op = draw(st.sampled_from(["flip", "flip", "truncate", "insert"]))
+    i = draw(st.integers(0, len(data) - 1))
+    if op == "flip":
+        data = data[:i] + bytes([data[i] ^ draw(st.integers(1, 255))]) + data[i + 1:]
+    elif op == "truncate":
+        data = data[:i]
+    else:
+        data = data[:i] + draw(st.binary(min_size=1, max_size=16)) + data[i:]
+    applied.append(op)
+    return data
+
+
+@st.composite
+def mutated_json_files(draw, base_text: str) -> tuple[str, bytes, list[str]]:
+    """('json', file bytes, mutations) of a JSON document mutated 1–3 times."""
+    doc = json.loads(base_text)
+    applied: list[str] = []
+    for _ in range(draw(st.integers(1, 3))):
+        doc = _mutate_json(draw, doc, applied)
+    data = json.dumps(doc, indent=1).encode("utf-8", errors="surrogatepass")
+    return "json", _mutate_bytes(draw, data, applied), applied
+
+
+def _unsealed(applied: list[str]) -> bool:
+    """Whether a mutation deleted a checksum (the file then reads as one written before sealing)."""
+    return any(a.startswith("delete:") and a.endswith("checksum") for a in applied)
+
+
+TINY_FUZZ_PROFILE = dict(name="tiny", image_hw=(48, 64), nets=("mobile",), seeds=2, epochs={"mobile": 1},
+                         batch_size=4, crop_hw=None, lr=3e-3, per_ev_biases=(), threads=1, device="cpu",
+                         loader_workers=0, cache_mb=64.0, curve_points=1, note="fuzz")
+
+
+def results_document() -> str:
+    """A sealed results.json of a 2-seed ISP experiment (records made up, sealed as the code seals
+    them; one superseded run of an earlier 2-epoch budget) as text."""
+    from dataclasses import asdict, replace as dc_replace
+
+    from workbench.experiments.detection import RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, Profile, _analysis
+    from workbench.experiments.detection import plan_configs
+    from workbench.experiments.records import seal_document, seal_record
+    profile = Profile(**TINY_FUZZ_PROFILE)
+    fingerprint, evs = "0123456789abcdef", (-1.0, 0.0, 1.0)
+    rng = np.random.default_rng(3)
+
+    def record(role, key, config, test_evs) -> dict:
+        epochs = config.epochs
+        return {"key": key, "role": role, "config": json.loads(config.to_json()), "classes": ["car", "pedestrian"],
+                "device": "cpu", "machine": {"cpu": "fuzz", "threads": 1, "wall_s": 10.0, "cpu_s": 9.0},
+                "train": {"epochs": epochs, "steps": 3 * epochs, "images": 12 * epochs, "seconds": 5.0,
+                          "train_ms_per_image": 40.0, "step_ms_per_image": 30.0, "sensor_isp_ms_per_image": 5.0,
+                          "final_loss": 2.5, "history": [{"epoch": e, "loss": 3.0 - 0.1 * e} for e in
+                                                         range(1, epochs + 1)],
+                          "curve": [{"epoch": epochs, "images": 12 * epochs, "train_map": 0.3}],
+                          "train_map": 0.31, "train_map_half": None, "train_map_end": None, "half_gain": None,
+                          "converged": None, "convergence": "unknown", "autocast": "fp32", "train_map_ev": 0.0},
+                "tests": [{"ev": ev, "map": float(rng.uniform(0.2, 0.6)), "coco_ap50": 0.4,
+                           "ap": {"car": float(rng.uniform(0.2, 0.7)), "pedestrian": None}, "seconds": 1.0}
+                          for ev in test_evs]}
+    runs = [seal_record(record(*planned), fingerprint) for planned in plan_configs("isp", profile, 2, evs, fingerprint)]
+    old = dc_replace(profile, epochs={"mobile": 2})
+    superseded = [seal_record(record(*plan_configs("isp", old, 1, evs, fingerprint)[0]), fingerprint)]
+    doc = {"format": RESULTS_FORMAT, "schema_version": RESULTS_SCHEMA_VERSION, "kind": "isp", "profile": "tiny",
+           "project": "fuzz", "dataset": {"folder": "set", "fingerprint": fingerprint, "frames": 14, "stats": {}},
+           "classes": ["car", "pedestrian"], "ev_biases": list(evs), "settings": {**asdict(profile), "seeds": 2},
+           "code_version": "fuzz", "runs": runs, **_analysis("isp", runs, {}, list(evs)), "complete": True,
+           "superseded_runs": superseded}
+    return json.dumps(seal_document(doc), indent=1)
+
+
+def check_results_file(data: bytes, folder: Path, original: dict, applied: list[str]) -> str:
+    """Read a mutated results.json: 'refused' (InputFileError naming it), else it must mean what
+    `original` means ('accepted_same'); a legacy (unsealed) document that reads otherwise counts
+    as 'accepted_changed_unsealed'. What it reads is then analysed and tabled (no error)."""
+    from workbench.experiments.detection import _analysis, result_rows
+    from workbench.experiments.results import read_results
+    path = folder / "results.json"
+    path.write_bytes(data)
+    try:
+        doc = read_results(folder)
+    except InputFileError as exc:
+        assert exc.path == str(path) and "\n" not in str(exc), str(exc)
+        return "refused"
+    result_rows(doc["runs"])
+    if doc.get("runs"):
+        _analysis(doc["kind"], doc["runs"], {}, doc["ev_biases"])
+    if json.dumps(doc, sort_keys=True) == json.dumps(original, sort_keys=True):
+        return "accepted_same"
+    return _changed(applied, sealed="checksum" in original)
+
+
+def _changed(applied: list[str], sealed: bool) -> str:
+    """The outcome of a file accepted with another meaning: a failure for a sealed file whose
+    checksum was left in place; counted apart for one written (or made to look written) before
+    sealing, whose numbers in range cannot be told from the ones written."""
+    if not sealed or _unsealed(applied):
+        return "accepted_changed_unsealed"
+    raise AssertionError(f"accepted wrong: {applied}")
+
+
+STUDY_VARY = {"optics.f_number": [2, 4, 8]}
+
+
+def study_project():
+    from workbench.project import load_project
+    p = load_project("paper_camera")
+    return p.updated(name="fuzz_camera", sensor=p.sensor.updated(rows=120, cols=160))
+
+
+def study_document(sealed: bool = True) -> str:
+    """A study.json with two of the three designs of STUDY_VARY measured (numbers made up), with
+    the designs' checksums or (sealed=False) as written before them."""
+    from workbench.metrics.study import STUDY_FORMAT, design_grid, seal_design
+    project = study_project()
+    grid = design_grid(project, STUDY_VARY)
+    designs = [seal_design({"design": name, "values": values, "project": project.name,
+                            "summary": {"mtf50_cy_px": 0.2 + 0.01 * k, "snr_at_10pct_full_well_dB": 30.0,
+                                        "delta_e_mean": 2.0, "dynamic_range_dB": None},
+                            "mtf": [{"plane": "sRGB luminance", "mtf50_cy_px": 0.2}], "seconds": 3.0 + k})
+               for k, (name, values, _) in enumerate(grid[:2])]
+    if not sealed:
+        designs = [{k: v for k, v in d.items() if k != "checksum"} for d in designs]
+    doc = {"format": STUDY_FORMAT, "project": project.name, "vary": STUDY_VARY, "detector": None,
+           "planned": len(grid), "notes": [], "designs": designs}
+    return json.dumps(doc, indent=1)
+
+
+def check_study_file(data: bytes, folder: Path, original: dict, applied: list[str]) -> str:
+    """Resume a study on a mutated study.json up to its first progress report: 'refused'
+    (InputFileError naming the file), 'refused_other_study' (OutputPathError naming the folder:
+    the file is of another study), else each design it keeps must be the original's
+    ('accepted_same'; 'accepted_resumes' when some are to be measured again)."""
+    from workbench.errors import OutputPathError
+    from workbench.metrics.study import run_study
+    out = folder / "s"
+    out.mkdir(exist_ok=True)
+    path = out / "study.json"
+    path.write_bytes(data)
+    job = run_study(study_project(), STUDY_VARY, out)
+    try:
+        progress = next(job)
+    except InputFileError as exc:
+        assert exc.path == str(path) and "\n" not in str(exc), str(exc)
+        return "refused"
+    except OutputPathError as exc:
+        assert exc.path == str(out) and "another study" in str(exc), str(exc)
+        return "refused_other_study"
+    finally:
+        job.close()
+    assert progress.done <= progress.total == 3, (progress.done, progress.total)
+    kept = json.loads(data)["designs"]
+    by_name = {d["design"]: d for d in original["designs"]}
+    if all(d == by_name.get(d["design"]) for d in kept):
+        return "accepted_same" if len(kept) == len(by_name) else "accepted_resumes"
+    return _changed(applied, sealed=all("checksum" in d for d in original["designs"]))
+
+
+TINY_TRAIN = dict(net="mobile", representation="srgb", epochs=2, batch_size=4, threads=1, device="cpu",
+                  curve_points=2, curve_frames=4)
+CHECKPOINT_FIELDS = ("epoch", "step", "images", "done", "elapsed_s", "step_s", "history", "curve", "config",
+                     "format", "checksum")
+
+
+@st.composite
+def mutated_checkpoints(draw, state: dict) -> tuple[str, bytes, list[str]]:
+    """('pt', file bytes, mutations): a finished training state mutated 1–3 times (its counters,
+    history, curve, config or format; a weight set to NaN/Inf or scaled, removed, reshaped or
+    added; an entry duplicated or added), saved with its old checksum, then rarely byte-mutated."""
+    import copy
+
+    import torch
+    state = copy.deepcopy(state)
+    applied: list[str] = []
+    for _ in range(draw(st.integers(1, 3))):
+        target = draw(st.sampled_from(["meta", "meta", "weights"]))
+        if target == "weights":
+            model = state["model"]
+            name = draw(st.sampled_from(sorted(model)))
+            op = draw(st.sampled_from(["nan", "inf", "scale", "delete", "reshape", "add"]))
+            if op in ("nan", "inf") and model[name].is_floating_point() and model[name].numel():
+                flat = model[name].clone().reshape(-1)
+                flat[draw(st.integers(0, flat.numel() - 1))] = math.nan if op == "nan" else math.inf
+                model[name] = flat.reshape(model[name].shape)
+            elif op == "scale" and model[name].is_floating_point():
+                model[name] = model[name] * draw(st.sampled_from([0.0, -1.0, 1.001, 1e6]))
+            elif op == "delete":
+                del model[name]
+            elif op == "reshape":
+                model[name] = torch.zeros(3, 1)
+            else:
+                model["extra.weight"] = torch.ones(2)
+            applied.append(f"weights:{op}:{name}")
+        else:
+            meta = {k: state[k] for k in CHECKPOINT_FIELDS if k in state}
+            meta = _mutate_json(draw, json.loads(json.dumps(meta)), applied)
+            for k in CHECKPOINT_FIELDS:
+                state.pop(k, None)
+            state.update(meta)
+    import io as _io
+    buf = _io.BytesIO()
+    torch.save(state, buf)
+    return "pt", _mutate_bytes(draw, buf.getvalue(), applied), applied
+
+
+def check_checkpoint_file(data: bytes, folder: Path, dataset, reference, applied: list[str],
+                          sealed: bool = True) -> str:
+    """Resume training from a mutated checkpoint: 'refused' (InputFileError naming it), else the
+    run must be the finished reference run, weights and history alike ('accepted_same'); sealed:
+    whether the checkpoint it was made from had a checksum."""
+    import torch
+
+    from workbench.detect.engine import TrainConfig, train_detector
+    path = folder / "run.pt"
+    path.write_bytes(data)
+    try:
+        model, result = train_detector(dataset, TrainConfig(**TINY_TRAIN), path)
+    except InputFileError as exc:
+        assert exc.path == str(path) and "\n" not in str(exc), str(exc)
+        return "refused"
+    weights, history = reference
+    same = (result.epochs == TINY_TRAIN["epochs"] and result.history == history
+            and all(torch.equal(v, weights[k]) for k, v in model.state_dict().items()))
+    if same:
+        return "accepted_same"
+    return _changed(applied, sealed=sealed)

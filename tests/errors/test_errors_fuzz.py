@@ -18,8 +18,9 @@ from pathlib import Path
 
 import pytest
 import torch
-from errors_fuzz import (CHART_SAMPLES, SAMPLES, check_dataset, check_document, check_lens_file, dataset_mutations,
-                         lens_files, project_texts)
+from errors_fuzz import (CHART_SAMPLES, SAMPLES, TINY_TRAIN, check_checkpoint_file, check_dataset, check_document,
+                         check_lens_file, check_results_file, check_study_file, dataset_mutations, lens_files,
+                         mutated_checkpoints, mutated_json_files, project_texts, results_document, study_document)
 from hypothesis import HealthCheck, given, settings
 
 FAST = settings(max_examples=60, deadline=None, derandomize=True, database=None,
@@ -119,3 +120,82 @@ def test_mutated_data_sets_are_refused_naming_a_file_or_read_unchanged(_memory_c
         Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1))
     assert set(counts) <= {"refused", "accepted_same"}, report
     assert sum(counts.values()) >= n * 0.9 and counts["refused"] > 0 and counts["accepted_same"] > 0, report
+# ------------------------------------------------ read-back files: results, study, checkpoint (issue 34)
+# A few of each in the suite (seconds); WORKBENCH_READBACK_FUZZ=N runs N of each kind and
+# WORKBENCH_FUZZ_REPORT=FILE writes the counts:
+#     WORKBENCH_READBACK_FUZZ=100 WORKBENCH_FUZZ_REPORT=readback.json \
+#         pytest tests/errors/test_errors_fuzz.py -k readback
+READBACK_N = int(os.environ.get("WORKBENCH_READBACK_FUZZ", "0"))
+
+
+@pytest.fixture(scope="module")
+def readback_bases(tmp_path_factory):
+    """The sealed results.json and study.json texts, and a finished tiny training run (its
+    checkpoint state, weights and history) on a 14-frame synthetic set."""
+    from workbench.detect.checkpoint import load_checkpoint
+    from workbench.detect.data import DetectionDataset
+    from workbench.detect.engine import TrainConfig, train_detector
+    from workbench.detect.synthetic import make_synthetic_dataset
+    folder = tmp_path_factory.mktemp("readback")
+    make_synthetic_dataset(folder / "set", frames=14)
+    dataset = DetectionDataset(folder / "set")
+    model, result = train_detector(dataset, TrainConfig(**TINY_TRAIN), folder / "run.pt")
+    reference = ({k: v.clone() for k, v in model.state_dict().items()}, result.history)
+    return {"results": results_document(), "study": study_document(), "dataset": dataset,
+            "state": load_checkpoint(folder / "run.pt"), "reference": reference}
+
+
+COMMITTED_RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "budget-standard" / "results.json"
+
+
+def _readback_cases(bases):
+    """(kind, strategy, check(case, folder)) of each read-back file: as this code writes them
+    (sealed), and as written before sealing (the committed budget results, a study and a
+    checkpoint without checksums), whose checks are then the structural ones alone."""
+    results, study = json.loads(bases["results"]), json.loads(bases["study"])
+    legacy_text, legacy_study = COMMITTED_RESULTS.read_text(), study_document(sealed=False)
+    legacy, unsealed_study = json.loads(legacy_text), json.loads(legacy_study)
+    unsealed_state = {k: v for k, v in bases["state"].items() if k != "checksum"}
+    return [
+        ("results", mutated_json_files(bases["results"]),
+         lambda c, f: check_results_file(c[1], f, results, c[2])),
+        ("study", mutated_json_files(bases["study"]), lambda c, f: check_study_file(c[1], f, study, c[2])),
+        ("checkpoint", mutated_checkpoints(bases["state"]),
+         lambda c, f: check_checkpoint_file(c[1], f, bases["dataset"], bases["reference"], c[2])),
+        ("results_unsealed", mutated_json_files(legacy_text),
+         lambda c, f: check_results_file(c[1], f, legacy, c[2])),
+        ("study_unsealed", mutated_json_files(legacy_study),
+         lambda c, f: check_study_file(c[1], f, unsealed_study, c[2])),
+        ("checkpoint_unsealed", mutated_checkpoints(unsealed_state),
+         lambda c, f: check_checkpoint_file(c[1], f, bases["dataset"], bases["reference"], c[2], sealed=False)),
+    ]
+
+
+def test_the_readback_bases_are_accepted_as_they_are(readback_bases, tmp_path):
+    results, study = json.loads(readback_bases["results"]), json.loads(readback_bases["study"])
+    assert check_results_file(readback_bases["results"].encode(), tmp_path, results, []) == "accepted_same"
+    assert check_study_file(readback_bases["study"].encode(), tmp_path, study, []) == "accepted_same"
+    import io as _io
+
+    import torch
+    buf = _io.BytesIO()
+    torch.save(readback_bases["state"], buf)
+    assert check_checkpoint_file(buf.getvalue(), tmp_path, readback_bases["dataset"], readback_bases["reference"],
+                                 []) == "accepted_same"
+
+
+def test_readback_fuzz_refuses_or_keeps_the_meaning(readback_bases):
+    n = READBACK_N or 5
+    report, failures = {}, []
+    for kind, strategy, check in _readback_cases(readback_bases):
+        counts, _, fails = _big_run(strategy, check, n)
+        wrong = sum(f[2].startswith("AssertionError: accepted wrong") for f in fails)
+        unnamed = sum(f[2].startswith("AssertionError") for f in fails) - wrong
+        report[kind] = {"tried": sum(counts.values()), **counts, "accepted_wrong": wrong,
+                        "refusals_not_naming_the_file": unnamed,
+                        "internal_errors": len(fails) - wrong - unnamed}   # an exception no check made
+        failures += [(kind, *f) for f in fails]
+    report["failures"] = failures[:30]
+    if os.environ.get("WORKBENCH_FUZZ_REPORT"):
+        Path(os.environ["WORKBENCH_FUZZ_REPORT"]).write_text(json.dumps(report, indent=1, default=str))
+    assert not failures, failures[:5]

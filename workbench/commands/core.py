@@ -189,11 +189,13 @@ def cmd_characterize(args: argparse.Namespace) -> int:
     from workbench.files import atomic_write_text, prepare_output_folder
     from workbench.project import load_project
     from workbench.sensor.emva import characterize, plot_photon_transfer
+    from workbench.compute.folder_lock import hold_folder_lock
     project = load_project(args.project)
     out = prepare_output_folder(args.out)
-    result = characterize(project.sensor, seed=project.seed)
-    atomic_write_text(out / "emva.json", json_text(result, indent=2) + "\n")
-    plot_photon_transfer(result, out / "photon_transfer.png")
+    with hold_folder_lock(out, "workbench characterize"):     # a second run here is refused, not mixed in
+        result = characterize(project.sensor, seed=project.seed)
+        atomic_write_text(out / "emva.json", json_text(result, indent=2) + "\n")
+        plot_photon_transfer(result, out / "photon_transfer.png")
     summary = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     print(json_text(summary, indent=2))
     for note in result.get("notes", []):

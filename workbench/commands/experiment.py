@@ -114,17 +114,26 @@ def cmd_experiment(args) -> int:
 
 
 def cmd_claims(args) -> int:
-    from workbench.errors import WorkbenchError
+    from workbench.errors import OutputPathError, WorkbenchError
     from workbench.experiments.claims_report import claims_markdown
     if not (args.isp and args.exposure):
         print("workbench experiment claims: error: give --isp DIR and --exposure DIR (two result folders)",
               file=sys.stderr)
         return 2
     try:
-        text = claims_markdown(args.isp, args.exposure)
         if args.out:
-            from workbench.files import atomic_write_text
-            atomic_write_text(args.out, text)
+            from pathlib import Path
+
+            from workbench.compute.folder_lock import hold_file_lock
+            from workbench.files import atomic_write_text, prepare_output_folder
+            if not args.out.strip():
+                raise OutputPathError(args.out, "an empty file name; name the Markdown file (e.g. --out claims.md)")
+            prepare_output_folder(Path(args.out).parent)
+            with hold_file_lock(args.out, "workbench experiment claims"):
+                text = claims_markdown(args.isp, args.exposure)
+                atomic_write_text(args.out, text)
+        else:
+            text = claims_markdown(args.isp, args.exposure)
     except WorkbenchError as exc:
         print(f"workbench experiment claims: error: {exc}", file=sys.stderr)
         return 2

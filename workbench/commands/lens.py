@@ -50,9 +50,13 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from workbench.compute.folder_lock import hold_folder_lock
     from workbench.files import prepare_output_folder
     from workbench.optics.lens.report import write_plots
     lens = _lens(args)
-    for p in write_plots(lens, prepare_output_folder(args.out), args.max_field_deg):
+    out = prepare_output_folder(args.out)
+    with hold_folder_lock(out, "workbench lens plot"):
+        written = write_plots(lens, out, args.max_field_deg)
+    for p in written:
         print(p)
     return 0

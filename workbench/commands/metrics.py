@@ -40,6 +40,8 @@ def register(sub) -> None:
     s.add_argument("--detector", default=None, metavar="CHECKPOINT",
                    help="a trained detector checkpoint: also report test mAP@0.5 per design on --data")
     s.add_argument("--data", default=None, help="the rendered data set for --detector (workbench dataset)")
+    s.add_argument("--confirm-large", action="store_true",
+                   help="measure a grid of more than 200 designs (refused without it, with an estimate of the time)")
     add_compute_options(s)
     s.set_defaults(func=cmd_study)
 
@@ -60,18 +62,31 @@ def cmd_metrics(args) -> int:
     from workbench.metrics.study import write_metrics
     from workbench.project import load_project
     project = load_project(args.project)
-    metrics = camera_metrics(project)
-    print(f"{project.name}:\n{_summary_lines(metrics)}")
-    if args.out is not None:
-        paths = write_metrics(metrics, args.out)
-        print(json.dumps({k: str(v) for k, v in paths.items()}))
+    with _out_lock(args.out, "workbench metrics"):
+        metrics = camera_metrics(project)
+        print(f"{project.name}:\n{_summary_lines(metrics)}")
+        if args.out is not None:
+            paths = write_metrics(metrics, args.out)
+            print(json.dumps({k: str(v) for k, v in paths.items()}))
     return 0
+
+
+def _out_lock(out: str | None, what: str):
+    """The lock of the --out folder (prepared first), so a second command on it is refused before it
+    measures anything; nothing to hold without --out."""
+    from contextlib import nullcontext
+
+    from workbench.compute.folder_lock import hold_folder_lock
+    from workbench.files import prepare_output_folder
+    return nullcontext() if out is None else hold_folder_lock(prepare_output_folder(out), what)
 
 
 def cmd_compare(args) -> int:
     from workbench.metrics.study import compare_designs
     from workbench.project import load_project
-    doc = compare_designs(load_project(args.a), load_project(args.b), args.out)
+    a, b = load_project(args.a), load_project(args.b)
+    with _out_lock(args.out, "workbench compare"):
+        doc = compare_designs(a, b, args.out)
     from workbench.metrics.bounds import shown
     for row in doc["table"]:
         why = row.get("null_reasons", {})
@@ -95,7 +110,8 @@ def cmd_study(args) -> int:
     def report(p) -> None:
         print(f"[{p.done}/{p.total}] {p.message}", file=sys.stderr, flush=True)
     doc = run_job(run_study(project, parse_vary(args.vary), args.out, x=args.x, y=args.y,
-                            compute=compute_spec(args), detector=args.detector, data=args.data), report)
+                            compute=compute_spec(args), detector=args.detector, data=args.data,
+                            confirm_large=args.confirm_large), report)
     print(f"{len(doc['designs'])} designs; machine time {sum(d['seconds'] for d in doc['designs']):.1f} s; "
           f"table {args.out}/study.md, chart {args.out}/pareto.png")
     return 0

@@ -34,6 +34,8 @@ def register(sub) -> None:
                         "--address, the CPUs of the local Ray cluster started for the run")
     p.add_argument("--float32", action="store_true",
                    help="store irradiance as float32 (default float16 with scale, ≤ 0.05 %% error)")
+    p.add_argument("--confirm-large", action="store_true",
+                   help="render more than 2,000 frames (refused without it, with an estimate of the time)")
     add_compute_options(p)
     p.set_defaults(func=cmd_dataset)
 
@@ -77,30 +79,32 @@ def cmd_render(args) -> int:
     if args.frame < 0:
         raise ParameterError("--frame", args.frame, "must be an integer ≥ 0")
     out = prepare_output_folder(args.out)
-    if long_render_note(project):
-        print(long_render_note(project), file=sys.stderr, flush=True)
-    seeds = project_frame_seeds(project, args.frame)
-    progress = tqdm_progress(f"render frame {args.frame}")
-    try:
-        frame = render_city_frame(project, seeds, on_progress=progress)
-    finally:
-        progress.close()
-    stem = f"frame_{args.frame:06d}"
-    rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
-    save_png(out / f"{stem}_irradiance.png", rgb)
-    save_image(out / f"{stem}_labels.png", label_overlay(rgb, frame.labels))
-    write_frame(out / f"{stem}.npz", frame,
-                {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
-                 "seeds": asdict(seeds), "project": project.name}, "float32")
-    coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
-    atomic_write_text(out / f"{stem}_coco.json", json_text(coco))
-    counts: dict[str, int] = {}
-    for o in frame.labels.objects:
-        if o.visible_px:
-            counts[o.class_name] = counts.get(o.class_name, 0) + 1
-    print(json.dumps({"frame": args.frame, "out": str(out), "shape": list(frame.labels.shape),
-                      "visible_objects": counts, **{k: frame.meta[k] for k in ("variant", "spp")
-                                                    if k in frame.meta}}, indent=1))
+    from workbench.compute.folder_lock import hold_folder_lock
+    with hold_folder_lock(out, "workbench render"):      # a second render into this folder is refused
+        if long_render_note(project):
+            print(long_render_note(project), file=sys.stderr, flush=True)
+        seeds = project_frame_seeds(project, args.frame)
+        progress = tqdm_progress(f"render frame {args.frame}")
+        try:
+            frame = render_city_frame(project, seeds, on_progress=progress)
+        finally:
+            progress.close()
+        stem = f"frame_{args.frame:06d}"
+        rgb = irradiance_preview(frame.irradiance_photons, frame.wavelengths_nm, frame.meta.get("render"))
+        save_png(out / f"{stem}_irradiance.png", rgb)
+        save_image(out / f"{stem}_labels.png", label_overlay(rgb, frame.labels))
+        write_frame(out / f"{stem}.npz", frame,
+                    {"format": FRAME_FORMAT, "version": FRAME_VERSION, "index": args.frame,
+                     "seeds": asdict(seeds), "project": project.name}, "float32")
+        coco = labels_to_coco([(f"{stem}.npz", frame.labels)])
+        atomic_write_text(out / f"{stem}_coco.json", json_text(coco))
+        counts: dict[str, int] = {}
+        for o in frame.labels.objects:
+            if o.visible_px:
+                counts[o.class_name] = counts.get(o.class_name, 0) + 1
+        print(json.dumps({"frame": args.frame, "out": str(out), "shape": list(frame.labels.shape),
+                          "visible_objects": counts, **{k: frame.meta[k] for k in ("variant", "spp")
+                                                        if k in frame.meta}}, indent=1))
     return 0
 
 
@@ -114,6 +118,8 @@ def cmd_dataset(args) -> int:
 
     try:
         project = load_project(args.project)
+        from workbench.datasets.size_limit import check_dataset_size
+        check_dataset_size(project, args.frames, max(args.workers, 1), args.confirm_large)
         job = run_dataset(project, args.frames, args.out, compute=compute_spec(args, max_tasks_per_child=16),
                           irradiance_dtype="float32" if args.float32 else "float16")
         steps = iter(())

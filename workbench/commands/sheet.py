@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 # The city scene types among the sample projects (the default list).
 SCENE_TYPE_SAMPLES = ("city_day_clear_sky", "city_low_sun", "city_overcast", "city_night", "city_fog",
@@ -52,8 +53,15 @@ def cmd_contact_sheet(args) -> int:
         print(f"[{k}/{total}] {r['project']} #{r['frame']}: {r['render_s']:.1f} s render, "
               f"{sum(r['visible_objects_of_interest'].values())} road users", file=sys.stderr, flush=True)
 
-    png, record = write_contact_sheet(projects, args.frames_per_scene, args.out, width=args.width,
-                                      height=args.height, spp=args.spp, columns=args.columns, keep=keep_box,
-                                      colours=args.colours, on_tile=report)
+    from workbench.compute.folder_lock import hold_file_lock
+    from workbench.errors import OutputPathError
+    from workbench.files import prepare_output_folder
+    if not str(args.out).strip() or Path(args.out).suffix.lower() != ".png":
+        raise OutputPathError(args.out, "must name a .png file")
+    prepare_output_folder(Path(args.out).parent)
+    with hold_file_lock(args.out, "workbench contact-sheet"):      # a second sheet into this file is refused
+        png, record = write_contact_sheet(projects, args.frames_per_scene, args.out, width=args.width,
+                                          height=args.height, spp=args.spp, columns=args.columns, keep=keep_box,
+                                          colours=args.colours, on_tile=report)
     print(json.dumps({"png": str(png), "json": str(record)}))
     return 0

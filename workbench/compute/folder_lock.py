@@ -18,11 +18,18 @@ from workbench.errors import OutputPathError
 LOCK_NAME = ".workbench.lock"
 
 
+def hold_file_lock(path: str | os.PathLike, what: str):
+    """The lock of one output file (a contact sheet, a claims report): `.NAME.lock` beside it, so
+    two commands writing one file are refused while others may write beside it."""
+    path = Path(path)
+    return hold_folder_lock(path.parent, what, lock_name=f".{path.name}.lock")
+
+
 @contextmanager
-def hold_folder_lock(folder: str | os.PathLike, what: str, wait: bool = False):
+def hold_folder_lock(folder: str | os.PathLike, what: str, wait: bool = False, lock_name: str = LOCK_NAME):
     """Hold the folder's lock for the body; OutputPathError naming the holder if another has it
     (wait=True: wait until it is free instead, for short turns such as a merge of records)."""
-    path = Path(folder) / LOCK_NAME
+    path = Path(folder) / lock_name
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
     except OSError as exc:

@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.detect.checkpoint import load_checkpoint, save_checkpoint
+from workbench.detect.checkpoint import check_training_state, load_checkpoint, save_checkpoint
 from workbench.detect.devices import PRECISIONS, autocast, autocast_dtype, choose_threads, pick_device
 from workbench.detect.devices import prepare_input, prepare_model
-from workbench.errors import InputFileError, ParameterError
+from workbench.errors import InputFileError, ParameterError, StageError
 
 log = logging.getLogger(__name__)
 
@@ -218,10 +218,18 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
         if state.get("config") != config.to_json():
             raise InputFileError(checkpoint_path, "holds a run of another configuration; delete it or choose "
                                                   "another output folder")
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["optimizer"])
+        check_training_state(checkpoint_path, state, config.epochs)
+        try:
+            model.load_state_dict(state["model"])
+            opt.load_state_dict(state["optimizer"])
+        except (RuntimeError, KeyError, ValueError, TypeError, IndexError) as exc:   # torch's shape and key checks
+            raise InputFileError(checkpoint_path, f"its weights do not fit this network ({exc.__class__.__name__});"
+                                                  " delete it to train this run again") from None
         epoch, step, elapsed_s = int(state["epoch"]), int(state["step"]), float(state["elapsed_s"])
         history, curve, images = list(state["history"]), list(state["curve"]), int(state["images"])
+        if step != epoch * steps_per_epoch or images != epoch * len(view):
+            raise InputFileError(checkpoint_path, f"its counters ({step} steps, {images} images) are not those of "
+                                                  f"{epoch} epochs on this data set; delete it to train this run again")
         step_s = float(state["step_s"])
         log.info("resumed %s at epoch %d from %s", config.net, epoch, checkpoint_path)
     done = bool(state and state.get("done"))
@@ -262,6 +270,9 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
             parts.append([float(loss.detach())] + [float(part[k]) for k in ("heatmap", "size", "offset")])
         epoch = e + 1
         mean = np.mean(parts, axis=0)
+        if not np.all(np.isfinite(mean)):          # diverged: no checkpoint, no record of NaN weights
+            raise StageError("training", f"{config.net} {config.representation} seed {config.seed}: the loss is "
+                                         f"{mean[0]} at epoch {epoch}; the run diverged (lower lr, now {config.lr:g})")
         history.append({"epoch": epoch, "loss": float(mean[0]), "heatmap": float(mean[1]), "size": float(mean[2]),
                         "offset": float(mean[3]), "seconds": time.perf_counter() - t_epoch})
         if epoch in at_curve:

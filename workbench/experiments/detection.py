@@ -42,10 +42,9 @@ the analysis.
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import datetime, timezone
 from functools import partial
 from pathlib import Path
@@ -54,7 +53,7 @@ from typing import Generator
 import numpy as np
 
 from workbench.compute import ComputeSpec
-from workbench.errors import OutputPathError, ParameterError
+from workbench.errors import OutputPathError, ParameterError, StageError
 from workbench.experiments.analysis import REPRESENTATION_ORDER, contrasts, summarise
 from workbench.experiments.results import (BOOTSTRAP_FILE, RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, read_bootstraps,
                                            read_results)
@@ -119,20 +118,37 @@ PROFILES = {
 }
 
 
-def _digest(*parts) -> str:
-    return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:10]
-
-
 def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Path):
     """The runs of an experiment as (role, DetectionJob) pairs. A run's key (and checkpoint file)
     names its training configuration, data set and split (which frames are test frames) only, so
     the same training is shared by every experiment that tests it."""
-    from workbench.detect.engine import TrainConfig
     from workbench.detect.job import DetectionJob
+    evs = tuple(float(e) for e in dataset.project.experiment.ev_biases)
+    return [(role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
+                                with_curves=kind == "isp"))
+            for role, key, config, test_evs in plan_configs(kind, profile, seeds, evs, dataset.fingerprint,
+                                                            dataset.split_digest)]
+
+
+def profile_of_settings(settings: dict) -> Profile:
+    """The Profile a results document's 'settings' record (TypeError/ValueError when they are not one)."""
+    values = {f.name: settings[f.name] for f in fields(Profile) if f.name in settings}
+    for name in ("image_hw", "nets", "per_ev_biases"):
+        values[name] = tuple(values[name])
+    if values.get("crop_hw") is not None:
+        values["crop_hw"] = tuple(values["crop_hw"])
+    return Profile(**values)
+
+
+def plan_configs(kind: str, profile: Profile, seeds: int, evs: tuple[float, ...], fingerprint: str,
+                 split_digest: str | None = None):
+    """The runs of an experiment as (role, key, TrainConfig, test EVs), on a data set of this
+    fingerprint, split as split_digest, whose project tests the EV biases `evs` (plan_runs)."""
+    from workbench.detect.engine import TrainConfig
+    from workbench.experiments.records import run_key
 
     if kind not in EXPERIMENTS:
         raise ParameterError("experiment", kind, f"one of {', '.join(EXPERIMENTS)}")
-    evs = tuple(float(e) for e in dataset.project.experiment.ev_biases)
     if 0.0 not in evs:
         raise ParameterError("experiment.ev_biases", list(evs), "a list of EV biases that includes 0")
     missing = [e for e in profile.per_ev_biases if e not in evs] if kind == "exposure" else []
@@ -142,11 +158,7 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
     jobs = []
 
     def add(role: dict, config: TrainConfig, test_evs: tuple) -> None:
-        ev_tag = "mix" if len(config.train_evs) > 1 else f"ev{config.train_evs[0]:+g}"
-        key = (f"{config.net}-{config.representation}-{ev_tag}-s{config.seed}-"
-               f"{_digest(config.to_json(), dataset.fingerprint, dataset.split_digest)}")
-        jobs.append((role, DetectionJob(key, str(dataset.folder), config, test_evs, str(checkpoints / f"{key}.pt"),
-                                        with_curves=kind == "isp")))
+        jobs.append((role, run_key(json.loads(config.to_json()), fingerprint, split_digest), config, test_evs))
 
     def add_srgb_ev0(role: dict, config: TrainConfig) -> None:
         """The sRGB EV-0 run at the profile's budget: the same key in every experiment, tested at every EV."""
@@ -260,7 +272,8 @@ def write_outputs(doc: dict, boots: dict, out_dir: Path, project=None) -> None:
     from workbench.files import atomic_write_bytes, atomic_write_text
     if project is not None:
         atomic_write_text(out_dir / PROJECT_FILE, project.model_dump_json(indent=1) + "\n")
-    atomic_write_text(out_dir / "results.json", json_text(doc) + "\n")
+    from workbench.experiments.records import seal_document
+    atomic_write_text(out_dir / "results.json", json_text(seal_document(doc)) + "\n")
     atomic_write_text(out_dir / "runs.csv", _csv_text(result_rows(doc["runs"])))
     atomic_write_text(out_dir / "summary.csv", _csv_text(doc["summary"]))
     atomic_write_text(out_dir / "contrasts.csv", _csv_text(doc["contrasts"]))
@@ -275,9 +288,11 @@ def _load_previous(out: Path, kind: str, fingerprint: str, profile: str) -> tupl
     if not (out / "results.json").exists():
         return [], {}
     doc = read_results(out)
-    if doc["kind"] != kind or doc["dataset"]["fingerprint"] != fingerprint or doc["profile"] != profile:
+    if doc["kind"] != kind or (doc.get("dataset") or {}).get("fingerprint") != fingerprint \
+            or doc.get("profile") != profile:
         raise OutputPathError(out, f"holds results of another experiment ({doc['kind']}, profile "
-                                   f"{doc['profile']}, another data set or project); choose another --out")
+                                   f"{str(doc.get('profile'))[:40]}, another data set or project); choose another "
+                                   "--out")
     return doc["runs"] + doc.get("superseded_runs", []), read_bootstraps(out)
 
 
@@ -289,9 +304,10 @@ def borrowed_runs(folders, jobs, fingerprint: str) -> tuple[list[dict], dict]:
     runs, boots = [], {}
     for folder in folders:
         doc = read_results(folder)
-        if doc["dataset"]["fingerprint"] != fingerprint:
-            raise OutputPathError(folder, "holds results of another data set (fingerprint "
-                                          f"{doc['dataset']['fingerprint'][:12]}… ≠ {fingerprint[:12]}…)")
+        their_fingerprint = str((doc.get("dataset") or {}).get("fingerprint"))
+        if their_fingerprint != fingerprint:
+            raise OutputPathError(folder, f"holds results of another data set (fingerprint {their_fingerprint[:12]}… "
+                                          f"≠ {fingerprint[:12]}…)")
         theirs = read_bootstraps(folder)
         for run in doc["runs"]:
             evs = wanted.get(run["key"])
@@ -341,6 +357,34 @@ def _analysis(kind: str, runs: list[dict], boots: dict, evs) -> dict:
 
 
 
+def _is_count(value, low: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+
+def _check_arguments(kind, profile, seeds, workers, profile_override, compute, checkpoints, nets, reuse_from):
+    """ParameterError for an argument of run_experiment of the wrong type or value (seeds=True
+    would run one seed; a folder name given as reuse_from would be read letter by letter)."""
+    if not isinstance(kind, str) or kind not in EXPERIMENTS:
+        raise ParameterError("experiment", kind, f"one of {', '.join(EXPERIMENTS)}")
+    if profile_override is None and (not isinstance(profile, str) or profile not in PROFILES):
+        raise ParameterError("profile", profile, f"one of {', '.join(PROFILES)}")
+    if profile_override is not None and not isinstance(profile_override, Profile):
+        raise ParameterError("profile_override", profile_override, "a Profile or None")
+    if seeds is not None and not _is_count(seeds, 1):
+        raise ParameterError("seeds", seeds, "an integer ≥ 1 (or None: the profile's)")
+    if not _is_count(workers, 0):
+        raise ParameterError("workers", workers, "an integer ≥ 0 (0: in this process)")
+    if compute is not None and not isinstance(compute, ComputeSpec):
+        raise ParameterError("compute", compute, "a ComputeSpec or None")
+    if checkpoints is not None and (not isinstance(checkpoints, (str, Path)) or not str(checkpoints).strip()):
+        raise ParameterError("checkpoints", checkpoints, "a folder name (an empty one would mean the current "
+                                                         "folder), or None for OUT/checkpoints")
+    for name, value in (("nets", nets), ("reuse_from", reuse_from)):
+        if value is not None and (isinstance(value, (str, bytes, Path)) or not isinstance(value, (tuple, list))
+                                  or not all(isinstance(v, (str, Path)) and str(v).strip() for v in value)):
+            raise ParameterError(name, value, "a tuple of names" if name == "nets" else "a tuple of result folders")
+
+
 def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path, *, profile: str = "quick",
                    seeds: int | None = None, workers: int = 0, cancel: CancelToken | None = None,
                    profile_override: Profile | None = None, compute: ComputeSpec | None = None,
@@ -362,23 +406,19 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     from workbench.compute.job_claims import claim, release
     from workbench.detect.data import DetectionDataset
     from workbench.detect.job import loaded_code_version, run_detection_job
+    from workbench.experiments.records import record_problem, seal_record
+    from workbench.files import prepare_output_folder
 
-    if profile_override is None and profile not in PROFILES:
-        raise ParameterError("profile", profile, f"one of {', '.join(PROFILES)}")
+    _check_arguments(kind, profile, seeds, workers, profile_override, compute, checkpoints, nets, reuse_from)
     prof = profile_override or PROFILES[profile]
     seeds = prof.seeds if seeds is None else seeds
-    if not isinstance(seeds, int) or seeds < 1:
-        raise ParameterError("seeds", seeds, "an integer ≥ 1")
     unknown = [n for n in (nets or ()) if n not in prof.nets]
     if unknown:
         raise ParameterError("nets", list(nets), f"nets of the profile ({', '.join(prof.nets)})")
     dataset = DetectionDataset(data_dir, project=project)
     dataset.test_indices()                              # refused before any training: a set with no test city
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise OutputPathError(out, "is a file; --out needs a folder")
-    out.mkdir(parents=True, exist_ok=True)
-    ckpt_dir = Path(checkpoints) if checkpoints is not None else out / "checkpoints"
+    out = prepare_output_folder(out_dir)
+    ckpt_dir = prepare_output_folder(checkpoints) if checkpoints is not None else out / "checkpoints"
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     jobs = plan_runs(kind, prof, seeds, dataset, ckpt_dir)
     role_of = {job.key: role for role, job in jobs}
@@ -439,6 +479,10 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     for job, result in run_jobs(fn, claimed(), compute, cancel):
         result["role"] = role_of[job.key]
         my_boots[job.key] = _split_bootstrap(result)
+        result = seal_record(result, dataset.fingerprint)
+        problem = record_problem(result, dataset.fingerprint, set(evs), list(dataset.class_names))
+        if problem is not None:                    # never a NaN or out-of-range number in a results.json
+            raise StageError("experiment", f"run {job.key}: {problem}; its record is not written")
         mine = [r for r in mine if r["key"] != job.key] + [result]
         trained.append(job.key)
         doc = merge_and_write()

@@ -22,7 +22,11 @@ results.json (schema_version 3):
                 "config": {...}, "train": {... "train_map", "curve", "history", "train_map_half",
                                           "train_map_end", "half_gain", "converged", "convergence" ...},
                 "tests": [{"ev": float, "map": float | null, "ap": {class: float}, ...}, ...],
-                "machine": {"cpu", "bf16_native", "threads", "wall_s", "cpu_s", "code_version"}}, ...],
+                "machine": {"cpu", "bf16_native", "threads", "wall_s", "cpu_s", "code_version"},
+                "digest": str, "checksum": str}, ...],     # since issue 34 (experiments.records); each
+                                                          # test carries a "checksum" too
+      "superseded_runs": [run, ...],                # records an earlier profile planned, outside the analysis
+      "checksum": str,                              # since issue 34: of the rest of the document
       "summary": [                                  # required; what the main charts draw
         {"net": str, "representation": "raw" | "linear" | "srgb",
          "condition": "ev0_trained" | "ev_mix" | "per_ev", "test_ev": float, "n": int,
@@ -47,6 +51,7 @@ and a thin one the two-level interval (seeds and test frames).
 """
 from __future__ import annotations
 
+import math
 import zipfile
 from pathlib import Path
 
@@ -83,7 +88,8 @@ def _rows_ok(rows, keys) -> bool:
 
 def read_results(path: str | Path) -> dict:
     """The results document of a result folder (or of a results.json path), checked against the
-    schema above; errors name the file and what is wrong."""
+    schema above and its records against the plan (experiments.records.check_runs); errors name
+    the file (and the run) and what is wrong."""
     p = Path(path)
     if p.is_dir():
         p = p / RESULTS_FILE
@@ -102,7 +108,34 @@ def read_results(path: str | Path) -> dict:
         raise InputFileError(p, f"'contrasts' must be a list of rows with {', '.join(CONTRAST_KEYS)}")
     if not isinstance(doc.get("runs"), list):
         raise InputFileError(p, "'runs' must be a list")
+    _check_numbers(p, doc)
+    from workbench.experiments.records import check_runs, document_problem
+    check_runs(p, doc)
+    problem = document_problem(doc)
+    if problem is not None:
+        raise InputFileError(p, problem)
     return doc
+
+
+def _is_number(value, low: float = -math.inf, high: float = math.inf) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and low <= value <= high \
+        and math.isfinite(value)
+
+
+def _check_numbers(p: Path, doc: dict) -> None:
+    """The summary's means are mAPs in 0…1; its intervals and the contrasts' numbers are finite
+    (or None where an interval needs two seeds); test EVs are numbers."""
+    for row in doc["summary"]:
+        if not (_is_number(row["mean_map"], 0.0, 1.0) and _is_number(row["test_ev"]) and all(
+                row.get(k) is None or _is_number(row[k]) for k in ("ci95_low", "ci95_high", "boot_low", "boot_high"))):
+            raise InputFileError(p, f"a summary row ({str(row.get('net'))[:40]}, {str(row.get('condition'))[:40]}) "
+                                    "holds a mean that is not a mAP in 0…1 or an interval that is not a number")
+    for row in doc["contrasts"]:
+        if not (_is_number(row["mean"]) and (row["test_ev"] == "all" or _is_number(row["test_ev"]))
+                and all(row.get(k) is None or _is_number(row[k])
+                        for k in ("t_low", "t_high", "boot_low", "boot_high", "h_low", "h_high"))):
+            raise InputFileError(p, f"a contrast row ({str(row.get('contrast'))[:40]}) holds a number that is "
+                                    "not finite")
 
 
 def read_bootstraps(folder: str | Path) -> dict:

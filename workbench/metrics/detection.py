@@ -15,7 +15,7 @@ from workbench.errors import InputFileError
 def read_trained(checkpoint_path: str | Path):
     """(state, TrainConfig) of a finished checkpoint; a missing, unfinished or unreadable one is an
     InputFileError naming the file."""
-    from workbench.detect.checkpoint import load_checkpoint
+    from workbench.detect.checkpoint import check_training_state, load_checkpoint
     from workbench.detect.engine import TrainConfig
 
     path = Path(checkpoint_path)
@@ -29,9 +29,11 @@ def read_trained(checkpoint_path: str | Path):
         for name in ("train_evs", "crop_hw"):
             if isinstance(fields.get(name), list):
                 fields[name] = tuple(fields[name])
-        return state, TrainConfig(**fields)
+        config = TrainConfig(**fields)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputFileError(path, f"its training configuration is unreadable ({type(exc).__name__})") from None
+    check_training_state(path, state, config.epochs)        # "done" with the history and finite weights of done
+    return state, config
 
 
 def trained_model(checkpoint_path: str | Path, state: dict, config, in_channels: int, num_classes: int):

@@ -12,6 +12,7 @@ study.csv, study.md and pareto.png of two chosen summary metrics.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import itertools
 import json
@@ -37,6 +38,10 @@ DELTA_E_NOTE = ("ΔE2000: the Macbeth chart shot with its brightest pixels at 90
                 "optics, so lens fall-off is not counted), exposure matched on neutral 5; delta_e_held_out: each "
                 "patch through the colour matrix fitted to the other 23 (leave-one-out: colours the fit never saw); "
                 "delta_e_mean/max: fitted (training) patches, the matrix fitted to all 24.")
+MAX_DESIGNS = 200                  # a larger grid needs confirm_large (--confirm-large)
+# CPU seconds of camera_metrics per sensor pixel (paper_camera, 640×480: 23 s on one core, measured); the
+# estimate of a grid's time scales it by the starting design's pixels
+SECONDS_PER_DESIGN_PIXEL = 23.0 / (640 * 480)
 # summary metrics and whether more is better (for the Pareto front)
 HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": True, "snr_at_10pct_full_well_dB": True,
                     LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
@@ -47,19 +52,28 @@ HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": Tru
 
 def parse_vary(items: list[str]) -> dict[str, list]:
     """['sensor.pixel_pitch_um=1.5,2,3', …] → {'sensor.pixel_pitch_um': [1.5, 2.0, 3.0], …}; values
-    are JSON (numbers, true/false, null) or else text."""
+    are JSON (numbers, true/false, null) or else text. A field given twice, or a value given twice
+    for a field (2 and 2.0 are one value), is refused: it would measure a design twice or drop one."""
     out = {}
     for item in items:
         field, sep, values = item.partition("=")
+        field = field.strip()
         if not sep or "." not in field or not values:
             raise ParameterError("--vary", item, "SECTION.FIELD=V1,V2,… (e.g. sensor.pixel_pitch_um=1.5,2,3)")
+        if field in out:
+            raise ParameterError("--vary", field, "each field once: give all its values in one --vary "
+                                                  f"{field}=V1,V2,…")
         parsed = []
         for text in values.split(","):
             try:
-                parsed.append(json.loads(text))
+                value = json.loads(text)
             except json.JSONDecodeError:
-                parsed.append(text)
-        out[field.strip()] = parsed
+                value = text
+            if any(design_name({field: value}) == design_name({field: v}) for v in parsed):
+                raise ParameterError(f"--vary {field}", text, "each value once (this one is given twice, or "
+                                                              "names the same design as another)")
+            parsed.append(value)
+        out[field] = parsed
     if not out:
         raise ParameterError("--vary", items, "at least one SECTION.FIELD=V1,V2,…")
     return out
@@ -102,6 +116,72 @@ def design_grid(project, vary: dict[str, list]) -> list[tuple[str, dict, object]
         values = dict(zip(fields, combo))
         grid.append((design_name(values), values, with_fields(project, values)))
     return grid
+
+
+def check_grid_size(project, vary: dict[str, list], confirm_large: bool) -> int:
+    """The number of designs of the grid; ParameterError, with an estimate of the machine time,
+    when it exceeds MAX_DESIGNS and confirm_large is not set (before any design is built)."""
+    designs = math.prod(len(v) for v in vary.values())
+    if designs > MAX_DESIGNS and not confirm_large:
+        per_design_s = max(1.0, SECONDS_PER_DESIGN_PIXEL * project.sensor.rows * project.sensor.cols)
+        raise ParameterError("--vary", f"{designs:,} designs", f"at most {MAX_DESIGNS} designs unless confirmed "
+                             f"(--confirm-large); this grid would take about {designs * per_design_s / 3600:,.1f} h "
+                             f"of CPU time (~{per_design_s:.0f} s a design at {project.sensor.cols}×"
+                             f"{project.sensor.rows} px)")
+    return designs
+
+
+def _checksum(node) -> str:
+    """SHA-256 of a JSON node (NaN allowed: the measurements' curves may hold some)."""
+    return hashlib.sha256(json.dumps(node, sort_keys=True).encode()).hexdigest()
+
+
+def seal_design(result: dict) -> dict:
+    """A design's measurements as study.json stores them (plain JSON) with a checksum of the rest."""
+    plain = json.loads(json.dumps(result, default=float))
+    return {**plain, "checksum": _checksum(plain)}
+
+
+def _design_problem(entry, grid_values: dict) -> str | None:
+    if not isinstance(entry, dict) or not isinstance(entry.get("design"), str):
+        return "not a design's measurements"
+    name = entry["design"]
+    if name not in grid_values:
+        return "not a design of this grid"
+    if entry.get("values") != grid_values[name]:
+        return "its values are not the grid's for that name"
+    summary, seconds = entry.get("summary"), entry.get("seconds")
+    if not isinstance(summary, dict) or not all(v is None or isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                and math.isfinite(v) for v in summary.values()):
+        return "its summary is not a set of finite numbers"
+    if not (isinstance(seconds, (int, float)) and not isinstance(seconds, bool) and 0 <= seconds < math.inf):
+        return "its 'seconds' is not a time ≥ 0"
+    if "checksum" in entry and entry["checksum"] != _checksum({k: v for k, v in entry.items() if k != "checksum"}):
+        return "it was changed after it was measured (its checksum does not match)"
+    return None
+
+
+def checked_designs(path: Path, designs, grid) -> list[dict]:
+    """The measured designs of a study.json, each a design of `grid` given once with finite
+    measurements; InputFileError naming the file and the design otherwise (a design measured
+    twice or not in the grid would be counted: progress "[3/2]")."""
+    from workbench.errors import InputFileError
+    if designs is None:
+        return []
+    if not isinstance(designs, list):
+        raise InputFileError(path, "'designs' must be a list; delete the file to measure the study again")
+    grid_values = {name: json.loads(json.dumps(values)) for name, values, _ in grid}
+    seen = set()
+    for entry in designs:
+        problem = _design_problem(entry, grid_values)
+        if problem is None and entry["design"] in seen:
+            problem = "it is listed twice"
+        if problem is not None:
+            name = entry.get("design") if isinstance(entry, dict) else None
+            raise InputFileError(path, f"design {str(name)[:80]!r}: {problem}; remove that entry to measure it "
+                                       "again, or choose another --out")
+        seen.add(entry["design"])
+    return designs
 
 
 @dataclass(frozen=True)
@@ -199,16 +279,20 @@ def write_study(doc: dict, out: Path, x: str, y: str) -> None:
 
 def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px",
               y: str = "snr_at_10pct_full_well_dB", compute=None, cancel=None, detector=None,
-              data=None) -> Generator[Progress, None, dict]:
+              data=None, confirm_large: bool = False) -> Generator[Progress, None, dict]:
     """Measure every design of the grid (resuming a folder that holds this study); with a detector
     checkpoint and its data set, each design's test mAP too (summary 'map'). A field no design's
     optics level reads is refused, one read in part is noted (metrics.grid_checks: the document's
-    'notes', the first Progress). Yields Progress, returns the study document."""
+    'notes', the first Progress). A grid of more than MAX_DESIGNS designs needs confirm_large. The
+    folder is locked while the study runs; designs it already holds are checked (checked_designs).
+    Yields Progress, returns the study document."""
     from workbench.compute import ComputeSpec, run_jobs
+    from workbench.compute.folder_lock import hold_folder_lock
     from workbench.datasets.files import read_json_object
     for name in (x, y):
         if name not in HIGHER_IS_BETTER:
             raise ParameterError("--x/--y", name, "one of " + ", ".join(HIGHER_IS_BETTER))
+    check_grid_size(project, vary, confirm_large)
     from workbench.metrics.grid_checks import check_grid
     notes = check_grid(project, vary)
     grid = design_grid(project, vary)
@@ -226,25 +310,28 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
     out = _output_folder(out_dir)
     doc = {"format": STUDY_FORMAT, "project": project.name, "vary": vary, "detector": detector,
            "planned": len(grid), "notes": notes, "metrics_version": METRICS_VERSION, "designs": []}
-    if (out / "study.json").exists():
-        old = read_json_object(out / "study.json", "study file", "")
-        if any(old.get(k) != doc[k] for k in ("format", "vary", "project", "detector")):
-            raise OutputPathError(out, "holds another study (project, --vary or --detector differ); choose another --out")
-        if old.get("metrics_version", 1) == METRICS_VERSION:
-            doc["designs"] = [d for d in old.get("designs", []) if isinstance(d, dict) and "design" in d]
-        else:
-            notes.append(f"the designs measured by metrics version {old.get('metrics_version', 1)} are measured "
-                         f"again (version {METRICS_VERSION}: flat-fielded e-SFR)")
-    done = {d["design"] for d in doc["designs"]}
-    jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid if name not in done]
-    yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured"
-                                         + "".join(f"; note: {n}" for n in notes))
-    for job, result in run_jobs(measure_design, jobs, compute or ComputeSpec(workers=0), cancel):
-        doc["designs"].append(result)
+    with hold_folder_lock(out, "workbench study"):          # a second study on this folder is refused
+        if (out / "study.json").exists():
+            old = read_json_object(out / "study.json", "study file", "")
+            if any(old.get(k) != doc[k] for k in ("format", "vary", "project", "detector")):
+                raise OutputPathError(out, "holds another study (project, --vary or --detector differ); choose "
+                                           "another --out")
+            if old.get("metrics_version", 1) == METRICS_VERSION:
+                doc["designs"] = checked_designs(out / "study.json", old.get("designs"), grid)
+            else:
+                notes.append(f"the designs measured by metrics version {old.get('metrics_version', 1)} are "
+                             f"measured again (version {METRICS_VERSION}: flat-fielded e-SFR, held-out ΔE and "
+                             "measured uncertainties)")
+        done = {d["design"] for d in doc["designs"]}
+        jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid
+                if name not in done]
+        yield Progress(len(done), len(grid), f"{len(grid)} designs, {len(done)} already measured"
+                                             + "".join(f"; note: {n}" for n in notes))
+        for job, result in run_jobs(measure_design, jobs, compute or ComputeSpec(workers=0), cancel):
+            doc["designs"].append(seal_design(result))
+            write_study(doc, out, x, y)
+            yield Progress(len(doc["designs"]), len(grid), f"{job.name}: MTF50 {summary_value(result, 'mtf50_cy_px')}")
         write_study(doc, out, x, y)
-        yield Progress(len(doc["designs"]), len(grid),
-                       f"{job.name}: MTF50 {summary_value(result, 'mtf50_cy_px')}")
-    write_study(doc, out, x, y)
     return doc
 
 
