@@ -40,7 +40,8 @@ def loaded_code_version() -> str:
 
 
 def run_detection_job(job: DetectionJob, cancel=None) -> dict:
-    """Train (or resume) and test one run; return a plain dict: key, config, train figures (loss
+    """Train (or resume) and test one run; return a plain dict: key, config, the split it was
+    trained and tested on (DetectionDataset.split_digest), train figures (loss
     and train-mAP curves, train mAP on every training frame at the curve EV), one entry per test
     EV (mAP, AP per class, COCO AP@0.5, bootstrap mAPs, inference ms per image) and where it ran
     (machine: CPU model, bf16 in hardware, threads, wall and CPU seconds of the whole run, code
@@ -78,5 +79,6 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     machine = {"cpu": cpu_model(), "bf16_native": cpu_has_native_bf16(), "threads": torch.get_num_threads(),
                "wall_s": time.perf_counter() - wall0, "cpu_s": time.process_time() - cpu0,
                "code_version": version}
-    return {"key": job.key, "config": json.loads(cfg.to_json()), "train": train, "tests": tests,
+    return {"key": job.key, "config": json.loads(cfg.to_json()), "split_digest": dataset.split_digest,
+            "train": train, "tests": tests,
             "classes": list(dataset.class_names), "device": device, "machine": machine}

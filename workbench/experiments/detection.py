@@ -425,6 +425,7 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     evs = [float(e) for e in project.experiment.ev_biases]
     base = {"format": RESULTS_FORMAT, "schema_version": RESULTS_SCHEMA_VERSION, "kind": kind, "profile": prof.name,
             "project": project.name, "dataset": {"folder": dataset.folder.name, "fingerprint": dataset.fingerprint,
+                                                 "split_digest": dataset.split_digest,
                                                  "frames": len(dataset.frames), "stats": dataset.stats()},
             "classes": list(dataset.class_names), "ev_biases": evs, "settings": {**asdict(prof), "seeds": seeds}}
     mine: list[dict] = []

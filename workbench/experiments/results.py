@@ -16,7 +16,8 @@ results.json (schema_version 3):
       "classes": [str, ...], "ev_biases": [float, ...],
       "settings": {"seeds": int, ...},              # the profile used (epochs, image size, nets, …)
       "code_version": str,                          # the code that wrote it (git describe)
-      "dataset": {"folder": str (its name), "fingerprint": str, "frames": int, "stats": {...}},
+      "dataset": {"folder": str (its name), "fingerprint": str, "split_digest": str, "frames": int,
+                  "stats": {...}},
       "runs": [{"key": str, "role": {"net", "representation", "condition", "seed"[, "train_ev"]
                                      [, "budget_factor"]},
                 "config": {...}, "train": {... "train_map", "curve", "history", "train_map_half",
