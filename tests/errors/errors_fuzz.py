@@ -747,7 +747,7 @@ def study_project():
 def study_document(sealed: bool = True) -> str:
     """A study.json with two of the three designs of STUDY_VARY measured (numbers made up), with
     the designs' checksums or (sealed=False) as written before them."""
-    from workbench.metrics.study import STUDY_FORMAT, design_grid, seal_design
+    from workbench.metrics.study import METRICS_VERSION, STUDY_FORMAT, design_grid, seal_design
     project = study_project()
     grid = design_grid(project, STUDY_VARY)
     designs = [seal_design({"design": name, "values": values, "project": project.name,
@@ -758,7 +758,7 @@ def study_document(sealed: bool = True) -> str:
     if not sealed:
         designs = [{k: v for k, v in d.items() if k != "checksum"} for d in designs]
     doc = {"format": STUDY_FORMAT, "project": project.name, "vary": STUDY_VARY, "detector": None,
-           "planned": len(grid), "notes": [], "designs": designs}
+           "planned": len(grid), "notes": [], "metrics_version": METRICS_VERSION, "designs": designs}
     return json.dumps(doc, indent=1)
 
 
@@ -785,9 +785,14 @@ def check_study_file(data: bytes, folder: Path, original: dict, applied: list[st
     finally:
         job.close()
     assert progress.done <= progress.total == 3, (progress.done, progress.total)
-    kept = json.loads(data)["designs"]
+    from workbench.metrics.study import METRICS_VERSION
+    doc = json.loads(data)
+    if doc.get("metrics_version", 1) != METRICS_VERSION:      # measured by other metrics: all measured again
+        assert progress.done == 0, progress
+        return "accepted_resumes"
+    kept = doc["designs"]
     by_name = {d["design"]: d for d in original["designs"]}
-    if all(d == by_name.get(d["design"]) for d in kept):
+    if all(d == by_name.get(d.get("design")) for d in kept):
         return "accepted_same" if len(kept) == len(by_name) else "accepted_resumes"
     return _changed(applied, sealed=all("checksum" in d for d in original["designs"]))
 

@@ -23,8 +23,11 @@ def frame_estimate_s(project) -> float:
 
 
 def check_dataset_size(project, frames: int, workers: int, confirm_large: bool) -> None:
-    """ParameterError naming --frames, with the estimated time, for more than
-    MAX_UNCONFIRMED_FRAMES frames unless confirm_large."""
+    """ParameterError naming --frames: beyond MAX_FRAMES always; with the estimated time, for more
+    than MAX_UNCONFIRMED_FRAMES frames unless confirm_large."""
+    from workbench.datasets.dataset import MAX_FRAMES
+    if frames > MAX_FRAMES:                     # beyond what any run renders: said first, with or without the flag
+        raise ParameterError("--frames", frames, f"an integer from 1 to {MAX_FRAMES:,}")
     if frames <= MAX_UNCONFIRMED_FRAMES or confirm_large:
         return
     cpu_h = frames * frame_estimate_s(project) / 3600
