@@ -57,9 +57,11 @@ def test_new_records_carry_their_digest_and_checksums(sealed):
     doc = read_results(sealed)
     assert doc["checksum"]
     fingerprint = doc["dataset"]["fingerprint"]
+    split = doc["dataset"]["split_digest"]
     for run in doc["runs"]:
-        assert run["digest"] == config_digest(run["config"], fingerprint)
-        assert run["key"] == run_key(run["config"], fingerprint) and run["checksum"]
+        assert run["split_digest"] == split
+        assert run["digest"] == config_digest(run["config"], fingerprint, split)
+        assert run["key"] == run_key(run["config"], fingerprint, split) and run["checksum"]
         assert all(t["checksum"] for t in run["tests"])
 
 
@@ -67,7 +69,7 @@ def _not_in_plan(doc):
     run = json.loads(json.dumps(doc["runs"][0]))
     run["config"]["seed"] = 7
     run["role"]["seed"] = 7
-    run["key"] = run_key(run["config"], doc["dataset"]["fingerprint"])
+    run["key"] = run_key(run["config"], doc["dataset"]["fingerprint"], run.get("split_digest"))
     for name in ("digest", "checksum"):
         run.pop(name)
     for t in run["tests"]:

@@ -440,7 +440,7 @@ def write_index(out: Path, project, frames: int, fingerprint: str, irradiance_dt
     (a job step: yields Progress). Each manifest entry records what a reader checks the frame
     against (datasets.integrity): the sha256 of its bytes, its irradiance shape and scale, and
     the digest of its labels in coco.json."""
-    from workbench.datasets.integrity import json_digest, labels_digest, manifest_digest
+    from workbench.datasets.files import json_digest, labels_digest, manifest_digest
     from workbench.files import atomic_write_text
     yield Progress(frames, frames, "writing coco.json, manifest.json and statistics")
     coco_frames, entries = [], []

@@ -23,6 +23,7 @@ A FIFO, a device or a link to one is refused by check_npz and file_sha256 before
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 import re
@@ -234,3 +235,19 @@ def file_sha256(path: str | Path) -> str:
             return hashlib.file_digest(fh, "sha256").hexdigest()
     except OSError as exc:
         raise InputFileError(p, f"cannot be read ({exc.strerror or type(exc).__name__})") from None
+
+
+def json_digest(value) -> str:
+    """sha256 of a decoded JSON value as canonical JSON (sorted keys, no spaces)."""
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+def labels_digest(image: dict, annotations: list[dict]) -> str:
+    """sha256 of a frame's coco.json image record and annotations (json_digest)."""
+    return json_digest([image, annotations])
+
+
+def manifest_digest(manifest: dict) -> str:
+    """sha256 of a manifest's content, its own manifest_sha256 left out (json_digest)."""
+    return json_digest({k: v for k, v in manifest.items() if k != "manifest_sha256"})

@@ -22,34 +22,16 @@ fingerprint and scale and its irradiance shape against the manifest, and its con
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from workbench.datasets.files import (FrameEntry, coco_tables, file_sha256, inside, manifest_frames,
-                                      read_json_object)
+from workbench.datasets.files import (FrameEntry, coco_tables, file_sha256, inside, json_digest,  # noqa: F401
+                                      labels_digest, manifest_digest, manifest_frames, read_json_object)
 from workbench.errors import InputFileError, ParameterError
 
 RENDER_HINT = "render one with `workbench dataset PROJECT --frames N --out FOLDER`"
 VERIFY_COMMAND = "workbench dataset-verify"
-
-
-def json_digest(value) -> str:
-    """sha256 of a decoded JSON value as canonical JSON (sorted keys, no spaces)."""
-    text = json.dumps(value, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
-
-
-def labels_digest(image: dict, annotations: list[dict]) -> str:
-    """sha256 of a frame's coco.json image record and annotations (json_digest)."""
-    return json_digest([image, annotations])
-
-
-def manifest_digest(manifest: dict) -> str:
-    """sha256 of a manifest's content, its own manifest_sha256 left out (json_digest)."""
-    return json_digest({k: v for k, v in manifest.items() if k != "manifest_sha256"})
 
 
 @dataclass

@@ -24,24 +24,9 @@ import math
 from pathlib import Path
 
 from workbench.errors import InputFileError, WorkbenchError
+from workbench.experiments.plan import config_digest, plan_configs, profile_of_settings, run_key  # noqa: F401
 
 FIX = "remove that record from the file to train the run again, or choose another --out"
-
-
-def config_digest(config: dict, fingerprint: str, split_digest: str | None = None) -> str:
-    """SHA-256 (hex) of a training config (as a JSON object), a data set's fingerprint and its split
-    (DetectionDataset.split_digest; None for records made before runs named their split)."""
-    parts = [json.dumps(config, sort_keys=True), fingerprint] + ([split_digest] if split_digest is not None else [])
-    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
-
-
-def run_key(config: dict, fingerprint: str, split_digest: str | None = None) -> str:
-    """The key of the run of `config` on the data set of `fingerprint` split as `split_digest`:
-    net, representation, training EV(s), seed and the first 10 hex digits of config_digest."""
-    evs = config["train_evs"]
-    ev_tag = "mix" if len(evs) > 1 else f"ev{evs[0]:+g}"
-    return (f"{config['net']}-{config['representation']}-{ev_tag}-s{config['seed']}-"
-            f"{config_digest(config, fingerprint, split_digest)[:10]}")
 
 
 def _checksum(node) -> str:
@@ -209,7 +194,6 @@ def record_problem(run, fingerprint: str, evs: set, doc_classes: list | None = N
 
 def _planned_roles(path: Path, doc: dict, evs: tuple) -> dict:
     """{key: role} of the plan the document's kind and settings make."""
-    from workbench.experiments.detection import plan_configs, profile_of_settings
     settings = doc.get("settings")
     try:
         profile = profile_of_settings(settings)

@@ -133,7 +133,7 @@ def pareto_front(rows: list[dict], x: str, y: str, higher_x: bool = True, higher
     """Names of the designs no other design ε-dominates in the two metrics (study.epsilon_dominates:
     better by more than ε on one, worse by no more than ε on the other; ε from the designs'
     uncertainties, sigma: design name → (σ_x, σ_y); none given: 0, the plain Pareto front)."""
-    from workbench.metrics.study import epsilon_dominates
+    from workbench.metrics.tolerance import epsilon_dominates
     sigma = sigma or {}
     pts = {r["design"]: tuple(zip((r[x], r[y]), sigma.get(r["design"], (None, None))))
            for r in rows if r.get(x) is not None and r.get(y) is not None}

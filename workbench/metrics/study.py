@@ -26,6 +26,8 @@ from workbench.errors import OutputPathError, ParameterError
 from workbench.jobs import Progress
 from workbench.metrics.bounds import shown
 from workbench.metrics.frame import LOW_LIGHT_SNR_KEY
+from workbench.metrics.tolerance import (TOLERANCE_RULE, TOLERANCE_SIGMAS,  # noqa: F401
+                                        difference_tolerance, epsilon_dominates)
 from workbench.files import json_text
 
 STUDY_FORMAT = "camera-workbench-study"
@@ -421,20 +423,7 @@ def _output_folder(out_dir) -> Path:
 
 # how far apart two designs' measurements of a metric must be to call one better: this many standard
 # deviations of their difference, √(σ_A² + σ_B²), σ each design's measured uncertainty (≈ 95 %)
-TOLERANCE_SIGMAS = 2.0
 MAP_BOOTSTRAP = 200                    # test-set resamples for the uncertainty of a design's mAP
-TOLERANCE_RULE = (f"'better' only where the difference exceeds ±x = {TOLERANCE_SIGMAS:g}·√(σ_A² + σ_B²), σ each "
-                  "design's measured uncertainty (the standard deviation over repeated sensor noise draws of its "
-                  "charts; for the noise-equivalent exposure and the low-light SNR at least the standard error of "
-                  "the sensitivity the exposure series gives; mAP: test-set bootstrap); design parameters (read "
-                  "noise, full well, dynamic range) are exact")
-
-
-def difference_tolerance(sigma_a: float | None, sigma_b: float | None) -> float:
-    """±x within which two measurements are the same (TOLERANCE_SIGMAS; an unmeasured σ counts 0)."""
-    return TOLERANCE_SIGMAS * math.hypot(sigma_a or 0.0, sigma_b or 0.0)
-
-
 def compare_verdict(metric: str, a: float | None, b: float | None, sigma_a: float | None = None,
                     sigma_b: float | None = None, why_a: str | None = None, why_b: str | None = None) -> str:
     """'A better', 'B better', 'same within ±x' (difference_tolerance of the two uncertainties);
@@ -447,14 +436,6 @@ def compare_verdict(metric: str, a: float | None, b: float | None, sigma_a: floa
     if abs(b - a) <= x:
         return f"same within ±{x:.2g}"
     return "B better" if (b > a) == HIGHER_IS_BETTER.get(metric, True) else "A better"
-
-
-def epsilon_dominates(q: tuple, p: tuple, higher: tuple[bool, ...]) -> bool:
-    """Whether design q ε-dominates p: q is better by more than ε on one metric and worse by no
-    more than ε on any; q and p are ((value, σ), …) per metric, ε = difference_tolerance(σ_q, σ_p)."""
-    margins = [(1 if up else -1) * (vq - vp) for (vq, _), (vp, _), up in zip(q, p, higher)]
-    eps = [difference_tolerance(sq, sp) for (_, sq), (_, sp) in zip(q, p)]
-    return all(m >= -e for m, e in zip(margins, eps)) and any(m > e for m, e in zip(margins, eps))
 
 
 def compare_designs(a, b, out_dir) -> dict:
