@@ -8,3 +8,12 @@ def synthetic_dir(tmp_path_factory):
     folder = tmp_path_factory.mktemp("synthetic_set")
     make_synthetic_dataset(folder, frames=14)
     return folder
+
+
+@pytest.fixture
+def copy(synthetic_dir, tmp_path):
+    """A copy of the synthetic set to damage."""
+    import shutil
+    dst = tmp_path / "set"
+    shutil.copytree(synthetic_dir, dst)
+    return dst

@@ -5,47 +5,17 @@ lists all problems of a folder."""
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
 import shutil
-import zipfile
 
 import numpy as np
 import pytest
+from frame_edits import edit_json, rewrite_frame
 
 from workbench.datasets.dataset import frame_path, read_frame
 from workbench.detect.data import DetectionDataset, DetectionView
 from workbench.errors import InputFileError
-
-
-@pytest.fixture
-def copy(synthetic_dir, tmp_path):
-    dst = tmp_path / "set"
-    shutil.copytree(synthetic_dir, dst)
-    return dst
-
-
-def _edit(folder, name, change):
-    path = folder / name
-    doc = json.loads(path.read_text())
-    change(doc)
-    path.write_text(json.dumps(doc))
-
-
-def rewrite_frame(path, change) -> None:
-    """Rewrite a frame file with change(arrays, header) applied (a valid .npz, other bytes)."""
-    with np.load(path, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    head = json.loads(str(arrays["header_json"]))
-    change(arrays, head)
-    arrays["header_json"] = np.asarray(json.dumps(head))
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name, arr in arrays.items():
-            with zf.open(f"{name}.npy", "w") as fh:
-                np.lib.format.write_array(fh, np.asanyarray(arr), allow_pickle=False)
-    path.write_bytes(buf.getvalue())
 
 
 def reseal(folder, index: int) -> None:
@@ -57,7 +27,7 @@ def reseal(folder, index: int) -> None:
     def change(d):
         d["frames"][index]["sha256"] = digest
         d["manifest_sha256"] = manifest_digest(d)
-    _edit(folder, "manifest.json", change)
+    edit_json(folder, "manifest.json", change)
 
 
 def _first_read(folder, item: int = 0):
@@ -70,7 +40,7 @@ def test_labels_swapped_between_two_frames_are_refused_naming_the_frame(copy):
     def swap(d):
         for a in d["annotations"]:
             a["image_id"] = {1: 2, 2: 1}.get(a["image_id"], a["image_id"])
-    _edit(copy, "coco.json", swap)
+    edit_json(copy, "coco.json", swap)
     with pytest.raises(InputFileError, match=r"coco.json: the labels of frame 0 .*swapped") as info:
         DetectionDataset(copy)
     assert "and 1 more problem: `workbench dataset-verify" in str(info.value)      # frame 1's
@@ -82,38 +52,38 @@ def test_a_reindented_coco_file_holds_the_same_labels_and_is_accepted(copy):
 
 
 def test_every_annotation_listed_twice_is_refused(copy):
-    _edit(copy, "coco.json", lambda d: d.update(annotations=d["annotations"] * 2))
+    edit_json(copy, "coco.json", lambda d: d.update(annotations=d["annotations"] * 2))
     with pytest.raises(InputFileError, match=r"coco.json: annotations\[\d+\] repeats annotations\[0\]"):
         DetectionDataset(copy)
 
 
 def test_an_annotation_of_an_unknown_category_is_refused(copy):
-    _edit(copy, "coco.json", lambda d: [a.update(category_id=99) for a in d["annotations"]])
+    edit_json(copy, "coco.json", lambda d: [a.update(category_id=99) for a in d["annotations"]])
     with pytest.raises(InputFileError, match=r"coco.json: annotations\[0\].category_id 99 is not one of the categories"):
         DetectionDataset(copy)
 
 
 def test_a_box_outside_its_frame_is_refused(copy):
-    _edit(copy, "coco.json", lambda d: d["annotations"][0].update(bbox=[60.0, 0.0, 30.0, 10.0]))
+    edit_json(copy, "coco.json", lambda d: d["annotations"][0].update(bbox=[60.0, 0.0, 30.0, 10.0]))
     with pytest.raises(InputFileError, match=r"annotations\[0\].bbox .* reaches outside its 64×48 image"):
         DetectionDataset(copy)
 
 
 def test_categories_renamed_are_refused(copy):
-    _edit(copy, "coco.json", lambda d: [c.update(name={"car": "bus", "bus": "car"}.get(c["name"], c["name"]))
+    edit_json(copy, "coco.json", lambda d: [c.update(name={"car": "bus", "bus": "car"}.get(c["name"], c["name"]))
                                         for c in d["categories"]])
     with pytest.raises(InputFileError, match=r"coco.json: its categories are not those the data set was written with"):
         DetectionDataset(copy)
 
 
 def test_an_edited_manifest_is_refused(copy):
-    _edit(copy, "manifest.json", lambda d: d["project"]["isp"].update(demosaic="malvar2004"))
+    edit_json(copy, "manifest.json", lambda d: d["project"]["isp"].update(demosaic="malvar2004"))
     with pytest.raises(InputFileError, match=r"manifest.json: its content is not what was written"):
         DetectionDataset(copy)
 
 
 def test_labels_of_another_frame_size_are_refused(copy):
-    _edit(copy, "coco.json", lambda d: [im.update(width=160, height=128) for im in d["images"]])
+    edit_json(copy, "coco.json", lambda d: [im.update(width=160, height=128) for im in d["images"]])
     with pytest.raises(InputFileError, match=r"coco.json: image 1 \(frame 0\) is 160×128 px, not the frames' 64×48"):
         DetectionDataset(copy)
 
@@ -143,7 +113,7 @@ def test_a_header_whose_index_disagrees_with_the_manifest_is_refused(copy):
 
 
 def test_a_manifest_shape_off_the_sensor_grid_is_refused(copy):
-    _edit(copy, "manifest.json", lambda d: d["frames"][3].update(irradiance_shape=[24, 32, 3]))
+    edit_json(copy, "manifest.json", lambda d: d["frames"][3].update(irradiance_shape=[24, 32, 3]))
     with pytest.raises(InputFileError, match=r"manifest.json: frames\[3\].irradiance_shape \[24, 32, 3\] is not on"):
         DetectionDataset(copy)
 
@@ -216,7 +186,7 @@ def _strip_hashes(folder):
                 e.pop(key)
         for key in ("integrity", "categories_sha256", "manifest_sha256"):
             d.pop(key)
-    _edit(folder, "manifest.json", strip)
+    edit_json(folder, "manifest.json", strip)
 
 
 def test_a_manifest_without_hashes_is_refused_and_one_resume_run_writes_them(tmp_path):
@@ -252,7 +222,7 @@ def test_dataset_verify_lists_every_problem_and_exits_non_zero(copy, capsys):
     assert main(["dataset-verify", str(copy)]) == 0
     assert json.loads(capsys.readouterr().out) == {"folder": str(copy), "valid": True, "frames": 14}
     shutil.copyfile(frame_path(copy, 5), frame_path(copy, 4))
-    _edit(copy, "coco.json", lambda d: d["annotations"].append(d["annotations"][0]))
+    edit_json(copy, "coco.json", lambda d: d["annotations"].append(d["annotations"][0]))
     rewrite_frame(frame_path(copy, 6), _scale(-1.0))
     assert main(["dataset-verify", str(copy)]) == 2
     out, err = capsys.readouterr()

@@ -5,29 +5,14 @@ from __future__ import annotations
 
 import io
 import json
-import shutil
 import zipfile
 
 import numpy as np
 import pytest
+from frame_edits import edit_json
 
 from workbench.detect.data import DetectionDataset
 from workbench.errors import InputFileError
-
-
-@pytest.fixture
-def copy(synthetic_dir, tmp_path):
-    dst = tmp_path / "set"
-    shutil.copytree(synthetic_dir, dst)
-    return dst
-
-
-def _edit(folder, name, change):
-    path = folder / name
-    doc = json.loads(path.read_text())
-    change(doc)
-    path.write_text(json.dumps(doc))
-    return path
 
 
 def _deep(depth=100_000):
@@ -74,7 +59,7 @@ COCO_CASES = {
 
 @pytest.mark.parametrize("case", sorted(MANIFEST_CASES))
 def test_a_hostile_manifest_is_refused_naming_it(copy, case):
-    _edit(copy, "manifest.json", MANIFEST_CASES[case])
+    edit_json(copy, "manifest.json", MANIFEST_CASES[case])
     with pytest.raises(InputFileError, match="manifest.json|dataset_spec.json|coco") as info:
         DetectionDataset(copy)
     assert str(copy) in str(info.value) and "root:" not in str(info.value)      # nothing read from outside
@@ -82,7 +67,7 @@ def test_a_hostile_manifest_is_refused_naming_it(copy, case):
 
 @pytest.mark.parametrize("case", sorted(COCO_CASES))
 def test_a_hostile_coco_file_is_refused_naming_it(copy, case):
-    _edit(copy, "coco.json", COCO_CASES[case])
+    edit_json(copy, "coco.json", COCO_CASES[case])
     with pytest.raises(InputFileError, match="coco.json"):
         DetectionDataset(copy)
 

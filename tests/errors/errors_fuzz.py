@@ -287,20 +287,12 @@ def dataset_content(folder: Path) -> dict:
 def _rewrite_frame(path: Path, change) -> None:
     """Rewrite a frame file with change(arrays, header) applied (a valid .npz, other bytes)."""
     import zipfile
+
+    from frame_edits import rewrite_frame
     try:
-        with np.load(io.BytesIO(_read(path)), allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-        head = json.loads(str(arrays["header_json"]))
-        change(arrays, head)
+        rewrite_frame(path, change, data=_read(path))
     except (ValueError, KeyError, IndexError, TypeError, EOFError, OSError, zipfile.BadZipFile) as exc:
         raise _CannotApply(path) from exc
-    arrays["header_json"] = np.asarray(json.dumps(head))
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for name, arr in arrays.items():
-            with zf.open(f"{name}.npy", "w") as fh:
-                np.lib.format.write_array(fh, np.asanyarray(arr), allow_pickle=False)
-    path.write_bytes(buf.getvalue())
 
 
 def _reseal(folder: Path, indices) -> None:
