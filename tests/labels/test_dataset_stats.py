@@ -108,3 +108,13 @@ def test_dataset_stats_command(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert main(["dataset-stats", str(tmp_path / "empty")]) == 2
     assert "not a data-set folder" in capsys.readouterr().err
+
+
+def test_dataset_stats_is_refused_while_another_command_writes_the_folder(tmp_path, capsys):
+    """One writer per folder: statistics written into a set a render is still writing were refused by nobody."""
+    from workbench.compute.folder_lock import hold_folder_lock
+    out = _folder(tmp_path)
+    with hold_folder_lock(out, "workbench dataset"):
+        assert main(["dataset-stats", str(out)]) == 2
+    assert "in use by" in capsys.readouterr().err
+    assert main(["dataset-stats", str(out)]) == 0

@@ -502,12 +502,19 @@ def recorded_hashes(out: Path, fingerprint: str) -> dict[int, str]:
 def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
     """Write statistics.json and statistics.png of the frames now in a data-set folder (finished or
     not); InputFileError when the folder has no frames folder, or an entry with a frame's name is
-    not a regular file (a FIFO, a link) or cannot be read as a frame."""
+    not a regular file (a FIFO, a link) or cannot be read as a frame; OutputPathError while another
+    command (a render) holds the folder's lock."""
     out = Path(out_dir)
     if not out.is_dir():
         raise InputFileError(out, "does not exist or is not a folder; give a data-set folder")
     if not (out / FRAMES_DIR).is_dir():
         raise InputFileError(out, f"is not a data-set folder (no {FRAMES_DIR}/ folder in it)")
+    with hold_folder_lock(out, "workbench dataset-stats"):      # refused while a render writes the folder
+        return write_statistics(out, _folder_labels(out))
+
+
+def _folder_labels(out: Path) -> list:
+    """The labels of every frame file in a data-set folder (InputFileError naming a bad one)."""
     labels = []
     for path in sorted((out / FRAMES_DIR).iterdir()):
         if not FRAME_NAME.fullmatch(path.name):
@@ -517,4 +524,4 @@ def write_folder_statistics(out_dir: str | os.PathLike) -> tuple[Path, Path]:
                                        "remove it, or render the frame with `workbench dataset PROJECT --frames N "
                                        f"--out {out}`")
         labels.append(read_frame(path, irradiance=False)[0].labels)
-    return write_statistics(out, labels)
+    return labels
