@@ -123,6 +123,14 @@ def test_an_exposure_too_short_to_measure_names_the_exposure(chart_project, tmp_
     assert "sensor.exposure_s" in line and "too dark" in line and "1e-12" in line
 
 
+def test_a_colour_chart_the_adc_turns_black_names_the_bit_depth(chart_project, tmp_path, capsys):
+    """A 1-bit ADC: 'ΔE: neutral 5 renders black; expose the chart' named no field (the chart was exposed)."""
+    path = save_project(chart_project.updated(sensor=chart_project.sensor.updated(bit_depth=1)), tmp_path / "b1.json")
+    assert main(["metrics", str(path)]) == 2
+    line = _stderr_line(capsys)
+    assert "sensor.bit_depth" in line and "neutral 5" in line and "raise bit_depth" in line
+
+
 def test_a_lens_whose_semi_aperture_overflows_the_tracer_is_refused_by_name(tmp_path, capsys):
     """semi_aperture 1e308 (finite) ended in OverflowError, exit 3 (found by a fuzz of 209 lens files)."""
     import json

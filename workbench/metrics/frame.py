@@ -224,8 +224,14 @@ def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[d
     for k, name in enumerate(names):                        # every raw channel, on its own sites
         if not np.any(tile == k):
             continue
-        row = _sfr_row(f"raw {name}", dn, flat, os, None if np.all(tile == k) else layout == k,
-                       cfa_plane_nyquist_cy_px(tile, k))
+        nyquist = cfa_plane_nyquist_cy_px(tile, k)
+        try:
+            row = _sfr_row(f"raw {name}", dn, flat, os, None if np.all(tile == k) else layout == k, nyquist)
+        except InvalidValueError as exc:            # a small sensor's plane holds too few sites: said, not fatal
+            rows.append({"plane": f"raw {name}", "frequency_cy_px": [], "mtf": [], "mtf50_cy_px": None,
+                         "mtf50_sd_cy_px": None, "mtf_nyquist": None, "mtf_0.25": None, "nyquist_cy_px": nyquist,
+                         "note": f"not measured: {exc} (a larger sensor, more rows and columns, is needed)"})
+            continue
         optics = optics_mtf(result, k, np.asarray(row["frequency_cy_px"]), pitch_m)
         if optics is not None:
             model = optics * pixel_mtf(sensor, np.asarray(row["frequency_cy_px"]), row["edge_angle_deg"])
@@ -356,6 +362,20 @@ def patch_flat_field(project, layout: np.ndarray, shots: ChartShots | None = Non
     return patch_means(flat, layout) / _central_mean(np.asarray(flat, np.float64), 0.1)
 
 
+def check_neutral_5_seen(srgb: np.ndarray, layout: np.ndarray, sensor) -> None:
+    """ParameterError naming what to change when the colour chart's neutral 5 comes out black
+    (the chart is exposed with white at 90 % of the swing, so it is the read-out that loses it:
+    too few ADC codes, or an analog offset above the patch's signal); ΔE is measured against it."""
+    from workbench.metrics.colour import NEUTRAL_5
+    if float(np.mean(srgb[layout == NEUTRAL_5])) > 0:
+        return
+    problem = "the Macbeth chart's neutral 5 reads black through this sensor, so no colour error can be measured"
+    if sensor.bit_depth and sensor.bit_depth < 8:
+        raise ParameterError("sensor.bit_depth", sensor.bit_depth, f"{problem}: too few codes; raise bit_depth")
+    raise ParameterError("sensor.analog_offset_V", sensor.analog_offset_V, f"{problem}; lower analog_offset_V or "
+                         "raise the signal (analog_gain, voltage_swing_V)")
+
+
 def colour_error(project, shots: ChartShots | None = None) -> dict:
     """ΔE2000 of the Macbeth chart through the project's camera, exposed as a colour-checker shot
     is: the brightest pixels at 90 % of the swing, so white 9.5 is not clipped. 'fitted' and
@@ -369,6 +389,7 @@ def colour_error(project, shots: ChartShots | None = None) -> dict:
                                                       auto_exposure_level=COLOUR_CHART_LEVEL))
     result = shots.run(chart)
     layout = macbeth_layout(result.isp.srgb.shape[:2])
+    check_neutral_5_seen(result.isp.srgb, layout, project.sensor)
     out = {"srgb_output": macbeth_delta_e(result.isp.srgb, layout), "fitted": None, "held_out": None,
            "flat_field": "patch means divided by the noise-free frame of a uniform white field through the same "
                          "optics and sensor (1 at the centre)"}
