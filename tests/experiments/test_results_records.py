@@ -135,13 +135,17 @@ def test_records_written_before_sealing_still_count(synthetic_dir, sealed, tmp_p
     assert len(result.reused) == 3 and not result.trained
 
 
-@pytest.mark.parametrize("name, runs, superseded", [("budget-standard", 4, 3), ("isp-standard", 5, 0)])
-def test_the_committed_result_folders_load_and_keep_every_run(tmp_path, name, runs, superseded):
+@pytest.mark.parametrize("name", ["budget-standard", "isp-standard"])
+def test_the_committed_result_folders_load_and_keep_every_run(tmp_path, name):
+    """The committed folders (filled over sittings, by older code too) load with today's checks and
+    keep every record they hold, current and superseded."""
     folder = tmp_path / name
     shutil.copytree(COMMITTED / name, folder)
+    raw = json.loads((folder / "results.json").read_text())
+    runs, superseded = len(raw["runs"]), len(raw.get("superseded_runs", []))
+    assert runs + superseded > 0
     doc = read_results(folder)
     assert len(doc["runs"]) == runs and len(doc["superseded_runs"]) == superseded
-    assert not any("checksum" in r for r in doc["runs"])            # written before records were sealed
     kept, _ = _load_previous(folder, doc["kind"], doc["dataset"]["fingerprint"], doc["profile"])
     assert len(kept) == runs + superseded                            # a resume counts every one of them
 
