@@ -178,6 +178,45 @@ def test_sensor_edits_on_a_city_run_only_the_sensor_stages(qtbot, representation
     assert win.previews.frame.irradiance_photons is first.irradiance_photons        # the same render, reused
 
 
+def test_cfa_edits_that_move_the_films_bands_render_nothing(qtbot, monkeypatch):
+    """Bayer → RCCC → RCCB → Bayer moves the film's range (390 → 385 nm and back) and re-rendered
+    the city each way (issue 32 item 7): the window renders bands every pattern's bands are sums
+    of (render.shared_bands), so after the first frame no edit asks the render worker for anything
+    and none shows a quick look; each pattern's frame is on its own bands."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    from workbench.render.render_worker import RenderWorker
+    asked = []
+    render = RenderWorker.job
+
+    def counted(self, *args, **kwargs):
+        asked.append(args[1].index)
+        return (yield from render(self, *args, **kwargs))
+    monkeypatch.setattr(RenderWorker, "job", counted)
+    win = MainWindow(Document(small_city_project()), with_city_view=False)
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitUntil(lambda: full_frame_of(win, win.document.project), timeout=TIMEOUT_MS)
+    assert asked, "the first frame was not rendered by the worker"
+    asked.clear()
+    first_nm = {}
+    for cfa, recomputed in (("RCCC", ["scene", "optics", "signal", "sensor", "isp"]),   # the scene: a band sum
+                            ("RCCB", ["signal", "sensor", "isp"]), ("GRBG", [])):
+        frames = []
+        win.live.frameReady.connect(frames.append)
+        assert win.apply_edit("sensor", {"cfa_pattern": cfa})
+        qtbot.waitUntil(lambda: full_frame_seen(win, frames), timeout=TIMEOUT_MS)
+        win.live.frameReady.disconnect(frames.append)
+        assert [f.preview for f in frames] == [False], f"{cfa}: a quick look was rendered"
+        assert frames[-1].recomputed == recomputed, cfa
+        first_nm[cfa] = float(frames[-1].wavelengths_nm[0])
+    assert asked == [], f"CFA edits asked the render worker for frames {asked}"
+    assert first_nm["RCCC"] == first_nm["RCCB"] < first_nm["GRBG"]
+
+
 def test_a_pose_edit_reuses_the_shown_city_and_gets_the_same_pose():
     """A camera move only samples the pose on the city already shown: the same pose as generating
     the city again, for a sampled (target) and a typed (manual) pose."""

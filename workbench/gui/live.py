@@ -5,7 +5,9 @@ again on the newest project; only the stages downstream of the edit recompute (t
 cache). A city whose render inputs changed, and whose render is not cached (Undo finds it), is
 drawn progressively: first a low-sample preview, then the project's own sampling, each cancelled
 by the next edit. City renders run in a render worker process (render.render_worker), which keeps
-the scene loaded between camera moves; nothing Mitsuba does holds this process's GIL. Results reach the GUI thread as
+the scene loaded between camera moves; nothing Mitsuba does holds this process's GIL. A city is
+rendered in bands that every CFA pattern's bands are sums of (render.shared_bands), so no CFA
+edit renders it again. Results reach the GUI thread as
 numpy arrays (Frame) through a queued signal; the GUI thread never waits on the worker.
 """
 from __future__ import annotations
@@ -170,20 +172,22 @@ WINDOW_BANDS = 16        # a city rendered in the sensor's channels is shown fro
 def window_project(project: Project) -> Project:
     """The project the window simulates: a city rendered in the sensor's own channels (the data
     sets' cheap film, which a sensor edit invalidates) is rendered spectrally instead, so every
-    sensor, CFA and ISP edit reuses the render (render.city_frame.city_scene_inputs)."""
+    sensor, CFA and ISP edit reuses the render (render.city_frame.city_scene_inputs; a CFA edit
+    that moves the bands takes them from the shared render, render.shared_bands)."""
     if project.scene.kind == "city" and project.render.representation == "sensor":
         return project.updated(render=project.render.updated(representation="bands", band_count=WINDOW_BANDS))
     return project
 
 
 def _render_inputs_changed(old: Project | None, new: Project) -> bool:
-    """Whether the city render of `new` differs from that of `old` (the scene stage's inputs)."""
+    """Whether the city render of `new` differs from that of `old` (what the window renders: a CFA
+    edit keeps it, render.shared_bands)."""
     if new.scene.kind != "city":
         return False
     if old is None:
         return True
-    from workbench.render.city_frame import city_scene_inputs
-    return city_scene_inputs(old) != city_scene_inputs(new)
+    from workbench.render.shared_bands import rendered_inputs
+    return rendered_inputs(old) != rendered_inputs(new)
 
 
 class LiveRunner(QObject):
@@ -213,6 +217,7 @@ class LiveRunner(QObject):
         self._last_full: Project | None = None
         self._readouts_due: tuple[Frame, Project] | None = None   # the newest frame without read-outs
         self.render_worker = None                  # started with the first city project
+        self.city_renderer = None                  # render.shared_bands.SharedBandRenderer over the worker
         self._warmed = False
         self._thread = threading.Thread(target=self._loop, name="workbench-live", daemon=True)
         self._thread.start()
@@ -324,8 +329,10 @@ class LiveRunner(QObject):
         if project.scene.kind == "city" and self.render_worker is None:
             from workbench.compute.pixel_threads import budget_cores
             from workbench.render.render_worker import RenderWorker
+            from workbench.render.shared_bands import SharedBandRenderer
             self.render_worker = RenderWorker(threads=budget_cores(), nice=RENDER_NICE)
-        renderer = self.render_worker.job if self.render_worker is not None else None
+            self.city_renderer = SharedBandRenderer(self.render_worker.job)
+        renderer = None if self.city_renderer is None else functools.partial(self.city_renderer.job, project=project)
         if self.pipeline is None:
             self.pipeline = Pipeline(project)
         self.pipeline.city_renderer = renderer
@@ -337,8 +344,8 @@ class LiveRunner(QObject):
                                                                   preview_spp=self.preview_spp))
             if self._preview_pipeline is None:
                 self._preview_pipeline = Pipeline(quick)
-            self._preview_pipeline.city_renderer = (None if renderer is None else
-                                                    functools.partial(renderer, quick_look=True))
+            self._preview_pipeline.city_renderer = (None if renderer is None else functools.partial(
+                self.city_renderer.job, project=quick, quick_look=True))
             self._preview_pipeline.set_project(quick)
             self._drive(self._preview_pipeline, token)
             token.check()

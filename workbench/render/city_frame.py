@@ -252,8 +252,12 @@ class CitySceneSession:
         self.loads = 0               # Mitsuba scenes loaded so far
 
     def job(self, inputs: CitySceneInputs, seeds: FrameSeeds, cancel=None,
-            quick_look: bool = False) -> Job[CityRender]:
+            quick_look: bool = False, film_edges_nm: tuple[float, ...] | None = None) -> Job[CityRender]:
         """city_scene_job, reusing the loaded scene where only the pose changed.
+
+        film_edges_nm: render box bands between these edges (film.box_bands_between) instead of
+        the film inputs.render describes (the window's render shared by every CFA,
+        render.shared_bands); None, as for data sets: inputs.render's film.
 
         quick_look: a first look after a camera move — the label pass records the first
         surface along each ray only (render_labels with max_layers=1: the depth, class and
@@ -264,6 +268,7 @@ class CitySceneSession:
         meta['render']['coarse_factor']; not through the full lens model or a volumetric fog,
         nor when the sides have no common divisor)."""
         from workbench.jobs import JobCancelled, Progress
+        from workbench.render.film import box_bands_between
         from workbench.render.labels import render_labels
         from workbench.render.scene_builder import build_scene, move_pinhole, pinhole_sensor
         from workbench.render.spectral import film_for, render_loaded
@@ -281,7 +286,7 @@ class CitySceneSession:
         recipe = inputs.city.updated(arrangement=seeds.arrangement)
         night = inputs.render.world.lighting == "night"
         full_model = inputs.optics is not None and uses_full_lens_model(inputs.optics)
-        reuse_key = None if night or full_model else scene_reuse_key(inputs, seeds)
+        reuse_key = None if night or full_model else (scene_reuse_key(inputs, seeds), film_edges_nm)
         loaded = self._loaded if reuse_key is not None and self._loaded is not None \
             and self._loaded[0] == reuse_key else None
         try:                  # counts that do not fit the streets, poses with nothing to aim at: say which
@@ -308,7 +313,8 @@ class CitySceneSession:
             move_pinhole(mi_scene, pose, fov)
         else:
             self._loaded = None             # free the old scene before loading the next
-            film = film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
+            film = box_bands_between(np.asarray(film_edges_nm)) if film_edges_nm is not None else \
+                film_for(inputs.render, (qe_wl, np.asarray(channel_qe(inputs.pixels, qe_wl)).T))
             mi_scene, id_table = build_scene(city, pose, fov, width, height, film, inputs.render.daylight,
                                              lens_sensor, max_depth=inputs.render.max_depth, world=inputs.render.world,
                                              sampler=inputs.render.sampler)

@@ -84,11 +84,20 @@ class FilmSRFs:
 
 
 def box_bands(wavelength_min_nm: float, wavelength_max_nm: float, band_count: int) -> FilmSRFs:
-    """`band_count` adjacent equal box bands; output = band-mean radiance at the band centres.
+    """`band_count` adjacent equal box bands; output = band-mean radiance at the band centres
+    (box_bands_between on equally spaced edges)."""
+    return box_bands_between(np.linspace(wavelength_min_nm, wavelength_max_nm, band_count + 1))
+
+
+def box_bands_between(edges_nm: np.ndarray) -> FilmSRFs:
+    """Adjacent box bands between consecutive `edges_nm` (increasing); output = band-mean
+    radiance at the band centres.
 
     Adjacent bands share linear edge ramps (EDGE_RAMP_NM wide, centred on the edge), so the
     SRFs sum to 1 across the range and each integrates to exactly the band width."""
-    edges = np.linspace(wavelength_min_nm, wavelength_max_nm, band_count + 1)
+    edges = np.asarray(edges_nm, dtype=np.float64)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
+        raise InvalidValueError(f"box bands need ≥ 2 increasing edges, got {np.round(edges, 3).tolist()}")
     h = EDGE_RAMP_NM / 2
     wl = np.unique(np.concatenate([edges - h, edges + h]))
     resp = np.stack([np.interp(wl, [a - h, a + h, b - h, b + h], [0, 1, 1, 0], left=0, right=0)

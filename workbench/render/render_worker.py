@@ -118,7 +118,7 @@ class _PipeCancel:
 
 
 def serve(conn, threads: int | None, nice: int = 0, shared_min_bytes: int = SHARED_MIN_BYTES) -> None:
-    """The worker process: answer ('render', inputs, seeds, quick_look) requests until
+    """The worker process: answer ('render', inputs, seeds, quick_look, film_edges_nm) requests until
     ('stop',) or EOF.
     With `nice`, the process (and the render threads it starts later) yields the cores to others.
     Results with at least shared_min_bytes of arrays come back through shared memory."""
@@ -150,10 +150,10 @@ def _serve_requests(conn, session, outbox: _Outbox) -> None:
             return
         if msg[0] != "render":
             continue                     # a late cancel of a finished request
-        _, inputs, seeds, quick_look = msg
+        _, inputs, seeds, quick_look, film_edges_nm = msg
         cancel = _PipeCancel(conn)
         try:
-            job = session.job(inputs, seeds, cancel, quick_look)
+            job = session.job(inputs, seeds, cancel, quick_look, film_edges_nm)
             while True:
                 try:
                     step = next(job)
@@ -201,15 +201,16 @@ class RenderWorker:
         with self._lock:
             self._ensure()
 
-    def job(self, inputs, seeds, cancel=None, quick_look: bool = False):
+    def job(self, inputs, seeds, cancel=None, quick_look: bool = False,
+            film_edges_nm: tuple[float, ...] | None = None):
         """Render one city frame in the worker (a long job: yields Progress, returns CityRender;
-        quick_look: see CitySceneSession.job). Closing the job before its end (the
+        quick_look, film_edges_nm: see CitySceneSession.job). Closing the job before its end (the
         caller stopped iterating) cancels the worker's render and waits for it to stop, so the
         worker is free for the next job."""
         with self._lock:
             self._ensure()
             conn, proc = self._conn, self._proc
-            conn.send(("render", inputs, seeds, bool(quick_look)))
+            conn.send(("render", inputs, seeds, bool(quick_look), film_edges_nm))
             self._in_flight = True
             try:
                 return (yield from self._answers(conn, proc, seeds, cancel))
