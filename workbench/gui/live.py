@@ -179,17 +179,6 @@ def window_project(project: Project) -> Project:
     return project
 
 
-def _render_inputs_changed(old: Project | None, new: Project) -> bool:
-    """Whether the city render of `new` differs from that of `old` (what the window renders: a CFA
-    edit keeps it, render.shared_bands)."""
-    if new.scene.kind != "city":
-        return False
-    if old is None:
-        return True
-    from workbench.render.shared_bands import rendered_inputs
-    return rendered_inputs(old) != rendered_inputs(new)
-
-
 class LiveRunner(QObject):
     """Owns one worker thread and one Pipeline; submit(project) → frameReady(Frame) later.
 
@@ -214,7 +203,7 @@ class LiveRunner(QObject):
         self._preview_pipeline: Pipeline | None = None
         self._builder = FrameBuilder()
         self._preview_builder = FrameBuilder()
-        self._last_full: Project | None = None
+        self._last_rendered: tuple | None = None    # what the last full frame's city render read
         self._readouts_due: tuple[Frame, Project] | None = None   # the newest frame without read-outs
         self.render_worker = None                  # started with the first city project
         self.city_renderer = None                  # render.shared_bands.SharedBandRenderer over the worker
@@ -337,7 +326,11 @@ class LiveRunner(QObject):
             self.pipeline = Pipeline(project)
         self.pipeline.city_renderer = renderer
         self.pipeline.set_project(project)
-        if (_render_inputs_changed(self._last_full, project) and project.render.spp is not None
+        rendered = None
+        if project.scene.kind == "city":       # what is rendered: a CFA edit keeps it (render.shared_bands)
+            from workbench.render.shared_bands import rendered_inputs
+            rendered = rendered_inputs(project)
+        if (rendered is not None and rendered != self._last_rendered and project.render.spp is not None
                 and project.render.spp > self.preview_spp
                 and self.pipeline.cached("scene", self.pipeline.snapshot().keys["scene"]) is None):
             quick = project.updated(render=project.render.updated(spp=self.preview_spp, chunk_spp=self.preview_spp,
@@ -354,6 +347,6 @@ class LiveRunner(QObject):
         self._drive(self.pipeline, token)
         token.check()
         frame = self._builder.build(self.pipeline, document_project, False, submitted_at, readouts=False)
-        self._last_full = project
+        self._last_rendered = rendered
         self._readouts_due = None if frame.readouts is not None else (frame, document_project)
         self.frameReady.emit(frame)

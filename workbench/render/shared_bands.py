@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -29,18 +30,36 @@ KEEP_RENDERS = 3
 
 def pattern_band_edges_nm(pixels, band_count: int) -> dict[str, np.ndarray]:
     """Each CFA pattern's band edges (nm) for a 'bands' film following the sensor: `band_count`
-    equal bands over sensor_film_range_nm of `pixels` with that pattern, for every pattern of
-    CFA_PATTERNS whose colour filters pixels.filter_file holds."""
+    equal bands over the range sensor_film_range_nm gives `pixels` with that pattern, for every
+    pattern of CFA_PATTERNS whose colour filters pixels.filter_file holds."""
+    ranges = _pattern_ranges_nm(pixels.filter_file, pixels.photodiode_qe_file, pixels.ir_cut_file)
+    return {pattern: np.linspace(lo, hi, band_count + 1) for pattern, (lo, hi) in ranges.items()}
+
+
+@lru_cache(maxsize=16)
+def _pattern_ranges_nm(filter_file: str | None, photodiode_qe_file: str | None,
+                       ir_cut_file: str | None) -> dict[str, tuple[float, float]]:
+    """sensor_film_range_nm of every pattern the filter file serves (cached by file names, as
+    sensor.cfa.channel_qe is)."""
+    from types import SimpleNamespace
+
     from workbench.sensor.cfa import cfa_layout
     from workbench.sensor.params import CFA_PATTERNS
     from workbench.spectrum_csv import read_spectrum
-    have = set(read_spectrum(pixels.filter_file).names) if pixels.filter_file is not None else set()
-    edges = {}
-    for pattern in CFA_PATTERNS:
-        if set(cfa_layout(pattern)[1]) - {"M"} <= have:
-            lo, hi = sensor_film_range_nm(pixels.updated(cfa_pattern=pattern))
-            edges[pattern] = np.linspace(lo, hi, band_count + 1)
-    return edges
+    have = set(read_spectrum(filter_file).names) if filter_file is not None else set()
+    return {pattern: sensor_film_range_nm(SimpleNamespace(cfa_pattern=pattern, filter_file=filter_file,
+                                                          photodiode_qe_file=photodiode_qe_file,
+                                                          ir_cut_file=ir_cut_file))
+            for pattern in CFA_PATTERNS if set(cfa_layout(pattern)[1]) - {"M"} <= have}
+
+
+@lru_cache(maxsize=16)
+def _union_edges_nm(filter_file: str | None, photodiode_qe_file: str | None, ir_cut_file: str | None,
+                    band_count: int) -> tuple[float, ...]:
+    """The union of every pattern's band edges (pattern_band_edges_nm), increasing."""
+    ranges = _pattern_ranges_nm(filter_file, photodiode_qe_file, ir_cut_file)
+    every = [np.linspace(lo, hi, band_count + 1) for lo, hi in ranges.values()]
+    return tuple(np.unique(np.concatenate(every)).tolist())
 
 
 @dataclass(frozen=True)
@@ -64,9 +83,10 @@ def shared_bands(project) -> SharedBands | None:
         return None
     inputs = city_scene_inputs(project)
     own = np.linspace(inputs.render.wavelength_min_nm, inputs.render.wavelength_max_nm, render.band_count + 1)
-    every = pattern_band_edges_nm(project.sensor.pixel_response, render.band_count)
-    edges = np.unique(np.concatenate([own, *every.values()]))
-    if np.min(np.diff(edges)) < EDGE_RAMP_NM:
+    sensor = project.sensor
+    edges = np.asarray(_union_edges_nm(sensor.filter_file, sensor.photodiode_qe_file, sensor.ir_cut_file,
+                                       render.band_count))
+    if not np.isin(own, edges).all() or np.min(np.diff(edges)) < EDGE_RAMP_NM:
         return None
     shared = dataclasses.replace(inputs, render=inputs.render.updated(
         wavelength_min_nm=float(edges[0]), wavelength_max_nm=float(edges[-1])))
