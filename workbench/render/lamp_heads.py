@@ -28,7 +28,8 @@ from workbench.errors import InvalidValueError
 
 PLUGIN = "lamp_face"
 FACE_BELOW_LENS_M = 0.002          # under the lens mesh, above the point emitter (2 cm below the head)
-FACE_SAMPLING_WEIGHT = 1e-30       # never picked for next-event estimation (Mitsuba needs a weight > 0)
+FACE_SAMPLING_WEIGHT = 1e-30       # never picked for next-event estimation; > 0 so that its selection
+                                   # probability times the infinite density is ∞ (MIS weight 0), not NaN
 _REGISTERED: set[str] = set()
 _INTENSITIES: dict[str, object] = {}   # spectrum key → loaded Mitsuba spectrum (one per lamp kind and flux)
 MAX_INTENSITIES = 64
