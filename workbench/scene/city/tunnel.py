@@ -88,6 +88,6 @@ def tunnel_object(recipe: CityRecipe, layout: CityLayout) -> tuple[list[Mesh], n
               for (v, fc), mat in ((shell, "concrete"), (housing, "metal_dark"))]
     footprint = np.array([[x0 - w, f.y_south_m], [x1 + w, f.y_south_m], [x1 + w, f.y_north_m],
                           [x0 - w, f.y_north_m]])
-    meta = {"frame": f, "luminaires_m": pts, "lens_half_size_m": (LENS_HALF_WIDTH_M, t.luminaire_length_m / 2), "luminaire_kind": t.luminaire_kind,
-            "luminaire_flux_lm": t.luminaire_flux_lm, "length_m": t.length_m}
+    meta = {"frame": f, "luminaires_m": pts, "lens_half_size_m": (LENS_HALF_WIDTH_M, t.luminaire_length_m / 2),
+            "luminaire_kind": t.luminaire_kind, "luminaire_flux_lm": t.luminaire_flux_lm, "length_m": t.length_m}
     return meshes, footprint, meta
