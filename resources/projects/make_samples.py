@@ -117,8 +117,9 @@ def main() -> None:
         city.updated(
             name="city_tunnel",
             description="Inside a 150 m road tunnel by day, 20-60 m before the exit (the HDR case): concrete walls "
-                        "and roof, a row of glowing 20,000 lm LED luminaires every 8 m over the centre line (CIE 88 "
-                        "interior zone, road ~6 cd/m2) against the sunlit street beyond the portal; blocks of 180 m "
+                        "and roof, a continuous line of glowing LED luminaires over the centre line (1.5 m lenses "
+                        "end to end every 1.6 m, 4,000 lm each: 2,500 lm per metre; CIE 88 interior zone, road "
+                        "~6 cd/m2) against the sunlit street beyond the portal; blocks of 180 m "
                         "so the segment holds the tunnel; procedural materials (dry road); the auto_rccc sensor "
                         "(MT9V024-like: 10-bit linear ADC, no IR cut; exposure at most 1/30 s).",
             city=street.updated(block_size_m=180.0, tunnel=TunnelParams(length_m=150.0)),
@@ -163,6 +164,38 @@ def main() -> None:
                         "with its 3 um pixel (44 deg), 100 spp in one multijitter chunk, six poses per city. "
                         "Render ~3,000 frames (2,000 train / 1,000 test).",
             sensor=SENSOR_PRESETS["paper_table1"]),
+    ]
+    # The dense detection city at night, seen by an automotive night camera: the MT9V024-like sensor
+    # (6 um, 10 bits, 25,455 e- well) binned to 320x240 so the 44 deg field of view is kept, f/2,
+    # exposure at most 1/30 s, analog gain 4x, as city_night. The MT9V024 is sold with a Bayer and
+    # with an RCCC filter: the two variants differ only in the CFA and in the IR-cut filter a colour
+    # camera carries (RCCC cameras have none), so a detector trained on each says which sees more.
+    night_camera = SENSOR_PRESETS["auto_rccc"].updated(rows=240, cols=320, max_exposure_s=VIDEO_MAX_EXPOSURE_S,
+                                                       analog_gain=4.0)
+    night_detection = detection.updated(
+        name="city_detection_night",
+        description="Night data for the detection experiments, Bayer variant (city_detection_night_rccc is the RCCC "
+                    "one): city_detection_quick's dense city (60 cars with LED head-lights and red tail-lights, "
+                    "120 pedestrians, 8 buses, 6 trucks per arrangement) at night under its high-pressure sodium "
+                    "street lamps (15,000 lm) and a 0.02 cd/m2 sky glow, the same six camera poses per city aimed at "
+                    "objects 6-20 m away; an automotive night camera (MT9V024-like 6 um pixels, 10 bits, 320x240 "
+                    "so the 44 deg field of view is kept, f/2, exposure at most 1/30 s, analog gain 4x) with an RGGB "
+                    "filter and an IR-cut filter at 650 nm; rendered in the sensor's own channels (one multijitter "
+                    "chunk, the detection samples' spp until the night noise criterion is measured: issue 33); "
+                    "procedural materials (puddles on 5 % of the road); exposure biases -4...+4 EV. Render its data "
+                    "set with: workbench dataset city_detection_night --frames 612 --out DIR",
+        optics=detection.optics.updated(f_number=2.0),
+        sensor=night_camera.updated(cfa_pattern="RGGB", ir_cut_file="sensors/ir_cut_650.csv"),
+        render=DETECTION_RENDER.updated(world=textured(0.05, lighting="night")))
+    samples += [
+        night_detection,
+        night_detection.updated(
+            name="city_detection_night_rccc",
+            description="city_detection_night seen through the RCCC variant of its night camera (red + three clear "
+                        "pixels, no IR-cut filter, so the clear pixels also take the sodium lamps' 819 nm line): "
+                        "the same cities, poses, lamps and exposure rule, only the filters differ. Render its data "
+                        "set with: workbench dataset city_detection_night_rccc --frames 612 --out DIR",
+            sensor=night_camera),
     ]
     for project in samples:
         save_project(project, PROJECTS_DIR / f"{project.name}.json")

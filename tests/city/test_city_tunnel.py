@@ -29,7 +29,8 @@ def test_geometry_over_its_street_segment(city):
     assert v[:, 1].min() == pytest.approx(y_mid - 50.0) and v[:, 1].max() == pytest.approx(y_mid + 50.0)
     assert v[:, 2].min() == 0.0 and v[:, 2].max() == pytest.approx(5.0 + 1.0)
     lum = t.meta["luminaires_m"]
-    assert len(lum) == 12 and np.allclose(np.diff(lum[:, 1]), 8.0) and np.allclose(lum[:, 0], x)
+    assert len(lum) == 62 and np.allclose(np.diff(lum[:, 1]), 1.6) and np.allclose(lum[:, 0], x)   # 100 m / 1.6 m
+    assert t.meta["lens_half_size_m"] == (0.2, 0.75)
     assert lum[:, 1].mean() == pytest.approx(y_mid) and np.all(lum[:, 2] < 5.0 - 0.15)
     # nothing but people, vehicles, benches and mailboxes under the roof; walls clear of buildings
     f = t.meta["frame"]
@@ -56,6 +57,8 @@ def test_recipe_refuses_a_tunnel_that_does_not_fit():
         CityRecipe(tunnel=TunnelParams(length_m=95.0))       # 100 m blocks − 2 × 4 m sidewalks
     with pytest.raises(ValueError, match="street_index"):
         CityRecipe(tunnel=TunnelParams(street_index=3))
+    with pytest.raises(ValueError, match="luminaire_length_m=2.0 exceeds luminaire_spacing_m=1.6"):
+        TunnelParams(luminaire_length_m=2.0)
 
 
 @pytest.mark.parametrize("view", ["exit", "entrance"])

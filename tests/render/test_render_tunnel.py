@@ -6,6 +6,11 @@
   + Y/√(1+Y²) atan(X/√(1+Y²))] over its corners (X, Y its corner offsets over the height), at
   1 m and 10 m — Φ/(π d²) far away, the inverse square of I₀ = Φ/π; a row of them the sum of
   each, within 2 %.
+- The sample's row (issue 33): a continuous line (1.5 m lenses every 1.6 m) with the flux per
+  metre of the former 20,000 lm every 8 m; its road illuminance the former row's mean within
+  0.5 % (closed form) and, rendered, its closed form within 2 %; seen by the contact sheet's
+  camera, no pixel along it between luminaires 15–60 m ahead below half the local mean (the
+  former row: gaps of no light at all).
 - Daylight HDR: inside the tunnel by day, the road's luminance is a few cd/m² (CIE 88:2004
   interior zone) and the view through the exit portal 10²–10⁴ times brighter, as real tunnels.
 - Labels: the tunnel's pixels are those whose pixel-centre ray meets its walls or roof before the
@@ -163,3 +168,122 @@ def test_the_row_registry_keeps_only_the_newest_rows(mi):
         lenses = _lenses([(0.0, float(k), 5.0)], "led", 1000.0)
     assert len(luminaire_row._ROWS) == luminaire_row.MAX_ROWS
     assert mi.load_dict(lenses[0]) is not None
+
+
+# The row before issue 33: 20,000 lm luminaires with 1.2 m lenses every 8 m (a few blobs in the view).
+OLD_ROW = dict(luminaire_flux_lm=20000.0, luminaire_spacing_m=8.0, luminaire_length_m=1.2)
+
+
+def _sample_tunnel(**row):
+    """The city_tunnel sample's tunnel alone (no other objects) with its default row or `row`."""
+    from workbench.project import load_project
+    recipe = load_project("city_tunnel").city
+    recipe = recipe.updated(n_cars=0, n_parked_cars=0, n_pedestrians=0, n_buses=0, n_trucks=0, n_trees=0,
+                            n_lamps=0, n_benches=0, n_mailboxes=0, tunnel=recipe.tunnel.updated(**row))
+    return next(o for o in generate_city(recipe).objects if o.class_name == "tunnel")
+
+
+def _row_illuminance(tunnel, points_xy):
+    """Closed-form road illuminance (lx) at points (P×2) under the tunnel's Lambertian lenses."""
+    hx, hy = tunnel.meta["lens_half_size_m"]
+    centres = tunnel.meta["luminaires_m"]
+    l_v = tunnel.meta["luminaire_flux_lm"] / (np.pi * 4 * hx * hy)
+    return sum(_rect_illuminance(l_v, c[:2, None] - points_xy.T, (hx, hy), c[2]) for c in centres)
+
+
+def test_the_continuous_row_keeps_the_rows_photometry():
+    """Issue 33: the row became a continuous line of 4,000 lm luminaires at 1.6 m with the flux per
+    metre (2,500 lm/m) of the former 20,000 lm every 8 m; its total flux within 4 % (the row now
+    reaches 2.4 m nearer each portal) and the mean road illuminance over the middle 8 m, on the
+    centre line and a lane's, within 0.5 % of the former row's (closed form), now uniform."""
+    new, old = _sample_tunnel(), _sample_tunnel(**OLD_ROW)
+    flux = {k: t.meta["luminaire_flux_lm"] * len(t.meta["luminaires_m"]) for k, t in (("new", new), ("old", old))}
+    pitch = {k: np.diff(t.meta["luminaires_m"][:, 1]).mean() for k, t in (("new", new), ("old", old))}
+    assert flux["new"] / (len(new.meta["luminaires_m"]) * pitch["new"]) == pytest.approx(2500.0)
+    assert flux["old"] / (len(old.meta["luminaires_m"]) * pitch["old"]) == pytest.approx(2500.0)
+    assert flux["new"] == pytest.approx(flux["old"], rel=0.04)
+    f = new.meta["frame"]
+    y = np.linspace(-4.0, 4.0, 401) + (f.y_south_m + f.y_north_m) / 2
+    for x in (f.x_m, f.x_m + 1.75):
+        pts = np.column_stack([np.full_like(y, x), y])
+        e_new, e_old = _row_illuminance(new, pts), _row_illuminance(old, pts)
+        assert e_new.mean() == pytest.approx(e_old.mean(), rel=0.005)
+        assert e_new.min() / e_new.max() > 0.99 and e_old.min() / e_old.max() < 0.75
+    # on the centre line, Φ/(2 S h) of an infinite row (h the lenses' height above the road)
+    h = new.meta["luminaires_m"][0, 2]
+    assert _row_illuminance(new, np.array([[f.x_m, y[200]]]))[0] == pytest.approx(4000.0 / (2 * 1.6 * h), rel=0.01)
+
+
+def test_the_sample_row_renders_its_closed_form_illuminance(mi):
+    """The city_tunnel sample's row as lamps.tunnel_emitters builds it (93 lenses), rendered onto a
+    white plane at road level: its closed form within 2 %."""
+    from types import SimpleNamespace
+
+    from workbench.render.lamps import tunnel_emitters
+    tunnel = _sample_tunnel()
+    f = tunnel.meta["frame"]
+    centre = np.array([f.x_m + 1.75, (f.y_south_m + f.y_north_m) / 2 + 0.3, 0.0])
+    moved = CityObject("tunnel", 1, [], meta={**tunnel.meta, "luminaires_m": tunnel.meta["luminaires_m"] - centre})
+    lenses = [shape for _, shape in tunnel_emitters(SimpleNamespace(objects=[moved])).values()]
+    got, sem = _e_v(mi, lenses, 0.5, 128)
+    want = _row_illuminance(tunnel, centre[None, :2])[0]
+    assert 4 * sem < 0.01 * want
+    assert got == pytest.approx(want, rel=0.02)
+
+
+def _row_profile(mi, row: dict) -> list[float]:
+    """Frame 0 of the city_tunnel sample as the contact sheet renders it (320×240, its own pose and
+    field of view), the luminaires alone (a depth-1 render of their lenses, V(λ)-weighted): along
+    the row's centre line, between each pair of neighbouring luminaires 15–60 m ahead, the lowest
+    pixel over the mean of the pixels (min/mean)."""
+    from workbench.datasets.contact_sheet import sheet_project
+    from workbench.project import load_project
+    from workbench.render.city_frame import city_scene_inputs, project_frame_seeds
+    from workbench.render.lamps import tunnel_emitters
+    from workbench.render.scene_builder import camera_to_world, pinhole_sensor
+    from workbench.scene.city import sample_camera_poses
+    project = sheet_project(load_project("city_tunnel"), 320, 240, 64)
+    project = project.updated(city=project.city.updated(tunnel=project.city.tunnel.updated(**row)))
+    inputs, seeds = city_scene_inputs(project), project_frame_seeds(project, 0)
+    city = generate_city(inputs.city.updated(arrangement=seeds.arrangement))
+    pose = sample_camera_poses(city, inputs.pose, 1, seeds.pose)[0]
+    h, w = inputs.camera.shape
+    fov = inputs.camera.hfov_deg
+    wl = np.arange(360.0, 831.0, 1.0)
+    sensor = pinhole_sensor(pose, fov)
+    sensor["film"] = {"type": "specfilm", "width": w, "height": h, "rfilter": {"type": "box"},
+                      "v": {"type": "spectrum", "value": list(zip(wl.tolist(), luminous_efficiency(wl).tolist()))}}
+    sensor["sampler"] = {"type": "multijitter"}
+    lenses = {k: shape for k, (_, shape) in tunnel_emitters(city).items()}
+    scene = mi.load_dict({"type": "scene", "integrator": {"type": "path", "max_depth": 1}, "sensor": sensor, **lenses})
+    img = np.array(mi.render(scene, spp=64, seed=1), dtype=np.float64)[..., 0]
+    origin, target, up = camera_to_world(pose)
+    fwd = target - origin
+    right = np.cross(fwd, up)
+    f_px = (w / 2) / np.tan(np.radians(fov / 2))
+    centres = next(o for o in city.objects if o.class_name == "tunnel").meta["luminaires_m"]
+    ahead = centres[(centres[:, 1] - origin[1] > 15.0) & (centres[:, 1] - origin[1] < 60.0)]
+    assert len(ahead) >= 3
+    out = []
+    for a, b in zip(ahead[:-1], ahead[1:]):
+        p = a + np.linspace(0.0, 1.0, 400)[:, None] * (b - a)
+        v = p - origin
+        u = np.floor(w / 2 + f_px * (v @ right) / (v @ fwd)).astype(int)
+        r = np.floor(h / 2 - f_px * (v @ up) / (v @ fwd)).astype(int)
+        inside = (u >= 0) & (u < w) & (r >= 0) & (r < h)
+        pixels = np.unique(np.column_stack([r[inside], u[inside]]), axis=0)
+        if len(pixels) >= 2:
+            values = img[pixels[:, 0], pixels[:, 1]]
+            out.append(float(values.min() / values.mean()))
+    assert len(out) >= 2
+    return out
+
+
+def test_the_luminaire_row_reads_as_a_continuous_line(mi):
+    """Issue 33: the row showed as a few blobs (1.2 m lenses every 8 m: between neighbours 15–60 m
+    ahead, pixels along the row without any lens light); now no pixel along it falls below half
+    the mean between its neighbours."""
+    new, old = _row_profile(mi, {}), _row_profile(mi, OLD_ROW)
+    print(f"min/mean between luminaires: old {min(old):.3f}, new {min(new):.3f} (worst of {len(new)})")
+    assert min(old) < 0.05, old
+    assert min(new) > 0.5, new

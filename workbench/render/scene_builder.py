@@ -19,6 +19,7 @@ from workbench.errors import InvalidValueError
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
+from workbench.render.lamp_heads import lamp_faces
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
@@ -212,7 +213,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     sensor: optional Mitsuba sensor dict (e.g. a lens camera) replacing the pinhole; its
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
     world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
-        the lights' sampling weights set for this camera: lamps.set_view_light_weights; a
+        the lights' sampling weights set for this camera: lamps.set_view_light_weights, and the
+        street lamps' glowing faces, seen but never sampled: lamp_heads.lamp_faces; a
         tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
         'koschmieder' the scene stays clear, its sun dimmed by the layer, and koschmieder.koschmieder_fog
@@ -239,6 +241,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
     # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
     lenses = tunnel_emitters(city, None if night else 1.0)
+    faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
@@ -280,6 +283,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     for sid, (instance_id, shape) in lenses.items():
         scene[sid] = shape if medium is None else {**shape, "exterior": medium}
         id_table[sid] = ShapeLabel("tunnel", int(instance_id))
+    for sid, (instance_id, shape) in faces.items():
+        scene[sid] = shape if medium is None else {**shape, "exterior": medium}
+        id_table[sid] = ShapeLabel("lamp", int(instance_id))
     mi_scene = mi.load_dict(scene)
     if world.lighting == "night" and world.night.light_selection == "view":
         set_view_light_weights(mi_scene, lights)

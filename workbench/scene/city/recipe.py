@@ -45,14 +45,21 @@ class TunnelParams(Params):
     x = street_index · pitch, between cross streets segment_index and segment_index + 1, centred on
     the segment. Concrete side walls stand behind both sidewalks (which become its walkways), a
     flat roof slab spans them at clearance_m above the road; the open ends are the portals.
-    Luminaires hang in one row over the centre line every luminaire_spacing_m, each a glowing
-    Lambertian lens of luminaire_flux_lm (render/luminaire_row.py), lit by day and by night.
+    Luminaires hang in one continuous row over the centre line, one every luminaire_spacing_m, each a
+    glowing Lambertian lens luminaire_length_m long (0.4 m across) of luminaire_flux_lm
+    (render/luminaire_row.py), lit by day and by night.
 
-    Defaults follow CIE 88:2004's interior zone (a road luminance of a few cd/m² for urban
-    traffic): a row of Lambertian luminaires of flux Φ (on-axis intensity Φ/π) at spacing S and
-    height h gives the road below E ≈ Σ (Φ/π) h²/r⁴ ≈ Φ/(2 S h), and a Lambertian asphalt of
-    reflectance ρ ≈ 0.075 shows L = ρE/π; Φ = 20,000 lm, S = 8 m, h ≈ 4.85 m → E ≈ 260 lx,
-    L ≈ 6 cd/m² (the walls' inter-reflection adds a little)."""
+    Defaults: a continuous line of 1.5 m luminaires mounted end to end at a 1.6 m pitch, as the
+    interior zones of road tunnels are lit ("line lighting": luminaires of one or two 1,500 mm
+    T8/T5-length tubes or their LED successors butted into a line; a continuous line casts no
+    flicker, which van Bommel, Road Lighting, Springer 2015, §20 / Fig. 20.19 puts as disturbing
+    between 2.5 and 15 Hz, i.e. for discrete luminaires at 1.9–11 m spacing at 100 km/h), each of
+    4,000 lm (a 58 W T8 tube's ~5,200 lm at a light output ratio of ~0.75): 2,500 lm per metre of
+    tunnel, as the former row of 20,000 lm every 8 m. Road level follows CIE 88:2004's interior
+    zone (a few cd/m² for urban traffic): a long row of Lambertian luminaires of flux Φ (on-axis
+    intensity Φ/π) at spacing S and height h gives the road below E ≈ Σ (Φ/π) h²/r⁴ ≈ Φ/(2 S h),
+    and a Lambertian asphalt of reflectance ρ ≈ 0.075 shows L = ρE/π; Φ/S = 2,500 lm/m,
+    h ≈ 4.85 m → E ≈ 260 lx, L ≈ 6 cd/m² (the walls' inter-reflection adds a little)."""
 
     street_index: int = Field(1, ge=0, le=20, description="which street along +Y (0 = westmost) the tunnel "
                                                           "covers (count); city tunnel")
@@ -63,10 +70,21 @@ class TunnelParams(Params):
     wall_thickness_m: float = Field(0.5, gt=0.0, le=0.9, description="side wall thickness (m); city tunnel")
     roof_thickness_m: float = Field(1.0, gt=0.0, le=5.0, description="roof slab thickness (m); city tunnel")
     luminaire_kind: Literal["led", "hps"] = Field("led", description="luminaire spectrum; city tunnel lighting")
-    luminaire_flux_lm: float = Field(20000.0, gt=0.0, le=1e6, description="luminous flux per luminaire (lm); "
+    luminaire_flux_lm: float = Field(4000.0, gt=0.0, le=1e6, description="luminous flux per luminaire (lm); "
                                                                           "city tunnel lighting")
-    luminaire_spacing_m: float = Field(8.0, ge=1.0, le=100.0, description="luminaire spacing along the tunnel "
-                                                                          "(m); city tunnel lighting")
+    luminaire_spacing_m: float = Field(1.6, ge=0.5, le=100.0, description="luminaire spacing (pitch) along the "
+                                                                          "tunnel (m); city tunnel lighting")
+    luminaire_length_m: float = Field(1.5, ge=0.1, le=100.0, description="length of each luminaire's glowing lens "
+                                                                         "along the tunnel (m), at most the "
+                                                                         "spacing; city tunnel lighting")
+
+    @model_validator(mode="after")
+    def _check_luminaires(self) -> "TunnelParams":
+        if self.luminaire_length_m > self.luminaire_spacing_m:
+            raise InvalidValueError(f"tunnel luminaire_length_m={self.luminaire_length_m} exceeds luminaire_spacing_m="
+                                    f"{self.luminaire_spacing_m}: the lenses would overlap; shorten them or space "
+                                    "them wider")
+        return self
 
 
 class CityRecipe(Params):

@@ -4,8 +4,9 @@ Cross-section (the street runs along +Y at x = c): the carriageway and both side
 inside; a side wall of wall_thickness_m stands on each outer sidewalk edge (into the building lot,
 where buildings keep ≥ 1 m back), a roof slab spans both walls from clearance_m above the road
 up by roof_thickness_m. The slab's end faces are the portals' head walls. Luminaire housings
-hang under the roof over the centre line; the centres of their glowing lenses (horizontal
-rectangles facing down, just under each housing) are in the object's meta for render/lamps.py.
+hang under the roof over the centre line, end to end as a continuous line by default
+(TunnelParams); the centres of their glowing lenses (horizontal rectangles facing down, just
+under each housing) are in the object's meta for render/lamps.py.
 """
 from __future__ import annotations
 
@@ -19,8 +20,9 @@ from workbench.scene.city.layout import CityLayout
 from workbench.scene.city.recipe import CityRecipe
 from workbench.scene.city.types import Mesh
 
-LUMINAIRE_SIZE_M = (0.5, 1.3, 0.15)   # housing across × along × tall
-LENS_HALF_SIZE_M = (0.2, 0.6)         # lens (a 0.4 m × 1.2 m rectangle) half across, half along
+HOUSING_ACROSS_M, HOUSING_TALL_M = 0.5, 0.15
+HOUSING_MARGIN_M = 0.05               # housing beyond its lens at each end (at most half the gap)
+LENS_HALF_WIDTH_M = 0.2               # lens 0.4 m across; its length is TunnelParams.luminaire_length_m
 LENS_BELOW_HOUSING_M = 0.005
 
 
@@ -61,7 +63,7 @@ def luminaire_points(recipe: CityRecipe, frame: TunnelFrame) -> np.ndarray:
     t = recipe.tunnel
     n = max(1, int(np.floor(t.length_m / t.luminaire_spacing_m)))
     y = (frame.y_south_m + frame.y_north_m) / 2 + t.luminaire_spacing_m * (np.arange(n) - (n - 1) / 2)
-    z = frame.soffit_z_m - LUMINAIRE_SIZE_M[2] - LENS_BELOW_HOUSING_M
+    z = frame.soffit_z_m - HOUSING_TALL_M - LENS_BELOW_HOUSING_M
     return np.column_stack([np.full(n, frame.x_m), y, np.full(n, z)])
 
 
@@ -77,7 +79,8 @@ def tunnel_object(recipe: CityRecipe, layout: CityLayout) -> tuple[list[Mesh], n
                     np.array([[x0, f.y_north_m, f.soffit_z_m], [x1 + w, f.y_north_m, f.soffit_z_m],
                               [x1 + w, f.y_north_m, top]]))
     pts = luminaire_points(recipe, f)
-    a, b, h = LUMINAIRE_SIZE_M
+    a, h = HOUSING_ACROSS_M, HOUSING_TALL_M
+    b = t.luminaire_length_m + 2 * min(HOUSING_MARGIN_M, (t.luminaire_spacing_m - t.luminaire_length_m) / 2)
     bottom = pts[:, 2] + LENS_BELOW_HOUSING_M
     housing = g.boxes(np.column_stack([pts[:, 0] - a / 2, pts[:, 1] - b / 2, bottom]),
                       np.column_stack([pts[:, 0] + a / 2, pts[:, 1] + b / 2, bottom + h]))
@@ -85,6 +88,6 @@ def tunnel_object(recipe: CityRecipe, layout: CityLayout) -> tuple[list[Mesh], n
               for (v, fc), mat in ((shell, "concrete"), (housing, "metal_dark"))]
     footprint = np.array([[x0 - w, f.y_south_m], [x1 + w, f.y_south_m], [x1 + w, f.y_north_m],
                           [x0 - w, f.y_north_m]])
-    meta = {"frame": f, "luminaires_m": pts, "lens_half_size_m": LENS_HALF_SIZE_M, "luminaire_kind": t.luminaire_kind,
-            "luminaire_flux_lm": t.luminaire_flux_lm, "length_m": t.length_m}
+    meta = {"frame": f, "luminaires_m": pts, "lens_half_size_m": (LENS_HALF_WIDTH_M, t.luminaire_length_m / 2),
+            "luminaire_kind": t.luminaire_kind, "luminaire_flux_lm": t.luminaire_flux_lm, "length_m": t.length_m}
     return meshes, footprint, meta
