@@ -27,7 +27,7 @@ from workbench.bench import BenchResult, register_bench
 DAY = "day (city_detection_quick)"
 CASES = (  # (label, sample project, scale, {setting: NightParams updates})
     (DAY, "city_detection_quick", 2, {"before": {}}),
-    ("night", "city_night", 4, {"before": {}, "after": {"light_selection": "shading"}}),
+    ("night", "city_night", 4, {"before": {"light_selection": "view"}, "after": {"light_selection": "shading"}}),
     ("tunnel", "city_tunnel", 4, {"before": {}}),
     ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {}}),
 )
