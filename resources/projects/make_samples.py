@@ -5,7 +5,7 @@
 from workbench.isp.params import ISPParams
 from workbench.optics.params import OpticsParams
 from workbench.project import PROJECTS_DIR, ExperimentParams, Project, save_project
-from workbench.render.params import FogParams, RenderParams, WorldParams
+from workbench.render.params import FogParams, NightParams, RenderParams, WorldParams
 from workbench.scene.city import CityRecipe, PoseParams, TunnelParams
 from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
@@ -98,13 +98,14 @@ def main() -> None:
             name="city_night",
             city=street,
             description="The city at night: high-pressure sodium street lamps (15,000 lm), LED head-lights and red "
-                        "tail-lights on every moving car (parked cars dark), a 0.02 cd/m2 sky glow; the auto_rccc sensor (no IR cut) sees "
+                        "tail-lights on every moving car (parked cars dark), a 0.02 cd/m2 sky glow, each lamp sampled by its light at "
+                        "the shading point (fewer fireflies); the auto_rccc sensor (no IR cut) sees "
                         "the sodium 819 nm line; procedural materials with puddles on 10 % of the road. As an "
                         "automotive night camera: f/2, exposure at most 1/30 s (30 fps video; auto-exposure would "
                         "otherwise open to seconds) and the MT9V024's largest analog gain, 4x.",
             optics=city.optics.updated(f_number=2.0),
             sensor=SENSOR_PRESETS["auto_rccc"].updated(max_exposure_s=VIDEO_MAX_EXPOSURE_S, analog_gain=4.0),
-            render=RenderParams(world=textured(0.10, lighting="night"))),
+            render=RenderParams(world=textured(0.10, lighting="night", night=NightParams(light_selection="shading")))),
         city.updated(
             name="city_fog",
             city=street,

@@ -16,6 +16,9 @@ def test_bench_render_quick(tmp_path, monkeypatch):
     assert {"paint clearcoat", "detailed assets", "tunnel exit view (day, luminaires)"} <= {c.name for c in cases}
     assert cases[0].name == rf.BASELINE
     monkeypatch.setattr(rf, "feature_cases", lambda: cases[:1])
+    from workbench.bench import render_noise_scenes as rns
+    monkeypatch.setattr(rns, "CASES", rns.CASES[:1])                  # its own test below covers the rest
+    monkeypatch.setattr(rns, "noise_plan", lambda quick: (1, 8, 4, 8))
     res = bench_render(argparse.Namespace(quick=True, json=False, out=str(tmp_path)))
     assert {r["repr"] for r in res.rows} >= {"bands6", "bands30", "basis6", "sensor3"}
     for r in res.rows:
@@ -26,6 +29,7 @@ def test_bench_render_quick(tmp_path, monkeypatch):
     cost = res.extra["cost_640x480_2pct"][0]
     assert cost["spp_for_2pct"] >= 1 and cost["err_broadband_measured"] is None and cost["core_min_per_frame"] > 0 and cost["npz_float16_MB"] > 0
     assert (tmp_path / "bench_render.png").exists()
+    assert [r["scene"] for r in res.extra["scene_noise"]] == [rns.DAY]
     feats = res.extra["features_2pct"]
     assert [(r["case"], r["res"]) for r in feats] == [(rf.BASELINE, "48x36"), (rf.BASELINE, "96x72")]
 
@@ -47,3 +51,21 @@ def test_feature_bench_rows_per_case_and_resolution():
         assert r["cpu_s_per_frame_2pct"] > 0 and (r["fog_cpu_s"] > 0) == ("koschmieder" in r["case"])
         assert r["x_baseline"] > 0 and (r["x_baseline"] == 1.0 or r["case"] != rf.BASELINE)
     assert len({c.name for c in rf.feature_cases()}) == len(rf.feature_cases())
+
+
+@pytest.mark.slow
+def test_scene_noise_rows_before_and_after(monkeypatch):
+    """The night/tunnel/day noise table (render_noise_scenes): a row per case, setting and frame,
+    ratios and costs finite and positive, the night's 'after' row the shading light selection, the
+    day frame the unit of cost (a tiny plan: day and night, one frame, 16 and 4 spp, 1/32 size)."""
+    from workbench.bench import render_noise_scenes as rns
+    monkeypatch.setattr(rns, "CASES", rns.CASES[:2])
+    monkeypatch.setattr(rns, "noise_plan", lambda quick: (1, 16, 4, 8))
+    rows = rns.scene_noise_rows(True)
+    assert [(r["scene"], r["setting"].split()[0]) for r in rows] == [(rns.DAY, "before"), ("night", "before"),
+                                                                    ("night", "after")]
+    assert "light_selection=shading" in rows[2]["setting"]
+    for r in rows:
+        assert all(np.isfinite(r[k]) and r[k] >= 0 for k in ("median", "p90", "edge", "power", "top_0.1pct"))
+        assert r["spp_at_criterion"] >= 1 and r["core_s_per_kpx_at_criterion"] > 0 and r["cpu_s"] > 0
+    assert rows[0]["x_day_cost"] == 1.0

@@ -10,7 +10,10 @@ noise can be subtracted). Errors are relative RMS over the image:
 Then: frames per hour and core-minutes per 640×480 frame at 2 % broadband error (spp = (c/0.02)²
 with c measured here; that frame is rendered and timed, or in --quick extrapolated), peak
 memory, stored bytes per frame; and the cost at 320×240 and 640×480 (48×36 and 96×72 in --quick)
-of every scene type and feature switched on alone (render_features.py; extra['features_2pct']).
+of every scene type and feature switched on alone (render_features.py; extra['features_2pct']); and
+the night, tunnel and day samples' core-seconds per frame at the data sets' render-noise
+criterion, before and after the night light selection per shading point (render_noise_scenes.py;
+extra['scene_noise']).
 """
 from __future__ import annotations
 
@@ -203,6 +206,11 @@ def bench_render(args) -> BenchResult:
     for item in extra["features_2pct"]:
         notes.append("feature @2% broadband: " + ", ".join(f"{k}={v}" for k, v in item.items()))
     notes += feature_notes(variant, f_res, f_spps)
+    from workbench.bench.render_noise_scenes import noise_notes, scene_noise_rows
+    extra["scene_noise"] = scene_noise_rows(quick)
+    for item in extra["scene_noise"]:
+        notes.append("scene noise: " + ", ".join(f"{k}={v}" for k, v in item.items()))
+    notes += noise_notes(quick)
     notes.append(f"spp = (c/0.02)² with c from the {last} rows; "
                  + (f"--quick: time extrapolated from {cost_spps} spp at 640x480, bytes of that noisier "
                     "frame (an upper bound); " if quick else

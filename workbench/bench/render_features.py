@@ -4,7 +4,7 @@
 Every case (feature_cases, one line each) renders a city view through the camera's three
 channels (sensor film) with one thing changed from the baseline (today's city: day, uniform sky,
 clear air, diffuse glass, uniform materials, simple assets): a sky model, a low sun, fog by either
-model, night with either light selection or direct light only, glass, materials, paint, detailed assets, a tunnel
+model, night with each light selection or direct light only, glass, materials, paint, detailed assets, a tunnel
 scene (its own city and pose). For each case and resolution: the broadband noise constant c
 (relative RMS of the three channels' sum between two independent renders, c = σ√spp),
 spp = (c/0.02)² for 2 % broadband error, and the process CPU time of that frame extrapolated from
@@ -69,6 +69,8 @@ def feature_cases() -> list[FeatureCase]:
             FeatureCase("night HPS, view light selection", world={"lighting": "night"}),
             FeatureCase("night HPS, flux light selection", world={"lighting": "night",
                                                                   "night": NightParams(light_selection="flux")}),
+            FeatureCase("night HPS, shading light selection", world={"lighting": "night",
+                                                                     "night": NightParams(light_selection="shading")}),
             FeatureCase("night HPS, view, direct light only (max_depth 2)", world={"lighting": "night"}, max_depth=2),
             FeatureCase("night HPS, flux, direct light only (max_depth 2)", max_depth=2,
                         world={"lighting": "night", "night": NightParams(light_selection="flux")}),

@@ -27,7 +27,9 @@ the summed variance of one-light next-event estimates, Σ_i S_i / p_i), mixed wi
 weights so that every light keeps a share (light it sheds only indirectly or between the coarse
 grid's points is still sampled: unbiased, only the noise changes). In a city at night most lamps
 light streets the camera does not see, and a head-light 1 m behind the car ahead lights a small
-bright patch that flux weights sample as rarely as a lamp three blocks away.
+bright patch that flux weights sample as rarely as a lamp three blocks away. Both are one table
+per frame; NightParams.light_selection 'shading' (render/lamp_set.py) picks a lamp per shading
+point instead, which also serves the points bounced paths reach (the night's fireflies).
 Radiometric units: intensity W/sr/nm (energy), like the daylight spectra.
 """
 from __future__ import annotations
@@ -201,7 +203,8 @@ def tunnel_emitters(city, sampling_weight: float | None = None) -> dict[str, tup
 
 def night_emitters(city, night) -> dict:
     """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights (not of parked
-    cars), sky glow."""
+    cars), sky glow. With night.light_selection 'shading' the lamps and vehicle lights are one
+    emitter, LAMP_SET_ID (render/lamp_set.py), weighing their summed weights."""
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM
 
     out = {}
@@ -216,6 +219,9 @@ def night_emitters(city, night) -> dict:
             for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_red")):
                 out[f"taillight_{obj.instance_id}_{j}"] = spot_emitter(
                     p, d, "led_red", night.taillight_cd, cutoff_deg=60.0, beam_deg=20.0)
+    if night.light_selection == "shading" and out:
+        from workbench.render.lamp_set import lamp_set_emitter
+        out = {LAMP_SET_ID: lamp_set_emitter(out)}
     if night.sky_luminance_cd_m2 > 0:
         wl = DAYLIGHT_WAVELENGTHS_NM
         shape = blackbody_spd(3500.0, wl)
@@ -227,6 +233,7 @@ def night_emitters(city, night) -> dict:
     return out
 
 
+LAMP_SET_ID = "street_lights"      # the one emitter of all lamps with light_selection 'shading'
 DEFENSIVE_SHARE = 0.1          # of the selection probability kept in proportion to flux (view weights)
 IMPORTANCE_GRID_PX = 96 * 72   # most visible points the view weights are estimated on
 

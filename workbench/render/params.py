@@ -61,11 +61,14 @@ class NightParams(Params):
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
     blackbody shape; urban skies are ~0.01–0.1 cd/m²). `light_selection`: how next-event estimation
     picks a light — 'view' (by each light's direct illuminance on what the camera sees, plus a
-    10 % flux share: the same image with far less noise) or 'flux' (by luminous flux alone). What
-    noise remains at night is mostly indirect light from small, very bright patches (a car lit by
-    the head-lights 1 m behind it), found rarely by bounced paths; render.max_depth 2 (direct light
-    only) removes it and loses the indirect light: on the render bench's view −5 % on lit
-    surfaces (−0.7 % of the frame mean), depth 3 −2.5 %, depth 4 within 0.2 % of depth 10."""
+    10 % flux share: the same image with far less noise than flux), 'flux' (by luminous flux
+    alone) or 'shading' (render/lamp_set.py: all lamps one emitter that picks a lamp by its
+    unshadowed light at each shading point, as a light tree does; the same image again). With
+    'view' the noise left at night is fireflies of one-bounce indirect light (render.max_depth 2
+    has none): a bounced path lands on a surface lit by a lamp whose per-frame share is small.
+    'shading' removes that cause; max_depth 2 instead loses the indirect light: on the render
+    bench's view −5 % on lit surfaces (−0.7 % of the frame mean), depth 3 −2.5 %, depth 4 within
+    0.2 % of depth 10."""
 
     lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
                                                                                       "night render")
@@ -78,8 +81,9 @@ class NightParams(Params):
     taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
     sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
                                                                           "night render")
-    light_selection: Literal["view", "flux"] = Field("view", description="lights sampled by their light on the "
-                                                                        "view or by flux alone; night render")
+    light_selection: Literal["view", "flux", "shading"] = Field(
+        "view", description="lights sampled by their light on the view, by flux alone, or by their light at each "
+                            "shading point (fewest fireflies); night render")
 
 
 class FogParams(Params):
