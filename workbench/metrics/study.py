@@ -451,7 +451,7 @@ def compare_designs(a, b, out_dir) -> dict:
     ma, mb = camera_metrics(a), camera_metrics(b)
     if ma["project"] == mb["project"]:
         ma["project"], mb["project"] = f"A: {a.name}", f"B: {b.name}"
-    from workbench.project import project_differences
+    from workbench.project import difference_labels, project_differences
     changed = [{"field": f, "A": va, "B": vb} for f, va, vb in project_differences(a, b)]
     rows, reasons = [], []
     for key, better in HIGHER_IS_BETTER.items():
@@ -481,8 +481,9 @@ def compare_designs(a, b, out_dir) -> dict:
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
           " Dynamic range: full well over the read noise (with none, over the ADC's quantisation noise).\n")
+    label_a, label_b = difference_labels(a, b)
     fig = Figure(figsize=(11, 8))
-    draw_metrics(fig, [ma, mb])
+    draw_metrics(fig, [{**ma, "label": label_a}, {**mb, "label": label_b}])
     fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
