@@ -61,9 +61,8 @@ def test_each_chart_at_the_dock_size_fits_its_title_and_keeps_its_legend_off_the
 
 def test_the_command_line_figure_keeps_its_legends_beside_the_data(designs):
     for shown in (designs, designs[:1]):
-        fig = Figure(figsize=(11, 8))
+        fig = Figure(figsize=(11, 8), layout="constrained")        # as write_metrics and compare_designs draw it
         draw_metrics(fig, shown)
-        fig.tight_layout()
         FigureCanvasAgg(fig).draw()
         assert_readable(fig)
 

@@ -405,9 +405,8 @@ def write_metrics(metrics: dict, out_dir) -> dict:
     from workbench.files import atomic_write_files
     from workbench.metrics.charts import draw_metrics
     out = _output_folder(out_dir)
-    fig = Figure(figsize=(11, 8))
+    fig = Figure(figsize=(11, 8), layout="constrained")     # room for the legends beside the axes
     draw_metrics(fig, [metrics])
-    fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
     paths = {"json": out / "metrics.json", "md": out / "metrics.md", "png": out / "metrics.png"}
@@ -482,9 +481,8 @@ def compare_designs(a, b, out_dir) -> dict:
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
           " Dynamic range: full well over the read noise (with none, over the ADC's quantisation noise).\n")
     label_a, label_b = difference_labels(a, b)
-    fig = Figure(figsize=(11, 8))
+    fig = Figure(figsize=(11, 8), layout="constrained")
     draw_metrics(fig, [{**ma, "label": label_a}, {**mb, "label": label_b}])
-    fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
     doc = {"A": ma, "B": mb, "changed": changed, "table": rows}
