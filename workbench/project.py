@@ -267,3 +267,27 @@ def project_differences(a: Project, b: Project, skip: tuple[str, ...] = ("name",
             out.append((prefix, x, y))
     walk(json.loads(a.model_dump_json()), json.loads(b.model_dump_json()), "")
     return out
+
+
+def difference_labels(a: Project, b: Project, max_fields: int = 2) -> tuple[str, str]:
+    """Short names of two designs by what differs ('A: pixel_pitch_um 3', 'B: pixel_pitch_um 1.5'):
+    the first `max_fields` parameters project_differences finds (their last name, values as given),
+    '+N more' beyond; the project names when no parameter differs (both 'A'/'B' and the name, with
+    '(same design)' on B when the names agree too)."""
+    diff = project_differences(a, b)
+    if not diff:
+        return f"A: {a.name}", f"B: {b.name}" + (" (same design)" if a.name == b.name else "")
+
+    def name(side: int) -> str:
+        shown = [f"{field.rsplit('.', 1)[-1]} {_short(values[side])}" for field, *values in diff[:max_fields]]
+        more = len(diff) - max_fields
+        return ", ".join(shown) + (f" +{more} more" if more > 0 else "")
+    return "A: " + name(0), "B: " + name(1)
+
+
+def _short(value) -> str:
+    """A parameter value for a label: numbers in %g, a file or a long text by its last part."""
+    if isinstance(value, float):
+        return f"{value:g}"
+    text = str(value)
+    return text.rsplit("/", 1)[-1] if len(text) > 24 else text

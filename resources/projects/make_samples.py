@@ -11,6 +11,10 @@ from workbench.scene.params import SceneParams, WavelengthParams
 from workbench.sensor.params import SENSOR_PRESETS
 
 VIDEO_MAX_EXPOSURE_S = 1 / 30      # a 30 fps automotive video camera exposes at most one frame time
+# The Macbeth sample's own exposure: its brightest pixel (white 9.5) at 90 % of the swing, so no patch
+# clips (the paper's rule, mean at 40 %, clipped 12.4 % of its pixels and turned 9 patches pure white).
+# Its experiments keep the paper's rule: ExperimentParams' method and level, which they read instead.
+CHART_SENSOR = SENSOR_PRESETS["paper_table1"].updated(auto_exposure_method="brightest", auto_exposure_level=0.9)
 
 
 def main() -> None:
@@ -20,9 +24,11 @@ def main() -> None:
                     "44 deg FOV pinhole, 8 bits; Macbeth chart under D65 at a mean sensor illuminance of 1000 lux; "
                     "bilinear demosaic, Macbeth/D65 colour matrix keeping greys grey, white balance on the near-grey "
                     "pixels (the paper's gray world tints this chart's greys: its mean is not grey), blown "
-                    "highlights rendered white, sRGB.",
+                    "highlights rendered white, sRGB. Auto-exposed with the brightest pixel (white 9.5) at 90 % "
+                    "of the swing so no patch clips; the exposure experiment keeps the paper's rule (mean at "
+                    "40 % of the swing, the experiment block).",
         scene=SceneParams(kind="macbeth", illuminant="D65", distance_m=10.0, adjust_illuminance_lux=1000.0),
-        sensor=SENSOR_PRESETS["paper_table1"],
+        sensor=CHART_SENSOR,
         isp=ISPParams(illuminant_correction="gray_pixels"))
     samples = [
         paper,
@@ -44,7 +50,8 @@ def main() -> None:
             name="slanted_edge_diffraction_f8",
             description="The paper's sensor behind diffraction-limited f/8 optics on an ISO 12233 slanted edge.",
             scene=SceneParams(kind="slanted_edge", distance_m=10.0, adjust_illuminance_lux=1000.0),
-            optics=OpticsParams(model="diffraction_limited", f_number=8.0)),
+            optics=OpticsParams(model="diffraction_limited", f_number=8.0),
+            sensor=SENSOR_PRESETS["paper_table1"]),      # the paper's rule: the edge's bright side does not clip
     ]
     city = paper.updated(
         name="city_paper_camera",
@@ -52,6 +59,7 @@ def main() -> None:
                     "benches, mailboxes placed by rule) seen by the paper's camera 1.5 m above the road, about "
                     "10 m from a target object, rendered spectrally with Mitsuba 3 under daylight.",
         scene=SceneParams(kind="city", distance_m=10.0, adjust_illuminance_lux=None),
+        sensor=SENSOR_PRESETS["paper_table1"],          # the paper's rule (no chart white in a street)
         city=CityRecipe(seed=1), pose=PoseParams(mode="target", seed=1), render=RenderParams())
     samples += [
         city,

@@ -28,7 +28,7 @@ def make_panel(shown):
 
 def table(panel) -> dict[str, list[str]]:
     t = panel.table
-    return {t.verticalHeaderItem(i).text(): [t.item(i, j).text() for j in range(4)] for i in range(t.rowCount())}
+    return {t.item(i, 0).text(): [t.item(i, j).text() for j in range(1, 5)] for i in range(t.rowCount())}
 
 
 def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
@@ -42,9 +42,9 @@ def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
     assert {"electrons R", "electrons G", "electrons B", "MTF50 sRGB (cy/px)", "ΔE2000 mean, held-out patches",
             "ΔE2000 mean, fitted (training) patches"} <= set(rows)
     assert got.args[0]["summary"]["mtf50_cy_px"] > 0 and got.args[0]["seconds"] > 0
-    assert panel.table.isColumnHidden(0) and panel.table.isColumnHidden(2) and panel.table.isColumnHidden(3)
+    assert panel.table.isColumnHidden(1) and panel.table.isColumnHidden(3) and panel.table.isColumnHidden(4)
     qtbot.wait(50)
-    assert len(np.unique(grab(panel.chart).reshape(-1, 3), axis=0)) > 20
+    assert len(np.unique(grab(panel.chart_views["mtf"]).reshape(-1, 3), axis=0)) > 20
 
     panel.pin()
     assert panel.changes.isVisible() and "no parameter differs" in panel.changes.text()
@@ -54,18 +54,18 @@ def test_readouts_measurements_and_a_b_comparison(qtbot, grab, small, shown):
         panel.set_frame(frame_of(b))
     rows = table(panel)
     assert panel.changes.text() == f"A → B: sensor.pixel_pitch_um {small.sensor.pixel_pitch_um} → 1.5"
-    assert not panel.table.isColumnHidden(0) and not panel.table.isColumnHidden(2)
+    assert not panel.table.isColumnHidden(1) and not panel.table.isColumnHidden(3)
     a_nee, b_nee, change = (float(v) for v in rows["noise-equivalent exposure (mlx·s)"][:3])
     assert b_nee / a_nee == pytest.approx(4.0, rel=0.1) and change == pytest.approx(b_nee - a_nee, rel=1e-2)
     assert rows["noise-equivalent exposure (mlx·s)"][3] == "A better"        # beyond the measured uncertainty
     assert rows["sensor dynamic range (dB)"][3] == "same within ±0"         # a design parameter, unchanged
     assert rows["exposure (ms)"][3] == ""                                    # a frame read-out: no verdict
-    panel.charts.setCurrentIndex(1)
+    panel.charts.setCurrentWidget(panel.ab)
     qtbot.waitUntil(lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull(), timeout=20_000)
     assert len(np.unique(grab(panel.ab).reshape(-1, 3), axis=0)) > 50
 
     panel.clear_pin()
-    assert panel.table.isColumnHidden(0) and panel.pinned is None and not panel.changes.isVisible()
+    assert panel.table.isColumnHidden(1) and panel.pinned is None and not panel.changes.isVisible()
 
 
 def test_a_burst_of_edits_measures_the_newest_design_last(qtbot, small, shown):

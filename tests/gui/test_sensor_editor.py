@@ -87,3 +87,19 @@ def test_a_hidden_qe_chart_is_built_when_it_is_seen(qtbot, grab, shown):
     qtbot.waitUntil(editor.qe_chart.is_current, timeout=20_000)
     assert editor.qe_chart.figure().axes[0].get_title() == "RCCC: effective channel QE"
     assert len(np.unique(grab(editor.qe_chart).reshape(-1, 3), axis=0)) > 20
+
+
+def test_the_summary_says_which_exposure_rule_the_project_and_its_experiments_use(shown):
+    """Issue 32, item 10: the sample camera exposes its chart by its brightest pixel, its exposure
+    experiments (and the detection data) by the paper's rule; the window says which."""
+    from workbench.project import load_project
+    editor = make_editor(shown)
+    editor.set_project(load_project("paper_camera"))
+    text = editor.summary.text()
+    assert "Exposure: auto, brightest pixel at 90 % of the swing (at most 10 s)" in text, text
+    assert "exposure experiments: mean signal at 40 % of the swing, × 2^EV" in text, text
+    editor.set_project(load_project("city_detection_quick"))
+    assert "Exposure: auto, mean signal at 40 % of the swing" in editor.summary.text()
+    fixed = load_project("paper_camera")
+    editor.set_project(fixed.updated(sensor=fixed.sensor.updated(exposure_s=0.002, ev_bias=-1.0)))
+    assert "Exposure: fixed 2 ms, -1 EV" in editor.summary.text()

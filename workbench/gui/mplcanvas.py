@@ -82,11 +82,15 @@ class BackgroundChart(ChartImage):
         self.drawn.emit()
         self._start()                         # resized since the image was asked for
 
-    def figure(self) -> Figure:
-        """A Figure drawn by the current draw on this thread (to inspect what the chart shows)."""
-        fig = Figure(layout="constrained")
+    def figure(self, dpi: float = 100.0) -> Figure:
+        """A Figure drawn by the current draw on this thread at the size it is shown at (as
+        chart_rgba draws it), laid out, to inspect what the chart shows and where."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        width_px, height_px = self.size_px()
+        fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
         if self._draw is not None:
             self._draw(fig)
+        FigureCanvasAgg(fig).draw()
         return fig
 
     def is_current(self) -> bool:

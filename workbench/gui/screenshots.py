@@ -29,13 +29,16 @@ def _save(widget, path: Path) -> Path:
     return path
 
 
-def take(out: Path, results: Path | None, size=(240, 320)) -> list[Path]:
+def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = False) -> list[Path]:
     from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401
     from workbench.gui.gc_thread import GuiThreadGarbageCollection
     app = QApplication.instance() or QApplication(["workbench-screenshots"])
     with GuiThreadGarbageCollection():
+        if metrics_only:
+            out.mkdir(parents=True, exist_ok=True)
+            return _metrics_shots(app, out)
         return _take(app, out, results, size)
 
 
@@ -132,33 +135,42 @@ def _default_layout(app, project, path: Path) -> Path:
 
 
 def _metrics_shots(app, out: Path) -> list[Path]:
-    """The Metrics panel comparing the paper camera (pinned as A) with 1.5 µm pixels (B): its
-    table and charts, and the A | B | B − A strip."""
-    from workbench.gui.live import FrameBuilder
-    from workbench.gui.panels.metrics import MetricsPanel
-    from workbench.pipeline import Pipeline
+    """The Metrics dock at its default width in the window at 1280×800, comparing the paper camera
+    (pinned as A) with 1.5 µm pixels (B): the window with the table and the MTF chart
+    (metrics-ab.png), and the dock alone on the A | B | B − A strip (metrics-panel.png)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
     from workbench.project import load_project
-    panel = MetricsPanel()
-    panel.resize(1100, 1000)
-    panel.show()
+    win = MainWindow(Document(load_project("paper_camera")), with_city_view=False)
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    win.resize(1280, 800)
+    win.show()
+    panel = win.editors["Metrics"]
+    _settle(app, 0.5)                              # the first-run layout puts the Sensor dock in front
+    win.docks["Metrics"].raise_()
     done = []
     panel.measured.connect(done.append)
-    a = load_project("paper_camera")
-    b = a.updated(name="paper_camera_1.5um", sensor=a.sensor.updated(pixel_pitch_um=1.5))
-    for n, project in enumerate((a, b)):
-        panel.set_project(project)
-        panel.set_frame(FrameBuilder().build(Pipeline(project), project, preview=False, submitted_at=0.0))
-        _wait(app, lambda n=n: len(done) > n and panel._worker is None, 300)
+    for n, edit in enumerate((None, {"pixel_pitch_um": 1.5})):
+        if edit is not None:
+            win.apply_edit("sensor", edit)
+        project = win.document.project
+        _wait(app, lambda n=n, p=project: len(done) > n and panel._worker is None and panel._measured == p
+              and panel._frame is not None and panel._frame.project == p, 600)
         if n == 0:
             panel.pin()
-    _settle(app, 2.0)
-    written = [_save(panel, out / "metrics-panel.png")]
-    panel.charts.setCurrentIndex(1)
-    _wait(app, lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull(), 60)
+    _wait(app, lambda: all(v.is_current() for v in panel.chart_views.values() if v.isVisible()), 120)
     _settle(app, 1.0)
-    written.append(_save(panel.charts, out / "metrics-ab.png"))
-    panel.shutdown()
-    panel.close()
+    written = [_save(win, out / "metrics-ab.png")]
+    panel.charts.setCurrentWidget(panel.ab)
+    _wait(app, lambda: panel.ab.pixmap() is not None and not panel.ab.pixmap().isNull() and panel._ab_worker is None,
+          60)
+    _settle(app, 1.0)
+    written.append(_save(win.docks["Metrics"], out / "metrics-panel.png"))
+    win.document.undo_stack.setClean()
+    win.close()
+    app.processEvents()
     return written
 
 
@@ -166,13 +178,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("out", type=Path, help="folder for the PNG files")
     parser.add_argument("--results", type=Path, default=None, help="an experiment result folder to show")
+    parser.add_argument("--metrics-only", action="store_true", help="only the Metrics dock's two screenshots")
     args = parser.parse_args(argv)
     import os
     import tempfile
     os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
     from workbench.gui.display import virtual_display
     with virtual_display("1700x1100x24"):
-        take(args.out, args.results)
+        take(args.out, args.results, metrics_only=args.metrics_only)
         import shiboken6
         from PySide6.QtWidgets import QApplication
         shiboken6.delete(QApplication.instance())

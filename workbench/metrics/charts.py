@@ -8,10 +8,14 @@ import numpy as np
 from workbench.metrics.colour import PATCH_NAMES
 
 DESIGN_STYLES = ("-", "--", ":", "-.")
+DESIGN_MARKERS = ("o", "^", "s", "D")
 PLANE_COLOURS = {"optics": "0.6", "pixel": "0.8", "linear": "tab:cyan", "sRGB": "tab:purple"}
-
-
 RAW_COLOURS = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}
+CHART_TITLES = {"mtf": "system MTF (ISO 12233 slanted edge)", "snr": "SNR against signal",
+                "de": "ΔE2000 per Macbeth patch"}
+LEGEND_TITLES = {"mtf": "MTF50 (cy/px) of each plane"}
+LEGEND_FONT_PT = 7
+HANDLE_WIDTH_IN = 0.45               # a legend column's handle, its padding and the space between columns
 
 
 def _plane_colour(name: str) -> str:
@@ -20,25 +24,45 @@ def _plane_colour(name: str) -> str:
     return next((c for key, c in PLANE_COLOURS.items() if name.startswith(key)), "k")
 
 
-def draw_mtf(ax, designs: list[dict]) -> None:
-    """MTF against frequency (cycles/pixel) of every plane of each design, MTF50 ± 1σ in the legend,
-    a raw plane's closed form (optics × pixel) thin beside it; Nyquist dashed."""
+def design_label(metrics: dict) -> str:
+    """A design's name on the charts: its 'label' (A/B: what differs, project.difference_labels),
+    else its project's name."""
+    return metrics.get("label") or metrics["project"]
+
+
+def _design_handles(designs: list[dict], markers: bool = False) -> list:
+    """Legend entries telling several designs apart by line style (and marker); none for one."""
+    from matplotlib.lines import Line2D
+    if len(designs) < 2:
+        return []
+    return [Line2D([], [], color="k", ls=DESIGN_STYLES[d % 4], marker=DESIGN_MARKERS[d % 4] if markers else None,
+                   ms=4, lw=1.0, label=design_label(m)) for d, m in enumerate(designs)]
+
+
+def draw_mtf(ax, designs: list[dict]) -> list:
+    """MTF against frequency (cycles/pixel) of every plane of each design (colour: plane, line
+    style: design), a raw plane's closed form (optics × pixel) thin beside it; Nyquist dashed.
+    Returns the legend entries (LEGEND_TITLES): each plane with its MTF50 per design (± 1σ for one),
+    the designs."""
+    from matplotlib.lines import Line2D
+    mtf50: dict[str, list[str]] = {}
     for d, metrics in enumerate(designs):
         for row in metrics["mtf"]:
             m50, sd = row.get("mtf50_cy_px"), row.get("mtf50_sd_cy_px")
-            label = (row["plane"] + ("" if m50 is None else f": MTF50 {m50:.3f}")
-                     + ("" if m50 is None or sd is None else f" ± {sd:.3f}")
-                     + (f" ({metrics['project']})" if len(designs) > 1 else ""))
+            mtf50.setdefault(row["plane"], []).append(
+                "—" if m50 is None else f"{m50:.3f}" + ("" if sd is None or len(designs) > 1 else f" ± {sd:.3f}"))
             colour = _plane_colour(row["plane"])
-            ax.plot(row["frequency_cy_px"], row["mtf"], DESIGN_STYLES[d % 4], color=colour, lw=1.2, label=label)
+            ax.plot(row["frequency_cy_px"], row["mtf"], DESIGN_STYLES[d % 4], color=colour, lw=1.2)
             if row.get("model_mtf") is not None:
                 ax.plot(row["frequency_cy_px"], row["model_mtf"], DESIGN_STYLES[d % 4], color=colour, lw=0.5)
     ax.axvline(0.5, color="k", ls="--", lw=0.8)
     ax.text(0.5, 1.02, " Nyquist", fontsize=7, va="bottom")
-    ax.set(xlim=(0, 1.0), ylim=(0, 1.1), xlabel="frequency (cycles/pixel)", ylabel="MTF",
-           title="system MTF (ISO 12233 slanted edge)")
+    ax.set(xlim=(0, 1.0), ylim=(0, 1.1), xlabel="frequency (cycles/pixel)", ylabel="MTF", title=CHART_TITLES["mtf"])
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=6)
+    handles = [Line2D([], [], color=_plane_colour(p), lw=1.2,
+                      label=p if set(v) == {"—"} else f"{p}: {' → '.join(v)}") for p, v in mtf50.items()]
+    handles.append(Line2D([], [], color="0.3", lw=0.5, label="thin: closed form (optics × pixel)"))
+    return handles + _design_handles(designs)
 
 
 def _values(rows: list[dict], key: str) -> np.ndarray:
@@ -46,58 +70,95 @@ def _values(rows: list[dict], key: str) -> np.ndarray:
     return np.array([np.nan if r.get(key) is None else r[key] for r in rows], np.float64)
 
 
-def draw_snr(ax, designs: list[dict]) -> None:
-    """SNR against mean signal (e⁻) per channel, measured (points) and the noise model (line)."""
+def draw_snr(ax, designs: list[dict]) -> list:
+    """SNR against mean signal (e⁻) per channel, measured on the uniform field (filled marks), on
+    the Macbeth neutrals (grey, hollow) and the noise model (lines); a design's marks and lines
+    in its own marker and line style. Returns the legend entries."""
+    from matplotlib.lines import Line2D
+    channels: dict[str, str] = {}
     for d, metrics in enumerate(designs):
+        marker, style = DESIGN_MARKERS[d % 4], DESIGN_STYLES[d % 4]
         by_channel: dict[str, list] = {}
         for row in metrics["noise"]:
             by_channel.setdefault(row["channel"], []).append(row)
         for ch, rows in by_channel.items():
             rows = sorted(rows, key=lambda r: r["mean_e"])
             e = np.array([r["mean_e"] for r in rows])
-            colour = {"R": "tab:red", "G": "tab:green", "B": "tab:blue"}.get(ch, "k")
-            tag = f" ({metrics['project']})" if len(designs) > 1 else ""
-            ax.loglog(e, _values(rows, "snr"), "o", ms=3, color=colour, alpha=0.8 if d == 0 else 0.5,
-                      label=f"{ch} measured{tag}")
-            ax.loglog(e, _values(rows, "snr_model"), DESIGN_STYLES[d % 4], color=colour, lw=0.8)
+            channels[ch] = RAW_COLOURS.get(ch, "k")
+            ax.loglog(e, _values(rows, "snr"), marker, ls="", ms=3, color=channels[ch], alpha=0.8)
+            ax.loglog(e, _values(rows, "snr_model"), style, color=channels[ch], lw=0.8)
         neutral = metrics.get("colour", {}).get("neutral_noise", [])
         if neutral:
-            ax.loglog(_values(neutral, "mean_e"), _values(neutral, "snr"), "x", ms=4, color="0.3",
-                      alpha=0.8 if d == 0 else 0.5, label="Macbeth neutrals" + (f" ({metrics['project']})"
-                                                                               if len(designs) > 1 else ""))
-    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title="SNR against signal (•: uniform field, ×: neutrals, lines: model)")
+            ax.loglog(_values(neutral, "mean_e"), _values(neutral, "snr"), marker, ls="", ms=4, mfc="none",
+                      color="0.3")
+    ax.set(xlabel="mean signal (e⁻)", ylabel="SNR", title=CHART_TITLES["snr"])
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=6)
+    handles = [Line2D([], [], color=c, marker="o", ls="", ms=4, label=f"{ch}, uniform field")
+               for ch, c in channels.items()]
+    handles += [Line2D([], [], color="0.3", marker="o", mfc="none", ls="", ms=4, label="Macbeth neutrals"),
+                Line2D([], [], color="k", lw=0.8, label="lines: noise model")]
+    return handles + _design_handles(designs, markers=True)
 
 
-def draw_delta_e(ax, designs: list[dict]) -> None:
+def draw_delta_e(ax, designs: list[dict]) -> list:
     """ΔE2000 per Macbeth patch, one bar per design: held out (leave-one-out fits), with the fitted
-    (training) patches' as a mark on each bar; the sRGB output's when no colour matrix is fitted."""
+    (training) patches' as a mark on each bar; the sRGB output's when no colour matrix is fitted.
+    Returns the legend entries."""
     width = 0.8 / len(designs)
     x = np.arange(24)
+    handles = []
     for d, metrics in enumerate(designs):
         colour, at = metrics["colour"], x + (d - (len(designs) - 1) / 2) * width
         held, fitted = colour.get("held_out"), colour.get("fitted")
+        name = f"{design_label(metrics)}: " if len(designs) > 1 else ""
         if held is None:
             out = colour["srgb_output"]
-            ax.bar(at, out["patches"], width, label=f"{metrics['project']}: sRGB output, mean {out['mean']:.1f}")
+            handles.append(ax.bar(at, out["patches"], width, label=f"{name}sRGB output, mean {out['mean']:.1f}"))
             continue
-        ax.bar(at, held["patches"], width, label=f"{metrics['project']}: held out, mean {held['mean']:.2f}")
-        ax.plot(at, fitted["patches"], "_", color="k", ms=6,
-                label=f"{metrics['project']}: fitted (training) patches, mean {fitted['mean']:.2f}")
+        handles.append(ax.bar(at, held["patches"], width, label=f"{name}held out, mean {held['mean']:.2f}"))
+        handles += ax.plot(at, fitted["patches"], "_", color="k", ms=6,
+                           label=f"{name}fitted (training) patches, mean {fitted['mean']:.2f}")
     ax.set_xticks(x, PATCH_NAMES, rotation=60, ha="right", fontsize=6)
-    ax.set(ylabel="ΔE2000", title="colour error per Macbeth patch (flat-fielded, exposure-matched on neutral 5; "
-                                   "bars: held out, —: fitted)")
-    ax.legend(fontsize=7)
+    ax.set(ylabel="ΔE2000", xlabel="patch (flat-fielded, exposure-matched on neutral 5)", title=CHART_TITLES["de"])
     ax.grid(alpha=0.3, axis="y")
+    return handles
+
+
+CHARTS = {"mtf": draw_mtf, "snr": draw_snr, "de": draw_delta_e}
+
+
+def draw_chart(fig, designs: list[dict], chart: str) -> None:
+    """One of CHARTS ('mtf', 'snr', 'de') of one or several designs filling `fig` (a constrained
+    layout), its legend below the axes, outside the data, in as many columns as fit."""
+    ax = fig.subplots()
+    handles = CHARTS[chart](ax, designs)
+    fig.legend(handles=handles, loc="outside lower center", fontsize=LEGEND_FONT_PT, title=LEGEND_TITLES.get(chart),
+               title_fontsize=LEGEND_FONT_PT,
+               ncols=legend_columns([h.get_label() for h in handles], fig.get_size_inches()[0] - 0.1))
+
+
+def legend_columns(labels: list[str], width_in: float, most: int = 3) -> int:
+    """The most columns (up to `most`, at least 1) a legend of `labels` may have within width_in:
+    matplotlib fills them column by column, each as wide as its longest label plus the handle."""
+    import math
+
+    from matplotlib.textpath import TextPath
+    widths = [TextPath((0, 0), label, size=LEGEND_FONT_PT).get_extents().width / 72 + HANDLE_WIDTH_IN
+              for label in labels]
+    for n in range(most, 1, -1):
+        rows = math.ceil(len(widths) / n)
+        if sum(max(widths[i:i + rows]) for i in range(0, len(widths), rows)) <= width_in:
+            return n
+    return 1
 
 
 def draw_metrics(fig, designs: list[dict]) -> None:
-    """MTF, SNR and ΔE of one or several designs on `fig` (three panels)."""
+    """MTF, SNR and ΔE of one or several designs on `fig` (three panels, each legend to the right
+    of its axes, outside the data)."""
     axes = fig.subplot_mosaic([["mtf", "snr"], ["de", "de"]])
-    draw_mtf(axes["mtf"], designs)
-    draw_snr(axes["snr"], designs)
-    draw_delta_e(axes["de"], designs)
+    for key, ax in axes.items():
+        ax.legend(handles=CHARTS[key](ax, designs), fontsize=6, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                  borderaxespad=0.0, title=LEGEND_TITLES.get(key), title_fontsize=6)
 
 
 def draw_pareto(ax, rows: list[dict], x: str, y: str, higher_x: bool = True, higher_y: bool = True,
@@ -161,17 +222,17 @@ def characterise_and_draw(params, seed: int, size_px: int, chart_px: tuple[int, 
     return result, chart_rgba(lambda fig: draw_photon_transfer(result, fig), *chart_px)
 
 
-def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
-    """camera_metrics of the project and the chart of it beside the pinned design's (the window's
-    Metrics panel runs this in a worker process). Returns (metrics, chart RGBA, seconds)."""
+def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int], chart: str = "mtf",
+                     label: str | None = None):
+    """camera_metrics of the project and one chart of it (draw_chart) beside the pinned design's
+    (its metrics, with their 'label'), the project's labelled `label` (the window's Metrics panel
+    runs this in a worker process). Returns (metrics, chart RGBA, seconds)."""
     import time
 
     from workbench.metrics.frame import camera_metrics
     t0 = time.perf_counter()
     metrics = camera_metrics(project)
-    designs = [pinned, metrics] if pinned is not None else [metrics]
-    if pinned is not None and pinned["project"] == metrics["project"]:
-        designs = [{**pinned, "project": f"A: {pinned['project']}"}, {**metrics, "project": f"B: {metrics['project']}"}]
-    rgba = chart_rgba(lambda fig: draw_metrics(fig, designs), *chart_px)
+    designs = [metrics] if pinned is None else [pinned, {**metrics, "label": label}]
+    rgba = chart_rgba(lambda fig: draw_chart(fig, designs, chart), *chart_px)
     return metrics, rgba, time.perf_counter() - t0
 

@@ -405,9 +405,8 @@ def write_metrics(metrics: dict, out_dir) -> dict:
     from workbench.files import atomic_write_files
     from workbench.metrics.charts import draw_metrics
     out = _output_folder(out_dir)
-    fig = Figure(figsize=(11, 8))
+    fig = Figure(figsize=(11, 8), layout="constrained")     # room for the legends beside the axes
     draw_metrics(fig, [metrics])
-    fig.tight_layout()
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
     paths = {"json": out / "metrics.json", "md": out / "metrics.md", "png": out / "metrics.png"}
@@ -451,7 +450,7 @@ def compare_designs(a, b, out_dir) -> dict:
     ma, mb = camera_metrics(a), camera_metrics(b)
     if ma["project"] == mb["project"]:
         ma["project"], mb["project"] = f"A: {a.name}", f"B: {b.name}"
-    from workbench.project import project_differences
+    from workbench.project import difference_labels, project_differences
     changed = [{"field": f, "A": va, "B": vb} for f, va, vb in project_differences(a, b)]
     rows, reasons = [], []
     for key, better in HIGHER_IS_BETTER.items():
@@ -481,9 +480,9 @@ def compare_designs(a, b, out_dir) -> dict:
           "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
           "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
           " Dynamic range: full well over the read noise (with none, over the ADC's quantisation noise).\n")
-    fig = Figure(figsize=(11, 8))
-    draw_metrics(fig, [ma, mb])
-    fig.tight_layout()
+    label_a, label_b = difference_labels(a, b)
+    fig = Figure(figsize=(11, 8), layout="constrained")
+    draw_metrics(fig, [{**ma, "label": label_a}, {**mb, "label": label_b}])
     png = io.BytesIO()
     fig.savefig(png, dpi=110, format="png")
     doc = {"A": ma, "B": mb, "changed": changed, "table": rows}

@@ -93,3 +93,26 @@ def resolve_exposure(signal_rate_e_per_s: np.ndarray, params: SensorParams):
     t0 = np.asarray(params.exposure_s, dtype=np.float64)
     t = np.clip(t0 * 2.0 ** params.ev_bias, 0.0, 3600.0)
     return float(t) if t.ndim == 0 else t
+
+
+# how each method's rule reads, {level} as a percentage (the window says which rule a project uses)
+AUTO_EXPOSURE_RULES = {"mean": "mean signal at {level} of the swing",
+                       "brightest": "brightest pixel at {level} of the swing",
+                       "percentile": "{level} percentile pixel at the full swing",
+                       "cfa": "brightest pixel of each CFA position at {level} of the swing"}
+
+
+def exposure_rule(method: str, level: float) -> str:
+    """An auto-exposure rule in words: 'brightest pixel at 90 % of the swing'."""
+    return AUTO_EXPOSURE_RULES.get(method, method + " at {level}").format(level=f"{100 * level:g} %")
+
+
+def describe_exposure(params: SensorParams) -> str:
+    """How a capture's exposure is chosen: the fixed exposure or the auto-exposure rule, with the
+    EV bias and the auto-exposure's longest exposure."""
+    bias = f", {params.ev_bias:+g} EV" if params.ev_bias else ""
+    if params.exposure_s is not None:
+        t = np.asarray(params.exposure_s, np.float64)
+        return f"fixed {1e3 * float(t.mean()):.3g} ms{' (mean of the CFA tile)' if t.ndim else ''}{bias}"
+    return (f"auto, {exposure_rule(params.auto_exposure_method, params.auto_exposure_level)}{bias} "
+            f"(at most {params.max_exposure_s:g} s)")

@@ -1,6 +1,7 @@
 """Sensor editor: every SensorParams field (form generator), presets, the CFA tile, the QE curves
 and an EMVA 1288 characterisation; the charts and the characterisation run in the window's side
-process (gui.side_process)."""
+process (gui.side_process). Its summary says which exposure rule the project's frames use and
+which its exposure experiments use (they read the project's experiment block, not the sensor's)."""
 from __future__ import annotations
 
 import functools
@@ -16,6 +17,7 @@ from workbench.gui.forms import ParamsForm
 from workbench.gui.mplcanvas import BackgroundChart
 from workbench.metrics.charts import characterise_and_draw
 from workbench.resource_dir import RESOURCES
+from workbench.sensor.auto_exposure import describe_exposure, exposure_rule
 from workbench.sensor.cfa import cfa_layout
 from workbench.sensor.charts import CHANNEL_COLOURS, draw_qe
 from workbench.sensor.emva import draw_photon_transfer
@@ -86,6 +88,7 @@ class SensorEditor(QWidget):
     def __init__(self, parent=None):
         super().__init__(parent)
         self._params = SensorParams()
+        self._experiment = None             # the project's ExperimentParams: the experiments' exposure rule
         self._seed = 0
         self._worker = None
         self._qe_key: tuple | None = None
@@ -147,17 +150,23 @@ class SensorEditor(QWidget):
     def set_project(self, project) -> None:
         """Show the project's sensor; emits nothing."""
         self._seed = project.seed
-        if project.sensor != self._params:
-            self._params = project.sensor
-            self.form.set_params(project.sensor)
+        if project.sensor != self._params or project.experiment != self._experiment:
+            self._experiment = project.experiment
+            if project.sensor != self._params:
+                self._params = project.sensor
+                self.form.set_params(project.sensor)
             self._refresh()
 
     def _refresh(self) -> None:
         p = self._params
         self.cfa.set_pattern(p.cfa_pattern)
+        exposure = f"Exposure: {describe_exposure(p)}"
+        if self._experiment is not None:
+            rule = exposure_rule(self._experiment.auto_exposure_method, self._experiment.auto_exposure_level)
+            exposure += f"; exposure experiments: {rule}, × 2^EV"
         self.summary.setText(f"{p.cols}×{p.rows} px, {p.pixel_pitch_um:g} µm; full well {p.full_well_e:,.0f} e⁻, "
                              f"read noise {p.read_noise_e:.3g} e⁻, {p.bit_depth or 'analog'}"
-                             f"{' bit' if p.bit_depth else ''}")
+                             f"{' bit' if p.bit_depth else ''}\n{exposure}")
         if qe_inputs(p) != self._qe_key:
             self._qe_key = qe_inputs(p)
             self.qe_chart.set_draw(functools.partial(draw_qe, params=p))

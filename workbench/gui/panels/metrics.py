@@ -3,30 +3,38 @@ pixel signal dynamic range, SNR at the road users) and the camera's measurements
 MTF, SNR against signal, ΔE2000; workbench.metrics), re-measured after each edit in the window's side
 process (gui.side_process: kept alive; a worker thread waits for it, so its Python never holds the
 window's GIL),
-with their charts. "Pin as A" keeps the current design as A: the table then shows A, the
-current design B, the change and, for the measurements, the verdict (study.compare_verdict: better
-only beyond the two designs' measured uncertainties), the charts draw both, and an A | B | B − A
-strip compares the sRGB frames on one colour scale. ΔE2000 is shown for held-out patches (each
-through the colour matrix fitted to the other 23) beside the fitted (training) patches.
+with their charts, one to a tab so each has the dock's width (it is 538 px at 1280×800), legends
+below the axes. "Pin as A" keeps the current design as A: the table then shows A, the current
+design B, the change and, for the measurements, the verdict (study.compare_verdict: better only
+beyond the two designs' measured uncertainties), the charts draw both, named by what differs
+(project.difference_labels), and an A | B | B − A strip compares the sRGB frames on one colour
+scale. ΔE2000 is shown for held-out patches (each through the colour matrix fitted to the other 23)
+beside the fitted (training) patches. The table's metric names wrap, so its value columns, B − A
+included, stay in view at the dock's width.
 
 Measurements run one at a time; an edit during a measurement queues one more run of the newest
 project (older requests are dropped), so results never arrive out of order."""
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtWidgets import (QCheckBox, QHBoxLayout, QLabel, QPushButton, QSplitter, QTableWidget,
+from PySide6.QtWidgets import (QCheckBox, QHBoxLayout, QHeaderView, QLabel, QPushButton, QSplitter, QTableWidget,
                                QTableWidgetItem, QTabWidget, QVBoxLayout, QWidget)
 from superqt.utils import create_worker
 
 from workbench.gui import side_process
-from workbench.gui.mplcanvas import ChartImage, render_rgba
+from workbench.gui.mplcanvas import BackgroundChart, ChartImage, render_rgba
+from workbench.metrics.charts import CHART_TITLES, draw_chart
 
 DEBOUNCE_MS = 300
 ELAPSED_STEP_MS = 500
 MAX_CHANGES_SHOWN = 4
+MAX_VERDICT_CHARS = 24                # a longer verdict ('not comparable: …') is cut, whole in its tooltip
+CHART_TABS = {"mtf": "MTF", "snr": "SNR", "de": "ΔE"}
+COLUMNS = ("metric", "A", "B", "B − A", "A vs B")
 # (key, label, format) of the rows: frame read-outs, then the camera's summary measurements
 READOUT_ROWS = (("exposure_s", "exposure (ms)", lambda v: f"{1e3 * v:.3g}"),
                 ("analog_gain", "analog gain", lambda v: f"{v:.3g}"),
@@ -58,19 +66,23 @@ def flat_readouts(readouts: dict | None) -> dict:
     return out
 
 
-def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int]):
+def measure_and_draw(project, pinned: dict | None, chart_px: tuple[int, int], chart: str, label: str | None):
     """metrics.charts.measure_and_draw in the window's side process; this (worker) thread only waits."""
     from workbench.metrics.charts import measure_and_draw as job
-    return side_process.run(job, project, pinned, chart_px)
+    return side_process.run(job, project, pinned, chart_px, chart, label)
 
 
-def draw_ab(fig, a: np.ndarray, b: np.ndarray) -> None:
-    """A | B | B − A of two sRGB frames; the difference (luminance) on a symmetric, shared scale."""
-    axes = fig.subplots(1, 3)
-    axes[0].imshow(np.clip(a, 0, 1))
-    axes[0].set_title("A (pinned)", fontsize=8)
-    axes[1].imshow(np.clip(b, 0, 1))
-    axes[1].set_title("B (current)", fontsize=8)
+def draw_ab(fig, a: np.ndarray, b: np.ndarray, labels: tuple[str, str] = ("A", "B")) -> None:
+    """A | B | B − A of two sRGB frames, titled by `labels`; the difference (luminance) on a
+    symmetric, shared scale. A figure under 2.4 times as wide as high (a docked panel) puts the
+    difference below A and B."""
+    w_in, h_in = fig.get_size_inches()
+    layout = [["a", "b", "d"]] if w_in > 2.4 * h_in else [["a", "b"], ["d", "d"]]
+    named = fig.subplot_mosaic(layout)
+    axes = [named["a"], named["b"], named["d"]]
+    for ax, image, label in zip(axes, (a, b), labels):
+        ax.imshow(np.clip(image, 0, 1))
+        ax.set_title(label, fontsize=8)
     if a.shape == b.shape:
         w = np.array([0.2126, 0.7152, 0.0722], np.float32)
         diff = (np.asarray(b, np.float32) - np.asarray(a, np.float32)) @ w
@@ -131,14 +143,21 @@ class MetricsPanel(QWidget):
         self.changes = QLabel(self)                 # what differs between A and B (project_differences)
         self.changes.setWordWrap(True)
         self.changes.setVisible(False)
-        self.table = QTableWidget(0, 4, self)
-        self.table.setHorizontalHeaderLabels(["A (pinned)", "B (current)", "B − A", "A vs B"])
-        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table = QTableWidget(0, len(COLUMNS), self)
+        self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.setEditTriggers(QTableWidget.EditTrigger.NoEditTriggers)
-        self.chart = ChartImage("MTF, SNR against signal and ΔE per patch appear here after a measurement", self)
+        self.table.setWordWrap(True)
+        self.table.verticalHeader().hide()
+        self.table.verticalHeader().setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        header = self.table.horizontalHeader()
+        header.setSectionResizeMode(QHeaderView.ResizeMode.ResizeToContents)
+        header.setSectionResizeMode(0, QHeaderView.ResizeMode.Stretch)     # names wrap; the values keep their width
+        self.chart_views = {key: BackgroundChart(f"{CHART_TITLES[key]} appears here after a measurement", self)
+                            for key in CHART_TABS}
         self.ab = ChartImage("Pin a design as A, then edit: A, B and their difference appear here", self)
         charts = QTabWidget(self)
-        charts.addTab(self.chart, "Charts")
+        for key, title in CHART_TABS.items():
+            charts.addTab(self.chart_views[key], title)
         charts.addTab(self.ab, "A | B | B − A")
         self.charts = charts
 
@@ -170,6 +189,14 @@ class MetricsPanel(QWidget):
         if changed and self.live.isChecked() and self.on_screen():
             self._timer.start()
         self._update_buttons()
+
+    def labels(self) -> tuple[str, str]:
+        """The names of A and B on the charts: by what differs (project.difference_labels)."""
+        from workbench.project import difference_labels
+        a = None if self.pinned is None else self.pinned.get("design")
+        if a is None or self._project is None:
+            return "A", "B"
+        return difference_labels(a, self._project)
 
     def _show_changes(self) -> None:
         """Above the A/B table: the parameters in which the current design B differs from the pinned A."""
@@ -239,9 +266,9 @@ class MetricsPanel(QWidget):
         if self._ab_worker is not None:
             self._ab_queued = True
             return
-        a, b = self.pinned["srgb"], np.array(self._frame.srgb)
-        page = self.ab if self.ab.isVisible() else self.chart      # a hidden tab has no size of its own yet
-        self._ab_worker = create_worker(render_rgba, lambda fig: draw_ab(fig, a, b), *page.size_px(),
+        a, b, labels = self.pinned["srgb"], np.array(self._frame.srgb), self.labels()
+        page = self.ab if self.ab.isVisible() else self.chart_views["mtf"]   # a hidden tab has no size of its own yet
+        self._ab_worker = create_worker(render_rgba, lambda fig: draw_ab(fig, a, b, labels), *page.size_px(),
                                         _start_thread=False, _ignore_errors=True)
         self._ab_worker.returned.connect(self.ab.show_rgba)
         self._ab_worker.finished.connect(self._ab_finished)
@@ -265,10 +292,14 @@ class MetricsPanel(QWidget):
             self._queued = self._project
             return
         project = self._project
-        pinned = None if self.pinned is None else self.pinned["metrics"]
-        self._worker = create_worker(measure_and_draw, project, pinned, self.chart.size_px(),
-                                     _start_thread=False, _ignore_errors=True)
-        self._worker.returned.connect(lambda result, p=project: self._returned(p, result))
+        label_a, label_b = self.labels()
+        pinned = None if self.pinned is None or self.pinned["metrics"] is None else {**self.pinned["metrics"],
+                                                                                    "label": label_a}
+        chart = self.front_chart()
+        self._worker = create_worker(measure_and_draw, project, pinned, self.chart_views[chart].size_px(), chart,
+                                     None if pinned is None else label_b, _start_thread=False, _ignore_errors=True)
+        self._worker.returned.connect(
+            lambda result, p=project: self._returned(p, result, chart, pinned, None if pinned is None else label_b))
         self._worker.errored.connect(self._errored)
         self._worker.finished.connect(self._finished)
         self._started = time.perf_counter()
@@ -283,13 +314,23 @@ class MetricsPanel(QWidget):
             self.status.setText(f"measuring {self._project.name} on test charts… "
                                 f"{time.perf_counter() - self._started:.0f} s")
 
-    def _returned(self, project, result) -> None:
+    def front_chart(self) -> str:
+        """The chart tab in front (the MTF's when the A | B strip is): drawn with the measurement."""
+        return next((key for key, view in self.chart_views.items() if self.charts.currentWidget() is view), "mtf")
+
+    def _returned(self, project, result, chart: str, pinned: dict | None, label: str | None) -> None:
         metrics, rgba, seconds = result
         if project is not self._project and project != self._project:
             return                                    # an older design; the queued run follows
         self.metrics = {**metrics, "seconds": seconds}
         self._measured = project
-        self.chart.show_rgba(rgba)
+        designs = [metrics] if pinned is None else [pinned, {**metrics, "label": label}]
+        for key, view in self.chart_views.items():    # the others are drawn when their tab is shown
+            draw = functools.partial(draw_chart, designs=designs, chart=key)
+            if key == chart:
+                view.set_image(draw, rgba)
+            else:
+                view.set_draw(draw)
         self.status.setText(f"measured {project.name} in {seconds:.1f} s (side process)")
         self._fill_table()
         self.measured.emit(self.metrics)
@@ -332,22 +373,28 @@ class MetricsPanel(QWidget):
     def _fill_table(self) -> None:
         rows = self.rows()
         self.table.setRowCount(len(rows))
-        self.table.setVerticalHeaderLabels([r[0] for r in rows])
-        for i, (_, fmt, a, b, verdict) in enumerate(rows):
+        for i, (label, fmt, a, b, verdict) in enumerate(rows):
+            self.table.setItem(i, 0, QTableWidgetItem(label))
             change = None
             if isinstance(a, (int, float)) and isinstance(b, (int, float)):
                 change = b - a
-            for j, v in enumerate((a, b, change)):
-                text = "—" if v is None else (fmt(v) if not (j == 2 and isinstance(v, int)) else f"{v:+d}")
-                if j == 2 and v is not None and isinstance(v, float):
+            for j, v in enumerate((a, b, change), start=1):
+                text = "—" if v is None else (fmt(v) if not (j == 3 and isinstance(v, int)) else f"{v:+d}")
+                if j == 3 and v is not None and isinstance(v, float):
                     text = ("+" if v >= 0 else "") + fmt(v)
                 item = QTableWidgetItem(text)
                 item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
                 self.table.setItem(i, j, item)
-            self.table.setItem(i, 3, QTableWidgetItem(verdict))
-        self.table.setColumnHidden(0, self.pinned is None)
-        self.table.setColumnHidden(2, self.pinned is None)
-        self.table.setColumnHidden(3, self.pinned is None)
+            item = QTableWidgetItem(verdict if len(verdict) <= MAX_VERDICT_CHARS
+                                    else verdict[:MAX_VERDICT_CHARS - 1] + "…")
+            item.setToolTip(verdict)
+            self.table.setItem(i, 4, item)
+        label_a, label_b = self.labels()
+        for column, text, tip in ((1, "A", label_a), (2, "B" if self.pinned else "current", label_b)):
+            self.table.horizontalHeaderItem(column).setText(text)
+            self.table.horizontalHeaderItem(column).setToolTip(tip)
+        for column in (1, 3, 4):
+            self.table.setColumnHidden(column, self.pinned is None)
 
     def shutdown(self) -> None:
         """The window is closing: no new measurement starts (the window stops the side process)."""
