@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50_spread
+from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, measured_mtf50, mtf50_spread
 
 
 def gaussian_edge(sigma_px: float, size: int = 128, angle_deg: float = 5.0) -> np.ndarray:
@@ -66,6 +66,32 @@ def test_mtf50_bootstrap_spread_matches_the_spread_over_noise_draws():
     bootstrap = np.median([mtf50_spread(d, draws=30, seed=i) for i, d in enumerate(draws[:6])])
     assert 0.6 < bootstrap / spread_over_draws < 1.6
     assert mtf50_spread(clean) < 0.1 * spread_over_draws           # no noise: (almost) no spread
+
+
+def test_mtf50_of_a_noisy_edge_is_unbiased_over_noise_draws():
+    """A Gaussian edge (σ 0.8 px, closed-form MTF50 0.2342 cy/px) in a 128×256 region (the DFT samples
+    the curve every 0.004 cy/px, as on the charts' 240-pixel regions) with white noise of 5 % of the
+    step: MTF50's mean over 100 draws within 2 % of the closed form. The first 0.5 crossing of each
+    noisy curve (the old MTF50) read 2.5–5.2 % low over seeds 0–9 (60 draws each); measured_mtf50
+    0.4–1.9 % low: 0.4 % the point-sampled Gaussian's aliasing (also without noise), the rest the edge
+    fit's jitter."""
+    sigma = 0.8
+    closed = math.sqrt(math.log(2) / 2) / (math.pi * sigma)
+    y, x = np.mgrid[0:128, 0:256] + 0.5
+    t = math.tan(math.radians(5.0))
+    clean = 0.2 + 0.6 * ndtr((x - 128 - t * (y - 64)) * math.cos(math.radians(5.0)) / sigma)
+    rng = np.random.default_rng(0)
+    found = [edge_sfr(clean + rng.normal(0, 0.03, clean.shape)).mtf50_cy_px for _ in range(100)]
+    assert np.mean(found) == pytest.approx(closed, rel=0.02)
+    assert edge_sfr(clean).mtf50_cy_px == pytest.approx(closed, rel=0.005)
+
+
+@pytest.mark.parametrize("sigma", [0.3, 0.8, 3.0])
+def test_measured_mtf50_of_a_noise_free_curve_is_its_crossing(sigma):
+    f = np.arange(0.0, 1.0, 0.004)
+    assert measured_mtf50(f, np.exp(-2 * (math.pi * sigma * f) ** 2)) == pytest.approx(
+        math.sqrt(math.log(2) / 2) / (math.pi * sigma), rel=2e-4)
+    assert measured_mtf50(f, np.full(f.size, 0.9)) is None
 
 
 def closed_form_raw_g(project, frequency_cy_px: np.ndarray, angle_deg: float) -> np.ndarray:
