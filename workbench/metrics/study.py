@@ -33,8 +33,9 @@ from workbench.files import json_text
 STUDY_FORMAT = "camera-workbench-study"
 # what the measurements mean: 2 = e-SFR flat-fielded, raw planes at full resolution, MTF50's spread;
 # 3 = ΔE fitted and held out on flat-fielded patch means, each metric's uncertainty over noise draws;
+# 4 = MTF50 from a quadratic fitted about the 0.5 crossing (the first crossing read noisy curves low);
 # a resumed study re-measures the designs of another version instead of mixing them into one table
-METRICS_VERSION = 3
+METRICS_VERSION = 4
 DELTA_E_NOTE = ("ΔE2000: the Macbeth chart shot with its brightest pixels at 90 % of the swing, the ISP's XYZ of "
                 "flat-fielded patch means (divided by the noise-free frame of a uniform white field through the same "
                 "optics, so lens fall-off is not counted), exposure matched on neutral 5; delta_e_held_out: each "
@@ -322,8 +323,8 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
                 doc["designs"] = checked_designs(out / "study.json", old.get("designs"), grid)
             else:
                 notes.append(f"the designs measured by metrics version {old.get('metrics_version', 1)} are "
-                             f"measured again (version {METRICS_VERSION}: flat-fielded e-SFR, held-out ΔE and "
-                             "measured uncertainties)")
+                             f"measured again (version {METRICS_VERSION}: flat-fielded e-SFR, held-out ΔE, "
+                             "measured uncertainties and MTF50 fitted about its crossing)")
         done = {d["design"] for d in doc["designs"]}
         jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid
                 if name not in done]
