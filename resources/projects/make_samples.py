@@ -195,7 +195,8 @@ def main() -> None:
                     "set with: workbench dataset city_detection_night --frames 612 --out DIR",
         optics=detection.optics.updated(f_number=2.0),
         sensor=night_camera.updated(cfa_pattern="RGGB", ir_cut_file="sensors/ir_cut_650.csv"),
-        render=DETECTION_RENDER.updated(world=textured(0.05, lighting="night")))
+        render=DETECTION_RENDER.updated(world=textured(0.05, lighting="night",
+                                                       night=NightParams(light_selection="shading"))))
     samples += [
         night_detection,
         night_detection.updated(
