@@ -62,7 +62,7 @@ def test_opens_headless_result_folder_and_draws_chart(qtbot, grab, tmp_path, kin
     with qtbot.waitSignal(panel.results_shown):
         assert panel.open_folder(tmp_path / "gpu-run")          # finds the folder below
     assert panel.doc["kind"] == kind
-    qtbot.waitUntil(panel.chart.is_current, timeout=20_000)
+    qtbot.waitUntil(panel.chart.is_current, timeout=120_000)   # a background chart render; slow only on a loaded machine
     pixels = grab(panel.chart).reshape(-1, 3)
     assert len(np.unique(pixels, axis=0)) > 50 and pixels.std(axis=0).max() > 20
     if kind == "isp":

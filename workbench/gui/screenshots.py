@@ -1,5 +1,6 @@
 """Screenshots for the README (`python -m workbench.gui.screenshots docs/ [--results FOLDER]`):
-the default layout at 1280×800 on the paper camera and on the city sample, the main window on the
+the default layout at 1280×800 on the paper camera and on the city sample (also with its 3-D view
+in front), the main window on the
 city sample, the lens editor, the exposure-sweep panel after a sweep, and the experiments panel
 on a result folder. Runs on a private Xvfb when there is no display."""
 from __future__ import annotations
@@ -29,7 +30,8 @@ def _save(widget, path: Path) -> Path:
     return path
 
 
-def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = False) -> list[Path]:
+def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = False,
+         layout_only: bool = False) -> list[Path]:
     from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401
@@ -39,18 +41,21 @@ def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = 
         if metrics_only:
             out.mkdir(parents=True, exist_ok=True)
             return _metrics_shots(app, out)
-        return _take(app, out, results, size)
+        return _take(app, out, results, size, layout_only)
 
 
-def _take(app, out: Path, results: Path | None, size) -> list[Path]:
+def _take(app, out: Path, results: Path | None, size, layout_only: bool = False) -> list[Path]:
     from PySide6.QtWidgets import QMessageBox
 
     from workbench.gui.document import Document
     from workbench.gui.main_window import MainWindow
     from workbench.project import load_project
     out.mkdir(parents=True, exist_ok=True)
-    written = [_default_layout(app, load_project("paper_camera"), out / "window-paper-1280x800.png"),
-               _default_layout(app, load_project("city_paper_camera"), out / "window-city-1280x800.png")]
+    written = _default_layout(app, load_project("paper_camera"), out / "window-paper-1280x800.png")
+    written += _default_layout(app, load_project("city_paper_camera"), out / "window-city-1280x800.png",
+                               out / "window-city-3d-1280x800.png")
+    if layout_only:
+        return written
 
     city = load_project("city_paper_camera")
     city = city.updated(sensor=city.sensor.updated(rows=size[0], cols=size[1]))
@@ -113,8 +118,9 @@ def _take(app, out: Path, results: Path | None, size) -> list[Path]:
     return written
 
 
-def _default_layout(app, project, path: Path) -> Path:
-    """The window as it first opens on `project` at 1280×800 (default layout), its full frame shown."""
+def _default_layout(app, project, path: Path, city_view_path: Path | None = None) -> list[Path]:
+    """The window as it first opens on `project` at 1280×800 (default layout), its full frame shown;
+    with city_view_path, also the same window with the 3-D city dock in front (its default view)."""
     from PySide6.QtWidgets import QMessageBox
 
     from workbench.gui.document import Document
@@ -127,11 +133,17 @@ def _default_layout(app, project, path: Path) -> Path:
     if win.city_view is not None and win.city_view.view is not None:
         _wait(app, win.city_view.view.is_current, 60)
     _settle(app, 1.5)
-    shot = _save(win, path)
+    shots = [_save(win, path)]
+    if city_view_path is not None:
+        win.docks["3-D city"].raise_()
+        _settle(app, 1.0)
+        _wait(app, win.city_view.view.is_current, 60)       # drawn at the dock's size
+        _settle(app, 1.0)
+        shots.append(_save(win, city_view_path))
     win.document.undo_stack.setClean()
     win.close()
     app.processEvents()
-    return shot
+    return shots
 
 
 def _metrics_shots(app, out: Path) -> list[Path]:
@@ -179,13 +191,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path, help="folder for the PNG files")
     parser.add_argument("--results", type=Path, default=None, help="an experiment result folder to show")
     parser.add_argument("--metrics-only", action="store_true", help="only the Metrics dock's two screenshots")
+    parser.add_argument("--layout-only", action="store_true",
+                        help="only the default layouts at 1280×800 (paper camera; city sample, also with its 3-D view)")
     args = parser.parse_args(argv)
     import os
     import tempfile
     os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
     from workbench.gui.display import virtual_display
     with virtual_display("1700x1100x24"):
-        take(args.out, args.results, metrics_only=args.metrics_only)
+        take(args.out, args.results, metrics_only=args.metrics_only, layout_only=args.layout_only)
         import shiboken6
         from PySide6.QtWidgets import QApplication
         shiboken6.delete(QApplication.instance())
