@@ -267,14 +267,27 @@ def test_a_run_claimed_by_a_live_process_is_left_to_it_and_a_dead_ones_claim_is_
     assert not (ckpt / f"{keys[0]}.claim").exists()
 
 
-def test_runs_of_an_earlier_budget_are_kept_apart_as_superseded(synthetic_dir, tmp_path):
-    """A budget that grows re-plans the runs: the folder keeps the old records, outside the analysis,
-    and a record the new plan shares (the old 2B run is the new B run) serves it untrained."""
-    _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=TINY))
+def test_a_budget_that_grows_keeps_its_old_runs_as_the_ladder_and_trains_only_the_new_2b(synthetic_dir, tmp_path):
+    """A budget that grows re-plans the runs: the old 2B run is the new B run and serves it untrained;
+    the old B run stays in the budget folder's runs as the ladder's step below (it was superseded,
+    outside the analysis, before the ladder), so the analysis reads both steps; the ISP experiment
+    borrows only the run at the current budget."""
+    _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path / "budget", seeds=1, profile_override=TINY))
     grown = replace(TINY, epochs={"mobile": 2, "resnet18": 2})
-    result = _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path, seeds=1, profile_override=grown))
+    job = run_experiment("budget", _project(), synthetic_dir, tmp_path / "budget", seeds=1, profile_override=grown)
+    assert "1 runs of earlier budgets kept as the ladder" in next(job).message
+    result = _drive(job)
     assert len(result.reused) == 1 and len(result.trained) == 1            # 2 epochs: done; 4: trained
-    doc = json.loads((tmp_path / "results.json").read_text())
-    assert sorted(r["config"]["epochs"] for r in doc["runs"]) == [2, 4]
-    assert [r["config"]["epochs"] for r in doc["superseded_runs"]] == [1]
-    assert doc["budget_enough"]["mobile"]["epochs"] == 2 and doc["complete"]
+    doc = json.loads((tmp_path / "budget" / "results.json").read_text())
+    assert sorted((r["config"]["epochs"], r["role"]["budget_factor"]) for r in doc["runs"]) == [(1, 0.5), (2, 1),
+                                                                                                 (4, 2)]
+    assert doc["superseded_runs"] == [] and doc["complete"]
+    verdict = doc["budget_enough"]["mobile"]
+    assert verdict["epochs"] == 2 and [s["epochs"] for s in verdict["ladder"]] == [1, 2]
+    assert verdict["status"] in ("open", "too large")                      # one seed decides no step
+    isp = run_experiment("isp", _project(), synthetic_dir, tmp_path / "isp", seeds=1, profile_override=grown,
+                         reuse_from=(tmp_path / "budget",))
+    assert "1 already done (1 from other folders)" in next(isp).message       # lent before any training
+    isp.close()
+    lent = json.loads((tmp_path / "isp" / "results.json").read_text())["runs"]
+    assert [r["config"]["epochs"] for r in lent] == [2]

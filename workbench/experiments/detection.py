@@ -35,9 +35,12 @@ the data set (same fingerprint), points the experiment at the folder and trains 
 missing. After every finished run the folder is merged and rewritten atomically under its lock:
 the records on disk and this process's, by key, so several processes (one per net, say) can fill
 one folder, a killed experiment resumes without retraining finished runs, and no run is held
-twice; a half-trained run resumes from its last epoch checkpoint while that exists. Records the
-current profile no longer plans (a budget that grew) are kept under 'superseded_runs', outside
-the analysis.
+twice; a half-trained run resumes from its last epoch checkpoint while that exists. When the
+profile's budget grows (plan.STANDARD_EPOCHS doubles), the old 2B runs are the new B runs and are
+reused, not retrained; the budget folder keeps the old B runs in its runs as the ladder's lower
+step (plan.budget_ladder_configs, read by budget.budget_analysis), while the ISP and exposure
+folders, which read the current budget only, keep them under 'superseded_runs', outside the
+analysis, as every folder does with any other record its profile no longer plans (`sort_records`).
 """
 from __future__ import annotations
 
@@ -55,8 +58,8 @@ import numpy as np
 from workbench.compute import ComputeSpec
 from workbench.errors import OutputPathError, ParameterError, StageError
 from workbench.experiments.analysis import contrasts, summarise
-from workbench.experiments.plan import (BUDGET_SEEDS, EXPERIMENTS, PROFILES, Profile, plan_configs,  # noqa: F401
-                                        profile_of_settings)
+from workbench.experiments.plan import (BUDGET_SEEDS, EXPERIMENTS, PROFILES, Profile, kept_roles,  # noqa: F401
+                                        plan_configs, profile_of_settings)
 from workbench.experiments.results import (BOOTSTRAP_FILE, RESULTS_FORMAT, RESULTS_SCHEMA_VERSION, read_bootstraps,
                                            read_results)
 from workbench.jobs import CancelToken, Progress
@@ -76,6 +79,19 @@ def plan_runs(kind: str, profile: Profile, seeds: int, dataset, checkpoints: Pat
                                 with_curves=kind == "isp"))
             for role, key, config, test_evs in plan_configs(kind, profile, seeds, evs, dataset.fingerprint,
                                                             dataset.split_digest)]
+
+
+def sort_records(records: list[dict], kept: dict) -> tuple[list[dict], list[dict]]:
+    """A folder's records as (runs, superseded_runs): a record of a key in kept ({key: role},
+    plan.kept_roles) is a run in that role; any other was planned by an earlier profile."""
+    return ([{**r, "role": kept[r["key"]]} for r in records if r["key"] in kept],
+            [r for r in records if r["key"] not in kept])
+
+
+def missing_runs(planned_keys, records: list[dict]) -> list[str]:
+    """The planned keys (in plan order) that no record of the folder holds: the runs to train."""
+    done = {r["key"] for r in records}
+    return [key for key in planned_keys if key not in done]
 
 
 def result_rows(runs: list[dict]) -> list[dict]:
@@ -218,12 +234,13 @@ class ExperimentResult:
     summary: list[dict]
 
 
-def _analysis(kind: str, runs: list[dict], boots: dict, evs) -> dict:
+def _analysis(kind: str, runs: list[dict], boots: dict, evs, epochs: dict | None = None) -> dict:
     """Summary and contrasts of the runs; the ISP and budget experiments read EV 0 only (their
-    sRGB runs carry every EV for the exposure experiment)."""
+    sRGB runs carry every EV for the exposure experiment); epochs: the profile's budget per net
+    (default: that of the budget runs in budget_factor 1)."""
     if kind == "budget":
         from workbench.experiments.budget import budget_analysis
-        return budget_analysis(runs, boots, BUDGET_TOLERANCE)
+        return budget_analysis(runs, boots, BUDGET_TOLERANCE, epochs)
     if kind == "isp":
         runs = [{**r, "tests": [t for t in r["tests"] if float(t["ev"]) == 0.0]} for r in runs]
     summary = summarise(kind, runs, boots)
@@ -303,6 +320,8 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     jobs = plan_runs(kind, prof, seeds, dataset, ckpt_dir)
     role_of = {job.key: role for role, job in jobs}
+    kept = kept_roles(kind, prof, seeds, tuple(float(e) for e in project.experiment.ev_biases), dataset.fingerprint,
+                      dataset.split_digest)
     evs = [float(e) for e in project.experiment.ev_biases]
     base = {"format": RESULTS_FORMAT, "schema_version": RESULTS_SCHEMA_VERSION, "kind": kind, "profile": prof.name,
             "project": project.name, "dataset": {"folder": dataset.folder.name, "fingerprint": dataset.fingerprint,
@@ -318,23 +337,24 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
         with hold_folder_lock(out, f"workbench experiment {kind}", wait=True):
             runs, boots = _load_previous(out, kind, dataset.fingerprint, prof.name)
             keys = {r["key"] for r in mine}
-            runs = [r for r in runs if r["key"] not in keys] + mine
-            superseded = [r for r in runs if r["key"] not in role_of]       # planned by an earlier profile
-            runs = [{**r, "role": role_of[r["key"]]} for r in runs if r["key"] in role_of]
+            runs, superseded = sort_records([r for r in runs if r["key"] not in keys] + mine, kept)
             boots = {**boots, **my_boots}
-            doc = {**base, "code_version": version, "runs": runs, **_analysis(kind, runs, boots, evs),
-                   "complete": all(key in {r["key"] for r in runs} for key in role_of),
+            doc = {**base, "code_version": version, "runs": runs, **_analysis(kind, runs, boots, evs, prof.epochs),
+                   "complete": not missing_runs(role_of, runs),
                    "superseded_runs": superseded, "written_utc": datetime.now(timezone.utc).isoformat()}
             write_outputs(doc, boots, out, project)
         return doc
 
     with hold_folder_lock(out, f"workbench experiment {kind}", wait=True):
-        done = {r["key"] for r in _load_previous(out, kind, dataset.fingerprint, prof.name)[0]}
-    lent, lent_boots = borrowed_runs(reuse_from, [(r, j) for r, j in jobs if j.key not in done], dataset.fingerprint)
+        previous = _load_previous(out, kind, dataset.fingerprint, prof.name)[0]
+    missing = missing_runs([job.key for _, job in jobs], previous)
+    lent, lent_boots = borrowed_runs(reuse_from, [(r, j) for r, j in jobs if j.key in missing], dataset.fingerprint)
     mine += lent
     my_boots.update(lent_boots)
-    reused = sorted((done | {r["key"] for r in lent}) & set(role_of))
-    todo = [job for _, job in jobs if job.key not in reused and (nets is None or job.config.net in nets)]
+    missing = missing_runs(missing, lent)
+    reused = sorted(set(role_of) - set(missing))
+    ladder = sum(r["key"] in kept and r["key"] not in role_of for r in previous)
+    todo = [job for _, job in jobs if job.key in missing and (nets is None or job.config.net in nets)]
     doc = merge_and_write()
 
     def claimed():
@@ -353,7 +373,8 @@ def run_experiment(kind: str, project, data_dir: str | Path, out_dir: str | Path
         f"expect about {h * w / (prof.image_hw[0] * prof.image_hw[1]):.1f}× the time)")
     yield Progress(len(reused), len(jobs), f"{prof.note}{size_note}; {len(jobs)} runs, {len(reused)} already done"
                                            f"{f' ({len(lent)} from other folders)' if lent else ''}, "
-                                           f"{len(todo)} to train here")
+                                           f"{len(todo)} to train here"
+                                           f"{f'; {ladder} runs of earlier budgets kept as the ladder' * bool(ladder)}")
     compute = compute or ComputeSpec(workers=workers)
     in_process = compute.backend == "local" and compute.workers == 0
     fn = partial(run_detection_job, cancel=cancel) if in_process else run_detection_job

@@ -14,6 +14,10 @@ from workbench.experiments.analysis import REPRESENTATION_ORDER
 
 EXPERIMENTS = ("isp", "exposure", "budget")
 BUDGET_SEEDS = 2
+# The standard profile's training budget B per net: the one place it is set. `experiment budget`
+# tests it against 2B; while the study says 2B gains ≥ BUDGET_TOLERANCE, B doubles here (the
+# budget folder keeps every earlier step as the ladder's evidence: budget_ladder_configs).
+STANDARD_EPOCHS = {"mobile": 120, "resnet18": 80}
 
 
 def config_digest(config: dict, fingerprint: str, split_digest: str | None = None) -> str:
@@ -66,7 +70,7 @@ PROFILES = {
              "its mAPs say nothing about the camera"),
     "standard": Profile(
         name="standard", image_hw=(240, 320), nets=("mobile", "resnet18"), seeds=5,
-        epochs={"mobile": 120, "resnet18": 80}, batch_size=16, crop_hw=(128, 160), lr=3e-3,
+        epochs=dict(STANDARD_EPOCHS), batch_size=16, crop_hw=(128, 160), lr=3e-3,
         per_ev_biases=(), threads=1, device="cpu", loader_workers=0, cache_mb=2048.0,
         curve_points=6, precision={"mobile": "fp32", "resnet18": "bf16_native"},
         note="standard profile: sized to the paper's four claims on a CPU: 320×240 frames (≥ 400 train, "
@@ -148,3 +152,33 @@ def plan_configs(kind: str, profile: Profile, seeds: int, evs: tuple[float, ...]
                     add({**srgb, "condition": "per_ev", "train_ev": float(ev)},
                         replace(base, seed=seed, train_evs=(float(ev),)), evs)
     return jobs
+
+
+def budget_ladder_configs(profile: Profile, seeds: int, evs: tuple[float, ...], fingerprint: str,
+                          split_digest: str | None = None):
+    """The budget study's earlier steps below the profile's budget B, as plan_configs' tuples: per
+    net and seed, the sRGB EV-0 run at B/2, B/4, … (while a whole number of epochs), its role's
+    budget_factor that fraction of B. Never trained: a budget folder keeps their records in its
+    runs as the evidence that the budget grew (B/2 → B is the step that said B/2 was not enough)."""
+    ladder, k = [], 1
+    while True:
+        halved = {net: profile.epochs[net] >> k for net in profile.nets
+                  if net in profile.epochs and profile.epochs[net] >> k >= 1 and profile.epochs[net] % (1 << k) == 0}
+        if not halved:
+            return ladder
+        lower = replace(profile, nets=tuple(halved), epochs=halved)
+        ladder += [({**role, "budget_factor": 1 / (1 << k)}, key, config, test_evs)
+                   for role, key, config, test_evs in plan_configs("budget", lower, seeds, evs, fingerprint,
+                                                                   split_digest)
+                   if role["budget_factor"] == 1]
+        k += 1
+
+
+def kept_roles(kind: str, profile: Profile, seeds: int, evs: tuple[float, ...], fingerprint: str,
+               split_digest: str | None = None) -> dict:
+    """{key: role} of the records a result folder keeps in its runs: its plan's and, for the budget
+    study, its ladder's (budget_ladder_configs); any other record is a superseded one."""
+    jobs = plan_configs(kind, profile, seeds, evs, fingerprint, split_digest)
+    if kind == "budget":
+        jobs += budget_ladder_configs(profile, seeds, evs, fingerprint, split_digest)
+    return {key: role for role, key, _, _ in jobs}

@@ -10,7 +10,7 @@ also sealed (`seal_record`): 'digest' (the full SHA-256 of config and fingerprin
 another experiment may keep a subset of its tests); the document as a whole carries a checksum
 too (`seal_document`), so its analysis cannot be edited unseen either. Records written before sealing (no 'checksum')
 are checked for all but an edit of their numbers within range. `check_runs` refuses a document
-whose records are not unique, not in the plan its settings make, not the config they name, or
+whose records are not unique, not in the plan its settings make (or its budget ladder), not the config they name, or
 hold a metric outside its range (AP, mAP in 0…1, losses finite): the file and the run are named.
 Refused rather than dropped and retrained: a run costs 10–20 CPU-minutes, and a record that
 changed after it was written says something went wrong that the user should see; the message
@@ -24,7 +24,8 @@ import math
 from pathlib import Path
 
 from workbench.errors import InputFileError, WorkbenchError
-from workbench.experiments.plan import config_digest, plan_configs, profile_of_settings, run_key  # noqa: F401
+from workbench.experiments.plan import (config_digest, kept_roles, plan_configs, profile_of_settings,  # noqa: F401
+                                        run_key)
 
 FIX = "remove that record from the file to train the run again, or choose another --out"
 
@@ -193,16 +194,15 @@ def record_problem(run, fingerprint: str, evs: set, doc_classes: list | None = N
 
 
 def _planned_roles(path: Path, doc: dict, evs: tuple) -> dict:
-    """{key: role} of the plan the document's kind and settings make."""
+    """{key: role} of the records the document's kind and settings keep in its runs (kept_roles:
+    the plan and, for the budget study, its ladder of earlier budgets)."""
     settings = doc.get("settings")
     try:
-        profile = profile_of_settings(settings)
-        plan = plan_configs(doc["kind"], profile, settings["seeds"], evs, doc["dataset"]["fingerprint"],
-                            doc["dataset"].get("split_digest"))
+        return kept_roles(doc["kind"], profile_of_settings(settings), settings["seeds"], evs,
+                          doc["dataset"]["fingerprint"], doc["dataset"].get("split_digest"))
     except (WorkbenchError, TypeError, ValueError, KeyError, AttributeError) as exc:
         raise InputFileError(path, f"its 'settings' do not make an experiment plan ({exc.__class__.__name__}: "
                                    f"{str(exc)[:120]}); rerun the experiment into a new folder") from None
-    return {key: role for role, key, _, _ in plan}
 
 
 def check_runs(path: str | Path, doc: dict) -> None:

@@ -27,6 +27,8 @@ results.json (schema_version 3):
                 "digest": str, "checksum": str}, ...],     # since issue 34 (experiments.records); each
                                                           # test carries a "checksum" too
       "superseded_runs": [run, ...],                # records an earlier profile planned, outside the analysis
+                                                    # (a budget folder keeps earlier budgets in 'runs',
+                                                    # budget_factor 1/2, 1/4, …: its ladder)
       "checksum": str,                              # since issue 34: of the rest of the document
       "summary": [                                  # required; what the main charts draw
         {"net": str, "representation": "raw" | "linear" | "srgb",
@@ -40,14 +42,18 @@ results.json (schema_version 3):
          "h_low", "h_high": float | null,          # two-level interval (seeds, then test frames)
          "p_above_+0", ...: float | null}, ...],    # its one-sided p-values at the claims' bounds
       "per_ev_is_upper_bound": bool | null,
-      "budget_enough": {net: {"epochs", "gain", "seeds", "enough", "tolerance"}}   # 'budget' only
+      "budget_enough": {net: {"epochs", "gain", "seeds", "enough", "tolerance",  # 'budget' only: the
+                              "status", "text", "ladder": [{"epochs", "to_epochs", "gain", "seeds",
+                                                           "enough", "decided"}, ...]}}  # profile's step,
+                                                          # its verdict and every step (budget.py)
     }
 
 Charts: 'isp' → bars of mean mAP per representation per network with both intervals, beside the
 paired differences raw − sRGB and linear − sRGB; 'exposure' → mAP against test EV per network
 (one curve per training condition, seed bands), over the paired differences EV mix − EV-0-trained,
-under − over exposure and (both nets) the relative drop of resnet18 − mobile; 'budget' → test mAP
-at budget B and 2B per net and seed. In the difference panels a thick bar is the seed interval
+under − over exposure and (both nets) the relative drop of resnet18 − mobile; 'budget' → per net,
+test mAP against epochs over the whole ladder (B/2, B, 2B, …) per seed, each step's gain, the
+profile's B and its verdict. In the difference panels a thick bar is the seed interval
 and a thin one the two-level interval (seeds and test frames).
 """
 from __future__ import annotations
@@ -241,7 +247,7 @@ def chart_size_in(doc: dict) -> tuple[float, float]:
     if doc["kind"] == "isp":
         return 10.0, 4.0
     if doc["kind"] == "budget":
-        return 6.0, 4.5
+        return max(6.0, 4.5 * len({s["net"] for s in doc["summary"]})), 4.5
     nets = len({s["net"] for s in doc["summary"]}) or 1
     return max(4.6 * nets, 12.0), 7.5
 

@@ -1,0 +1,157 @@
+"""The budget study as a ladder: when the profile's budget B doubles, the old 2B runs serve as the
+new B runs (not retrained), the old B runs stay in the budget folder's runs as the step below
+(not superseded: they are the evidence that the budget grew), the analysis and chart read every
+step, and the ISP and exposure experiments use only runs at the profile's current budget. No
+training here: records are the committed standard folder's or made up for the analysis."""
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from workbench.experiments.budget import budget_analysis
+from workbench.experiments.detection import (BUDGET_TOLERANCE, PROFILES, borrowed_runs, missing_runs, plot_results,
+                                             sort_records, write_outputs)
+from workbench.experiments.plan import STANDARD_EPOCHS, budget_ladder_configs, kept_roles, plan_configs
+from workbench.experiments.results import read_bootstraps, read_results
+
+COMMITTED = Path(__file__).resolve().parents[2] / "docs" / "results" / "budget-standard"
+GROWN = {"mobile": 240, "resnet18": 160}
+
+
+@pytest.fixture
+def committed(tmp_path):
+    """A copy of the committed budget folder and its document."""
+    folder = tmp_path / "budget-standard"
+    shutil.copytree(COMMITTED, folder)
+    return folder, read_results(folder)
+
+
+def _plan_args(doc):
+    return (doc["settings"]["seeds"], tuple(doc["ev_biases"]), doc["dataset"]["fingerprint"],
+            doc["dataset"]["split_digest"])
+
+
+def _epochs(records):
+    return sorted((r["config"]["net"], r["config"]["seed"], r["config"]["epochs"]) for r in records)
+
+
+def test_the_standard_budget_is_set_in_one_place():
+    assert PROFILES["standard"].epochs == STANDARD_EPOCHS == {"mobile": 120, "resnet18": 80}
+
+
+def test_the_committed_budget_folder_grows_into_a_ladder_without_retraining(committed, tmp_path):
+    """With the standard budget grown to mobile 240 / resnet18 160, the committed folder's 240- and
+    160-epoch runs are the new B runs, its 120- and 80-epoch runs the ladder's step below, its runs
+    of the old split stay superseded, and the runs to train are the 2B runs (480, 320) and seed 1's."""
+    folder, doc = committed
+    grown = replace(PROFILES["standard"], epochs=GROWN)
+    args = _plan_args(doc)
+    records = doc["runs"] + doc["superseded_runs"]
+    runs, superseded = sort_records(records, kept_roles("budget", grown, *args))
+    assert {r["key"] for r in superseded} == {r["key"] for r in doc["superseded_runs"]}     # the old split only
+    factors = sorted((r["config"]["net"], r["config"]["seed"], r["config"]["epochs"], r["role"]["budget_factor"])
+                     for r in runs)
+    assert factors == [("mobile", 0, 120, 0.5), ("mobile", 0, 240, 1), ("mobile", 1, 120, 0.5),
+                       ("resnet18", 0, 80, 0.5), ("resnet18", 0, 160, 1)]
+    planned = plan_configs("budget", grown, *args)
+    todo = missing_runs([key for _, key, _, _ in planned], records)
+    config_of = {key: config for _, key, config, _ in planned}
+    assert sorted((config_of[k].net, config_of[k].seed, config_of[k].epochs) for k in todo) == [
+        ("mobile", 0, 480), ("mobile", 1, 240), ("mobile", 1, 480),
+        ("resnet18", 0, 320), ("resnet18", 1, 160), ("resnet18", 1, 320)]
+    # the folder as the grown profile writes it loads, and its analysis reads the ladder
+    boots = read_bootstraps(folder)
+    settings = {**doc["settings"], "epochs": GROWN}
+    grown_doc = {**{k: v for k, v in doc.items() if k != "checksum"}, "settings": settings, "runs": runs,
+                 "superseded_runs": superseded, **budget_analysis(runs, boots, BUDGET_TOLERANCE, GROWN),
+                 "complete": False}
+    out = tmp_path / "grown"
+    out.mkdir()
+    write_outputs(grown_doc, boots, out)
+    again = read_results(out)
+    assert _epochs(again["runs"]) == _epochs(runs) and len(again["superseded_runs"]) == len(superseded)
+    mobile = again["budget_enough"]["mobile"]
+    assert [(s["epochs"], s["to_epochs"], s["seeds"], s["decided"]) for s in mobile["ladder"]] == [
+        (120, 240, [0], False)]
+    assert mobile["ladder"][0]["gain"] == pytest.approx(0.6516 - 0.6207, abs=1e-3)
+    assert mobile["epochs"] == 240 and mobile["gain"] is None and mobile["status"] == "open"
+    assert (out / "budget.png").stat().st_size > 1000
+
+
+def test_the_committed_folder_reads_as_before_under_the_standard_budget(committed):
+    """Under today's standard budget the committed folder keeps its runs in their roles; its 120 → 240
+    and 80 → 160 steps are on seed 0 only, so the budget is not settled yet."""
+    folder, doc = committed
+    runs, superseded = sort_records(doc["runs"] + doc["superseded_runs"],
+                                    kept_roles("budget", PROFILES["standard"], *_plan_args(doc)))
+    assert [r["role"] for r in runs] == [r["role"] for r in doc["runs"]] and len(superseded) == 7
+    verdict = budget_analysis(runs, read_bootstraps(folder), BUDGET_TOLERANCE, STANDARD_EPOCHS)["budget_enough"]
+    assert {net: (v["epochs"], round(v["gain"], 3), v["status"]) for net, v in verdict.items()} == {
+        "mobile": (120, 0.031, "open"), "resnet18": (80, 0.062, "open")}
+
+
+def test_isp_and_exposure_use_only_runs_at_the_current_budget(committed):
+    """After the growth the ISP and exposure experiments borrow the 240/160-epoch runs from the
+    budget folder, never the old 120/80 ones, and an old-budget record in their own folder is superseded."""
+    folder, doc = committed
+    args = _plan_args(doc)
+    for kind in ("isp", "exposure"):
+        for epochs, lent_epochs in ((STANDARD_EPOCHS, [("mobile", 0, 120), ("mobile", 1, 120), ("resnet18", 0, 80)]),
+                                    (GROWN, [("mobile", 0, 240), ("resnet18", 0, 160)])):
+            profile = replace(PROFILES["standard"], epochs=epochs)
+            jobs = [(role, SimpleNamespace(key=key, test_evs=test_evs))
+                    for role, key, _, test_evs in plan_configs(kind, profile, *args)]
+            lent, _ = borrowed_runs([folder], jobs, doc["dataset"]["fingerprint"])
+            assert _epochs(lent) == lent_epochs
+        runs, superseded = sort_records(doc["runs"], kept_roles(kind, replace(PROFILES["standard"], epochs=GROWN),
+                                                                *args))
+        assert _epochs(runs) == [("mobile", 0, 240), ("resnet18", 0, 160)]
+        assert {r["config"]["epochs"] for r in superseded} == {120, 80}
+
+
+def test_the_ladder_reaches_down_by_halves_and_is_never_trained():
+    profile = replace(PROFILES["standard"], epochs={"mobile": 240, "resnet18": 80})
+    ladder = budget_ladder_configs(profile, 2, (0.0,), "f" * 64, "s" * 64)
+    got = sorted({(config.net, config.epochs, role["budget_factor"]) for role, _, config, _ in ladder})
+    assert got == [("mobile", 15, 1 / 16), ("mobile", 30, 1 / 8), ("mobile", 60, 1 / 4), ("mobile", 120, 1 / 2),
+                   ("resnet18", 5, 1 / 16), ("resnet18", 10, 1 / 8), ("resnet18", 20, 1 / 4),
+                   ("resnet18", 40, 1 / 2)]
+    planned = {key for _, key, _, _ in plan_configs("budget", profile, 2, (0.0,), "f" * 64, "s" * 64)}
+    assert not planned & {key for _, key, _, _ in ladder}
+    assert budget_ladder_configs(replace(profile, epochs={"mobile": 0, "resnet18": -4}), 2, (0.0,), "f" * 64) == []
+
+
+def _run(net, seed, epochs, factor, value):
+    return {"key": f"{net}-{seed}-{epochs}", "role": {"net": net, "seed": seed, "budget_factor": factor},
+            "config": {"net": net, "seed": seed, "epochs": epochs}, "tests": [{"ev": 0.0, "map": value}]}
+
+
+LADDER = {1: (0.40, 0.42), 2: (0.50, 0.52), 4: (0.55, 0.57), 8: (0.554, 0.574)}      # gains +0.1, +0.05, +0.004
+
+
+@pytest.mark.parametrize("budget, seeds, status, gain", [
+    (4, 2, "settled", 0.004),         # the first step that gains < 0.01
+    (2, 2, "grow", 0.05),
+    (8, 2, "too large", None),        # 4 → 8 already gains < 0.01; 8 → 16 not run
+    (4, 1, "open", 0.004),            # one seed does not decide a step
+])
+def test_the_analysis_reads_every_step_and_says_whether_the_profiles_budget_is_settled(budget, seeds, status, gain,
+                                                                                      tmp_path):
+    runs = [_run("mobile", s, e, e / budget, v[s]) for e, v in LADDER.items() if e <= 2 * budget
+            for s in range(seeds)]
+    result = budget_analysis(runs, {}, BUDGET_TOLERANCE, {"mobile": budget})
+    verdict = result["budget_enough"]["mobile"]
+    assert verdict["status"] == status and verdict["epochs"] == budget
+    assert verdict["gain"] == (None if gain is None else pytest.approx(gain))
+    steps = [(s["epochs"], round(s["gain"], 3), s["enough"]) for s in verdict["ladder"]]
+    assert steps == [(e, round(np.mean(LADDER[2 * e]) - np.mean(LADDER[e]), 3), e == 4)
+                     for e in (1, 2, 4) if 2 * e <= 2 * budget]
+    assert [r["epochs"] for r in result["contrasts"]] == [s[0] for s in steps]
+    doc = {"kind": "budget", "project": "p", "profile": "tiny",
+           "settings": {"seeds": seeds, "epochs": {"mobile": budget}}, **result}
+    plot_results(json.loads(json.dumps(doc)), tmp_path / "budget.png")       # as read back from results.json
+    assert (tmp_path / "budget.png").stat().st_size > 1000
