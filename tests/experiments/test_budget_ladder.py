@@ -19,6 +19,7 @@ from workbench.experiments.plan import STANDARD_EPOCHS, budget_ladder_configs, k
 from workbench.experiments.results import read_bootstraps, read_results
 
 COMMITTED = Path(__file__).resolve().parents[2] / "docs" / "results" / "budget-standard"
+COMMITTED_EPOCHS = {"mobile": 120, "resnet18": 80}        # the budget the committed folder was planned with
 GROWN = {"mobile": 240, "resnet18": 160}
 
 
@@ -39,8 +40,20 @@ def _epochs(records):
     return sorted((r["config"]["net"], r["config"]["seed"], r["config"]["epochs"]) for r in records)
 
 
-def test_the_standard_budget_is_set_in_one_place():
-    assert PROFILES["standard"].epochs == STANDARD_EPOCHS == {"mobile": 120, "resnet18": 80}
+def test_the_standard_budget_is_set_in_one_place(monkeypatch):
+    """STANDARD_EPOCHS is the standard profile's budget, and growing it is a one-line change of it."""
+    import sys
+    import types
+
+    import workbench.experiments.plan as plan
+    assert PROFILES["standard"].epochs == STANDARD_EPOCHS and set(STANDARD_EPOCHS) == set(PROFILES["standard"].nets)
+    line = f"STANDARD_EPOCHS = {json.dumps(STANDARD_EPOCHS)}"
+    source = Path(plan.__file__).read_text()
+    assert source.count(line) == 1
+    grown = types.ModuleType("grown_plan")
+    monkeypatch.setitem(sys.modules, "grown_plan", grown)
+    exec(compile(source.replace(line, f"STANDARD_EPOCHS = {json.dumps(GROWN)}"), plan.__file__, "exec"), grown.__dict__)
+    assert grown.PROFILES["standard"].epochs == GROWN
 
 
 def test_the_committed_budget_folder_grows_into_a_ladder_without_retraining(committed, tmp_path):
@@ -86,10 +99,12 @@ def test_the_committed_folder_reads_as_before_under_the_standard_budget(committe
     """Under today's standard budget the committed folder keeps its runs in their roles; its 120 → 240
     and 80 → 160 steps are on seed 0 only, so the budget is not settled yet."""
     folder, doc = committed
-    runs, superseded = sort_records(doc["runs"] + doc["superseded_runs"],
-                                    kept_roles("budget", PROFILES["standard"], *_plan_args(doc)))
+    assert doc["settings"]["epochs"] == COMMITTED_EPOCHS
+    profile = replace(PROFILES["standard"], epochs=COMMITTED_EPOCHS)
+    runs, superseded = sort_records(doc["runs"] + doc["superseded_runs"], kept_roles("budget", profile,
+                                                                                    *_plan_args(doc)))
     assert [r["role"] for r in runs] == [r["role"] for r in doc["runs"]] and len(superseded) == 7
-    verdict = budget_analysis(runs, read_bootstraps(folder), BUDGET_TOLERANCE, STANDARD_EPOCHS)["budget_enough"]
+    verdict = budget_analysis(runs, read_bootstraps(folder), BUDGET_TOLERANCE, COMMITTED_EPOCHS)["budget_enough"]
     assert {net: (v["epochs"], round(v["gain"], 3), v["status"]) for net, v in verdict.items()} == {
         "mobile": (120, 0.031, "open"), "resnet18": (80, 0.062, "open")}
 
@@ -100,7 +115,7 @@ def test_isp_and_exposure_use_only_runs_at_the_current_budget(committed):
     folder, doc = committed
     args = _plan_args(doc)
     for kind in ("isp", "exposure"):
-        for epochs, lent_epochs in ((STANDARD_EPOCHS, [("mobile", 0, 120), ("mobile", 1, 120), ("resnet18", 0, 80)]),
+        for epochs, lent_epochs in ((COMMITTED_EPOCHS, [("mobile", 0, 120), ("mobile", 1, 120), ("resnet18", 0, 80)]),
                                     (GROWN, [("mobile", 0, 240), ("resnet18", 0, 160)])):
             profile = replace(PROFILES["standard"], epochs=epochs)
             jobs = [(role, SimpleNamespace(key=key, test_evs=test_evs))
