@@ -170,3 +170,23 @@ def test_the_analysis_reads_every_step_and_says_whether_the_profiles_budget_is_s
            "settings": {"seeds": seeds, "epochs": {"mobile": budget}}, **result}
     plot_results(json.loads(json.dumps(doc)), tmp_path / "budget.png")       # as read back from results.json
     assert (tmp_path / "budget.png").stat().st_size > 1000
+    from matplotlib.figure import Figure
+
+    from workbench.experiments.results import draw_results
+    fig = Figure()
+    draw_results(fig, json.loads(json.dumps(doc)))
+    assert fig.axes[0].get_title() == f"mobile, B = {budget} epochs\n{verdict['text']}"
+    assert [t.get_text() for t in fig.axes[0].texts if "seed" in t.get_text()] == [
+        f"{s['gain']:+.3f}\n({seeds} seed{'s' * (seeds != 1)})" for s in verdict["ladder"]]
+
+
+def test_a_budget_folder_written_before_the_ladder_is_drawn_with_its_verdict(committed, tmp_path):
+    from matplotlib.figure import Figure
+
+    from workbench.experiments.results import draw_results
+    _, doc = committed
+    fig = Figure()
+    draw_results(fig, doc)
+    assert [ax.get_title() for ax in fig.axes] == [
+        "mobile, B = 120 epochs\nB → 2B gains +0.031 on 1 seed(s): grow the budget",
+        "resnet18, B = 80 epochs\nB → 2B gains +0.062 on 1 seed(s): grow the budget"]

@@ -79,6 +79,16 @@ def budget_analysis(runs: list[dict], boots: dict, tolerance: float, epochs: dic
     return {"summary": summary, "contrasts": rows, "per_ev_is_upper_bound": None, "budget_enough": enough}
 
 
+def _verdict_text(verdict: dict) -> str:
+    """The verdict's text; for a folder written before the ladder (no 'text'), its B → 2B gain."""
+    if "text" in verdict:
+        return verdict["text"]
+    if verdict.get("gain") is None:
+        return "no step yet"
+    return (f"B → 2B gains {verdict['gain']:+.3f} on {len(verdict['seeds'])} seed(s): "
+            f"{'enough' if verdict['enough'] else 'grow the budget'}")
+
+
 def draw_budget(fig, doc: dict) -> None:
     """Per net, test mAP at EV 0 against training epochs (log scale) over the whole ladder: one line
     per seed, each step's mean gain 2e − e above it, the profile's budget B marked (2B shown even
@@ -107,7 +117,7 @@ def draw_budget(fig, doc: dict) -> None:
         ax.set_xticks(ticks, [str(t) for t in ticks])
         ax.minorticks_off()
         ax.set_xlabel("training epochs (gain 2e − e above each step)")
-        ax.set_title(f"{net}, B = {budget} epochs\n{verdict.get('text', 'no step yet')}", fontsize=8)
+        ax.set_title(f"{net}, B = {budget} epochs\n{_verdict_text(verdict)}", fontsize=8)
         ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="lower right")
