@@ -11,8 +11,21 @@ data=${1:-data/city320}; ckpt=${2:-ckpt}; workers=${3:-2}
 W=.venv/bin/workbench; R=docs/results; P=city_detection_quick
 common=(--data "$data" --profile standard --checkpoints "$ckpt")
 nice -n 5 "$W" dataset "$P" --frames 612 --out "$data" --workers "$workers"
+budget_settled() {   # every net's budget B settled by the budget study (B → 2B gains < 0.01 on 2 seeds)
+  .venv/bin/python - "$R/budget-standard/results.json" <<'PY'
+import json, sys
+verdicts = json.load(open(sys.argv[1]))["budget_enough"]
+open_ = [f"{net}: {v.get('text', 'no verdict')}" for net, v in verdicts.items()
+         if v.get("status") not in ("settled", "too large")]
+print("\n".join(open_) or "budget settled for every net")
+sys.exit(1 if open_ else 0)
+PY
+}
 worker() {
   nice -n 5 "$W" experiment budget "$P" "${common[@]}" --out "$R/budget-standard"
+  # The ISP and exposure runs wait for the budget: at a budget that must still grow they would be
+  # retrained. 'grow': set plan.STANDARD_EPOCHS to 2B, commit, and run this script again.
+  budget_settled || { echo "ISP and exposure runs wait until the budget is settled"; return 0; }
   nice -n 5 "$W" experiment isp "$P" "${common[@]}" --out "$R/isp-standard" --reuse "$R/budget-standard"
   nice -n 5 "$W" experiment exposure "$P" "${common[@]}" --out "$R/exposure-standard" \
     --reuse "$R/budget-standard" "$R/isp-standard"
@@ -23,4 +36,6 @@ for k in $(seq "$workers"); do
   sleep 5                     # the first creates the result folders; the next find them
 done
 wait
-"$W" experiment claims --isp "$R/isp-standard" --exposure "$R/exposure-standard" --out "$R/claims-standard.md"
+if budget_settled >/dev/null; then
+  "$W" experiment claims --isp "$R/isp-standard" --exposure "$R/exposure-standard" --out "$R/claims-standard.md"
+fi
