@@ -50,16 +50,22 @@ def test_the_study_report_states_the_rule_and_the_epsilons(tmp_path):
     assert "ε-dominance" in md and f"{X} ε {eps[0]:.3g}–{eps[0]:.3g}; {Y} ε {eps[1]:.3g}–{eps[1]:.3g}" in md
 
 
-def test_a_committed_study_measured_without_uncertainties_keeps_its_plain_front(tmp_path):
-    """docs/metrics/study-pitch-fnumber (read-only): its designs carry no uncertainty, so σ = 0 and
-    the front is the one it was published with."""
+def test_the_committed_study_reproduces_its_front_and_without_uncertainties_keeps_a_plain_one(tmp_path):
+    """docs/metrics/study-pitch-fnumber (read-only): written again it publishes the same ε-dominance
+    front; with its uncertainties taken out (a study measured before they existed) σ = 0, ε 0–0,
+    and the plain Pareto front is within the ε front (ε-dominance leaves off fewer designs)."""
     folder = Path(__file__).resolve().parents[2] / "docs" / "metrics" / "study-pitch-fnumber"
     doc = json.loads((folder / "study.json").read_text())
     published = next(line for line in (folder / "study.md").read_text().splitlines() if line.startswith("Pareto front"))
     x, y = published.split(":")[0].removeprefix("Pareto front of ").split(" and ")
-    write_study(doc, tmp_path, x, y)
-    assert published in (tmp_path / "study.md").read_text().splitlines()
-    assert "ε 0–0" in (tmp_path / "study.md").read_text()
+    write_study(doc, tmp_path / "again", x, y)
+    assert published in (tmp_path / "again" / "study.md").read_text().splitlines()
+    plain = {**doc, "designs": [{k: v for k, v in d.items() if k != "uncertainty"} for d in doc["designs"]]}
+    write_study(plain, tmp_path / "plain", x, y)
+    md = (tmp_path / "plain" / "study.md").read_text()
+    assert "ε 0–0" in md
+    front = next(line for line in md.splitlines() if line.startswith("Pareto front")).split(": ", 1)[1].split(", ")
+    assert set(front) <= set(published.split(": ", 1)[1].split(", "))
 
 
 @pytest.mark.parametrize("margin, dominated", [(0.0056, False), (0.0058, True)])   # ε = 2√2·0.002 ≈ 0.00566
