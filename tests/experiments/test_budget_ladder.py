@@ -30,12 +30,13 @@ FROZEN_RUNS = {("mobile", 0, 120), ("mobile", 0, 240), ("mobile", 1, 120), ("res
 
 @pytest.fixture
 def committed(tmp_path):
-    """A copy of the committed budget folder cut back to FROZEN_RUNS (its superseded runs kept), and
-    its document."""
+    """A copy of the committed budget folder cut back to FROZEN_RUNS (its superseded runs kept), in
+    the roles the COMMITTED_EPOCHS plan gave them (B: factor 1, 2B: factor 2), and its document."""
     folder = tmp_path / "budget-standard"
     shutil.copytree(COMMITTED, folder)
     doc = read_results(folder)
-    frozen = [r for r in doc["runs"] if (r["config"]["net"], r["config"]["seed"], r["config"]["epochs"]) in FROZEN_RUNS]
+    frozen = [{**r, "role": {**r["role"], "budget_factor": r["config"]["epochs"] // COMMITTED_EPOCHS[r["config"]["net"]]}}
+              for r in doc["runs"] if (r["config"]["net"], r["config"]["seed"], r["config"]["epochs"]) in FROZEN_RUNS]
     assert len(frozen) == len(FROZEN_RUNS), "a run the ladder tests read is missing from the committed folder"
     doc = {**{k: v for k, v in doc.items() if k != "checksum"}, "runs": frozen,
            "settings": {**doc["settings"], "epochs": COMMITTED_EPOCHS}}
