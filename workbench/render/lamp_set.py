@@ -36,8 +36,9 @@ _REGISTERED: set[str] = set()
 
 
 def _spot_arrays(spots: dict) -> dict:
-    """Per-lamp arrays from spot_emitter dicts: position, axis, cone, peak intensity, and the
-    distinct spectral shapes with each lamp's index into them and scale."""
+    """Per-lamp arrays from spot_emitter dicts: position (m), axis, cone (cosines; cut-off in rad,
+    1/(cut-off − beam) in 1/rad), peak intensity (cd), and the distinct spectral shapes with each
+    lamp's index into them and scale (W/sr/nm at the shape's maximum)."""
     pos, axis, cos_cut, cos_beam, cut, inv_tw, peak, kind, scale = ([] for _ in range(9))
     shapes: dict[bytes, int] = {}
     spectra = []
@@ -61,6 +62,8 @@ def _spot_arrays(spots: dict) -> dict:
         cos_beam.append(np.cos(np.radians(b_deg)))
         cut.append(np.radians(c_deg))
         inv_tw.append(1.0 / np.radians(c_deg - b_deg))
+        # cd: spot_emitter's sampling_weight over its cone's solid angle 2π(1 − cos), as lamps.cone_solid_angle_sr
+        # (not imported: lamps imports this module)
         peak.append(float(e["sampling_weight"]) / (2 * np.pi * (1 - np.cos(np.radians(c_deg)))))
         kind.append(shapes[key])
         scale.append(s)

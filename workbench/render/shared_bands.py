@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from workbench.errors import InvalidValueError
 from workbench.jobs import Job
 from workbench.render.city_frame import CityRender, CitySceneInputs, city_scene_inputs, sensor_film_range_nm
 from workbench.render.film import EDGE_RAMP_NM, box_bands_between
@@ -99,7 +100,8 @@ def band_sum_matrix(edges_nm, own_edges_nm) -> np.ndarray:
     mean of the bands each own band is made of."""
     edges, own = np.asarray(edges_nm, np.float64), np.asarray(own_edges_nm, np.float64)
     if not np.isin(own, edges).all():
-        raise ValueError("every own band edge must be an edge of the shared bands")
+        raise InvalidValueError(f"own band edges {np.round(own, 3).tolist()} are not all edges of the shared bands "
+                                f"{np.round(edges, 3).tolist()}: render the project's own film (shared_bands gives None)")
     centres, widths = (edges[:-1] + edges[1:]) / 2, np.diff(edges)
     band = np.searchsorted(own, centres) - 1
     inside = (band >= 0) & (band < own.size - 1)
