@@ -1,6 +1,7 @@
 """Render noise against shot noise for night, tunnel and day samples: core-seconds per frame at the
-data sets' criterion, before and after the night light selection per shading point (part of
-`workbench bench render`, and alone as `workbench bench render-noise`).
+data sets' criterion, before and after the night light selection per shading point and the
+tunnels' portal guiding (part of `workbench bench render`, and alone as `workbench bench
+render-noise`).
 
 Each case is a sample project (city_night, city_tunnel, city_tunnel_entrance, and the day data
 set city_detection_quick) rendered small: the sensor's rows and columns and the focal length
@@ -25,11 +26,12 @@ import numpy as np
 from workbench.bench import BenchResult, register_bench
 
 DAY = "day (city_detection_quick)"
+GUIDE = "portal_guide"     # a setting's key that is no NightParams field: False renders without portal guiding
 CASES = (  # (label, sample project, scale, {setting: NightParams updates})
     (DAY, "city_detection_quick", 2, {"before": {}}),
     ("night", "city_night", 4, {"before": {"light_selection": "view"}, "after": {"light_selection": "shading"}}),
-    ("tunnel", "city_tunnel", 4, {"before": {}}),
-    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {}}),
+    ("tunnel", "city_tunnel", 4, {"before": {GUIDE: False}, "after": {}}),
+    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {GUIDE: False}, "after": {}}),
 )
 
 
@@ -41,6 +43,7 @@ def noise_plan(quick: bool) -> tuple[int, int, int, int]:
 
 def _project(name: str, scale: int, night: dict, spp: int):
     from workbench.project import load_project
+    night = {k: v for k, v in night.items() if k != GUIDE}
     p = load_project(name)
     s, r = p.sensor, p.render
     world = r.world.updated(night=r.world.night.updated(**night)) if night else r.world
@@ -51,8 +54,12 @@ def _project(name: str, scale: int, night: dict, spp: int):
                                       shot_noise_ratio=None, world=world))
 
 
-def _render(project, index: int, reference: bool):
-    """(electron rate H×W, instance ids, auto exposure s, CPU seconds) of frame `index`."""
+def _render(project, index: int, reference: bool, guided: bool = True):
+    """(electron rate H×W, instance ids, auto exposure s, CPU seconds) of frame `index`; guided
+    False: without portal guiding (render/portal_guide.py)."""
+    from contextlib import nullcontext
+
+    from workbench.render.portal_guide import unguided
     from workbench.detect.data import experiment_sensor
     from workbench.experiments.render_noise import REFERENCE_SEED_TAG
     from workbench.jobs import run_job
@@ -63,7 +70,8 @@ def _render(project, index: int, reference: bool):
     if reference:
         seeds = replace(seeds, render=int(np.random.SeedSequence([seeds.render, REFERENCE_SEED_TAG]).generate_state(1)[0]))
     t0 = time.process_time()
-    ren = run_job(city_scene_job(city_scene_inputs(project), seeds))
+    with nullcontext() if guided else unguided():
+        ren = run_job(city_scene_job(city_scene_inputs(project), seeds))
     cpu = time.process_time() - t0
     sensor = experiment_sensor(project)
     rate = irradiance_to_signal_rate(city_optical_image(ren, project.optics, project.scene.adjust_illuminance_lux), sensor)
@@ -84,7 +92,8 @@ def scene_noise_rows(quick: bool) -> list[dict]:
             ev_min = float(min(ref_project.experiment.ev_biases))
             exposure_s = min(ae * 2.0 ** ev_min, ref_project.sensor.max_exposure_s)
             for setting, night in settings.items():
-                rate, _, _, cpu = _render(_project(name, scale * extra, night, test_spp), index, False)
+                rate, _, _, cpu = _render(_project(name, scale * extra, night, test_spp), index, False,
+                                          night.get(GUIDE, True))
                 r = noise_ratios(rate, ref, exposure_s, edge_pixels(ids))
                 k = 1 / np.sqrt(1 + test_spp / ref_spp)
                 med, p90, edge = (r[key] * k for key in ("median_ratio", "p90_ratio", "edge_ratio"))

@@ -21,6 +21,7 @@ from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
 from workbench.render.lamp_heads import lamp_faces
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
+from workbench.render.portal_guide import guide_toward_portals, tunnel_boxes_m
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -215,7 +216,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
         the lights' sampling weights set for this camera: lamps.set_view_light_weights, and the
         street lamps' glowing faces, seen but never sampled: lamp_heads.lamp_faces; a
-        tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters), fog (fog.py: with model
+        tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters; by day the surfaces
+        inside a tunnel send part of their samples toward its portals: portal_guide.py), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
         'koschmieder' the scene stays clear, its sun dimmed by the layer, and koschmieder.koschmieder_fog
         fogs the render), glass and materials (WorldParams; procedural textures are seeded by
@@ -241,6 +243,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
     # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
     lenses = tunnel_emitters(city, None if night else 1.0)
+    # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
+    portals = [] if night else tunnel_boxes_m(city)
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
@@ -268,9 +272,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             pane = obj.class_name == "car"              # closed glass cabin: see-through pane
             key = (m.material, pane and m.material in GLASS_MATERIALS)
             if key not in bsdfs:
-                bsdfs[key] = (surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
-                              if m.material in surfaces else
-                              _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint))
+                bsdfs[key] = guide_toward_portals(
+                    surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
+                    if m.material in surfaces else
+                    _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint), portals)
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise InvalidValueError(f"duplicate shape id '{sid}': instance ids must be unique")
