@@ -9,7 +9,7 @@
 - The row's sampler (issue 33: it looped over the lenses, each lens its own emitter): its
   directions have the density pdf_direction reports (E[1/pdf] = the lenses' solid angle, and the
   density integrates to one where rays hit the lenses), its next-event estimate of the sample
-  row's road illuminance is the closed form within 0.5 %, and its kernel has the same operation
+  row's road illuminance is the closed form within 0.5 % at under half the former noise, and its kernel has the same operation
   count for 20 lenses as for 200; rows that are not equally spaced lenses on a line are refused.
 - The sample's row (issue 33): a continuous line (1.5 m lenses every 1.6 m) with the flux per
   metre of the former 20,000 lm every 8 m; its road illuminance the former row's mean within
@@ -161,7 +161,8 @@ def test_the_row_sampler_has_the_density_pdf_direction_reports(mi, n):
 def test_the_row_sampler_estimates_the_road_illuminance_of_the_sample_row(mi):
     """Next-event estimates of the city_tunnel sample's row (93 lenses), E = E[L cos θ / pdf], at
     road points under the row, under a lane and near a portal: its closed form within 4 standard
-    errors and 0.5 %."""
+    errors and 0.5 %, with a relative standard deviation per sample below 0.35 (the 1/r³ density;
+    the former 1/r² choice among the lenses' centres: 0.63–0.67 at these points)."""
     tunnel = _sample_tunnel()
     hx, hy = tunnel.meta["lens_half_size_m"]
     centres = tunnel.meta["luminaires_m"]
@@ -179,6 +180,7 @@ def test_the_row_sampler_estimates_the_road_illuminance_of_the_sample_row(mi):
         e = l_v * np.array(weight, dtype=np.float64)[0] * np.array(ds.d.z, dtype=np.float64) * visible
         want = _row_illuminance(tunnel, np.array([[x, y]]))[0]
         assert abs(e.mean() - want) < 4 * e.std() / np.sqrt(m) and e.mean() == pytest.approx(want, rel=0.005)
+        assert e.std() / e.mean() < 0.35, e.std() / e.mean()
 
 
 def test_the_row_sampler_costs_the_same_for_20_and_200_lenses(mi):
