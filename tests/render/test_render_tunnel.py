@@ -206,6 +206,26 @@ def test_the_row_sampler_costs_the_same_for_20_and_200_lenses(mi):
     assert counts[0] == counts[1] > 0, counts
 
 
+@pytest.mark.parametrize("night", [False, True])
+def test_the_row_is_one_labelled_shape_weighing_its_share(mi, night):
+    """lamps.tunnel_emitters gives one mesh per tunnel, labelled with the tunnel's instance id,
+    whose one emitter has the row's share of Mitsuba's light selection: by day 1 (beside a light
+    of weight 3: 1/4), at night the row's total flux."""
+    from types import SimpleNamespace
+
+    from workbench.render.lamps import tunnel_emitters
+    tunnel = _sample_tunnel()
+    lenses = tunnel_emitters(SimpleNamespace(objects=[tunnel]), None if night else 1.0)
+    assert list(lenses) == [f"tunnel_{tunnel.instance_id}_lenses"]
+    (instance_id, mesh), = lenses.values()
+    n = len(tunnel.meta["luminaires_m"])
+    assert instance_id == tunnel.instance_id and mesh.face_count() == 2 * n
+    weight = tunnel.meta["luminaire_flux_lm"] * n if night else 1.0
+    scene = mi.load_dict({"type": "scene", "lenses": mesh, "other": {"type": "constant", "sampling_weight": 3 * weight}})
+    row = [k for k, e in enumerate(scene.emitters()) if e is mesh.emitter()]
+    assert len(row) == 1 and float(scene.pdf_emitter(row[0])[0]) == pytest.approx(0.25)
+
+
 @pytest.mark.parametrize("centres, half, what", [
     ([[0.0, 0.0, 5.0], [0.0, 1.6, 5.0], [0.0, 3.5, 5.0]], (0.2, 0.75), "unequal spacing"),
     ([[0.0, 0.0, 5.0], [0.1, 1.6, 5.0]], (0.2, 0.75), "off the line"),
