@@ -195,9 +195,9 @@ def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None) -
         wl = LAMP_WAVELENGTHS_NM
         radiance = luminous_intensity_spectrum(kind, flux / np.pi, wl) / (4 * hx * hy)
         weight = flux * len(centres) if sampling_weight is None else sampling_weight
+        spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), radiance.tolist()))}
         sid = f"tunnel_{obj.instance_id}_lenses"
-        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), {"type": "spectrum", "value": list(zip(
-            wl.tolist(), radiance.tolist()))}, weight, exterior))
+        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum, weight, exterior))
     return out
 
 

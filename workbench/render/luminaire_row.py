@@ -64,7 +64,7 @@ def _register() -> None:
         def _row(self, p):
             """(d, t_p, sin φ₀, sin φ₁ − sin φ₀, ok) of the shading point p (module docstring)."""
             dz = self.z - p.z
-            d2 = dr.square(self.x - p.x) + dr.square(dz)
+            d2 = dr.maximum(dr.square(self.x - p.x) + dr.square(dz), 1e-12)     # > 0 on the line itself
             tp = p.y - self.y0
             lo = -0.5 * self.spacing - tp
             hi = (self.n - 0.5) * self.spacing - tp
