@@ -6,6 +6,11 @@
   + Y/√(1+Y²) atan(X/√(1+Y²))] over its corners (X, Y its corner offsets over the height), at
   1 m and 10 m — Φ/(π d²) far away, the inverse square of I₀ = Φ/π; a row of them the sum of
   each, within 2 %.
+- The row's sampler (issue 33: it looped over the lenses, each lens its own emitter): its
+  directions have the density pdf_direction reports (E[1/pdf] = the lenses' solid angle, and the
+  density integrates to one where rays hit the lenses), its next-event estimate of the sample
+  row's road illuminance is the closed form within 0.5 % at under half the former noise, and its kernel has the same operation
+  count for 20 lenses as for 200; rows that are not equally spaced lenses on a line are refused.
 - The sample's row (issue 33): a continuous line (1.5 m lenses every 1.6 m) with the flux per
   metre of the former 20,000 lm every 8 m; its road illuminance the former row's mean within
   0.5 % (closed form) and, rendered, its closed form within 2 %; seen by the contact sheet's
@@ -18,10 +23,11 @@
 import numpy as np
 import pytest
 
+from workbench.errors import InvalidValueError
 from workbench.render.film import box_bands
 from workbench.render.labels import render_labels
 from workbench.render.lamps import LAMP_WAVELENGTHS_NM, luminous_intensity_spectrum
-from workbench.render.luminaire_row import luminaire_row_shapes
+from workbench.render.luminaire_row import luminaire_row_shape, row_layout
 from workbench.render.params import DaylightParams
 from workbench.render.scene_builder import build_scene
 from workbench.render.demo_scene import box_mesh
@@ -32,7 +38,7 @@ FLAT = [(300.0, 1.0), (1100.0, 1.0)]
 W, H, FOV_DEG = 96, 72, 60.0
 
 
-def _e_v(mi, lenses: list[dict], camera_z_m: float, spp: int) -> tuple[float, float]:
+def _e_v(mi, lenses, camera_z_m: float, spp: int) -> tuple[float, float]:
     """Mean illuminance (lx) on the plane z = 0 around the origin and its standard error."""
     wl = np.arange(360.0, 831.0, 1.0)
     film = {"type": "specfilm", "width": 32, "height": 24, "rfilter": {"type": "box"},
@@ -45,7 +51,7 @@ def _e_v(mi, lenses: list[dict], camera_z_m: float, spp: int) -> tuple[float, fl
                                                               up=[0, 1, 0])},
         "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(100.0),
                    "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": FLAT}}}}
-    scene.update({f"lens_{k}": lens for k, lens in enumerate(lenses)})
+    scene["lenses"] = lenses
     e = np.pi * 683.0 * np.array(mi.render(mi.load_dict(scene), spp=spp, seed=3), dtype=np.float64)[..., 0]
     return float(e.mean()), float(e.std() / np.sqrt(e.size))
 
@@ -54,7 +60,7 @@ def _lenses(centres, kind: str, flux_lm: float, half=(0.2, 0.6)):
     area = 4 * half[0] * half[1]
     radiance = luminous_intensity_spectrum(kind, flux_lm / np.pi, LAMP_WAVELENGTHS_NM) / area
     spectrum = {"type": "spectrum", "value": list(zip(LAMP_WAVELENGTHS_NM.tolist(), radiance.tolist()))}
-    return luminaire_row_shapes(np.asarray(centres, float), half, spectrum, 1.0)
+    return luminaire_row_shape("lenses", np.asarray(centres, float), half, spectrum, 1.0)
 
 
 def _rect_illuminance(l_v, centre, half, h):
@@ -86,6 +92,149 @@ def test_a_row_sums_each_luminaire(mi):
     want = sum(_rect_illuminance(l_v, c[:2], half, h) for c in centres)
     assert 4 * sem < 0.01 * want
     assert got == pytest.approx(want, rel=0.02)
+
+
+def _row(mi, n: int, spacing_m: float = 1.6, half=(0.2, 0.75), z_m: float = 4.8):
+    """(scene, emitter, centres) of a row of n lenses of unit radiance along y from the origin."""
+    centres = np.array([[0.0, spacing_m * k, z_m] for k in range(n)])
+    lenses = luminaire_row_shape("lenses", centres, half, {"type": "spectrum", "value": 1.0}, 1.0)
+    scene = mi.load_dict({"type": "scene", "lenses": lenses})
+    return scene, scene.emitters()[0], centres
+
+
+def _points(mi, p, m: int, seed: int):
+    """m copies of the receiver point p (normal +z) and m uniform 2-D samples."""
+    import drjit as dr
+    it = dr.zeros(mi.SurfaceInteraction3f, m)
+    it.p = mi.Point3f(*(mi.Float(np.full(m, v, np.float32)) for v in p))
+    it.n = it.sh_frame.n = mi.Normal3f(0.0, 0.0, 1.0)
+    u = np.random.default_rng(seed).random((2, m)).astype(np.float32)
+    return it, mi.Point2f(mi.Float(u[0]), mi.Float(u[1]))
+
+
+def _rect_solid_angle(p, centre, half):
+    """Solid angle (sr) of a horizontal rectangle above the point p."""
+    h = centre[2] - p[2]
+    def corner(x, y):
+        return np.arctan(x * y / (h * np.sqrt(h * h + x * x + y * y)))
+    x1, x2 = centre[0] - half[0] - p[0], centre[0] + half[0] - p[0]
+    y1, y2 = centre[1] - half[1] - p[1], centre[1] + half[1] - p[1]
+    return corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1)
+
+
+# receivers: under the row, under a lane, past the row's end, 5 cm under a lens, on a wall
+RECEIVERS = ([0.0, 5.3, 0.0], [1.75, 12.0, 0.0], [0.0, -3.0, 4.0], [0.3, 16.1, 4.75], [-5.0, 20.0, 2.0])
+
+
+@pytest.mark.parametrize("n", [20, 200])
+def test_the_row_sampler_has_the_density_pdf_direction_reports(mi, n):
+    """The sampler's directions have the density pdf_direction reports: E[1{hit}/pdf] over sampled
+    directions is the lenses' solid angle Ω (closed form), and over uniform points q on the lenses
+    E[pdf_direction · cos θ_q / r²] · N·A = 1 (the density, evaluated where a ray hits a lens, as
+    MIS does for a BSDF-sampled ray, integrates to one); both within 4 standard errors and 1 %."""
+    import drjit as dr
+    scene, emitter, centres = _row(mi, n)
+    m = 1 << 20
+    for p in RECEIVERS:
+        omega = sum(_rect_solid_angle(p, c, (0.2, 0.75)) for c in centres)
+        it, u = _points(mi, p, m, 1)
+        ds, _ = emitter.sample_direction(it, u)
+        si = scene.ray_intersect(mi.Ray3f(it.p, ds.d))
+        pdf = np.array(ds.pdf, dtype=np.float64)
+        hit = np.array(si.is_valid()) & (pdf > 0)
+        assert hit.mean() > 0.9999
+        est = np.where(hit, 1 / np.where(hit, pdf, 1.0), 0.0)
+        assert abs(est.mean() - omega) < max(4 * est.std() / np.sqrt(m), 1e-9) and est.mean() == pytest.approx(omega, rel=0.01)
+        again = np.array(emitter.pdf_direction(it, mi.DirectionSample3f(scene, si, it)), dtype=np.float64)
+        np.testing.assert_allclose(again[hit], pdf[hit], rtol=2e-3)
+        rng = np.random.default_rng(4)                 # uniform points q on the lenses, rays from p to them
+        q = centres[rng.integers(0, n, m)] + (rng.random((m, 3)) * 2 - 1) * [0.2, 0.75, 0.0]
+        v = q - np.asarray(p)
+        r = np.linalg.norm(v, axis=1)
+        si = scene.ray_intersect(mi.Ray3f(it.p, mi.Vector3f(*(v / r[:, None]).T.astype(np.float32))))
+        dens = np.array(dr.select(si.is_valid(), emitter.pdf_direction(it, mi.DirectionSample3f(scene, si, it)), 0.0),
+                        dtype=np.float64) * v[:, 2] / r ** 3 * n * 4 * 0.2 * 0.75
+        sem = dens.std() / np.sqrt(m)
+        assert abs(dens.mean() - 1) < 4 * sem and dens.mean() == pytest.approx(1.0, rel=0.01), (p, dens.mean(), sem)
+
+
+def test_the_row_sampler_estimates_the_road_illuminance_of_the_sample_row(mi):
+    """Next-event estimates of the city_tunnel sample's row (93 lenses), E = E[L cos θ / pdf], at
+    road points under the row, under a lane and near a portal: its closed form within 4 standard
+    errors and 0.5 %, with a relative standard deviation per sample below 0.35 (the 1/r³ density;
+    the former 1/r² choice among the lenses' centres: 0.63–0.67 at these points)."""
+    tunnel = _sample_tunnel()
+    hx, hy = tunnel.meta["lens_half_size_m"]
+    centres = tunnel.meta["luminaires_m"]
+    scene = mi.load_dict({"type": "scene", "lenses": luminaire_row_shape(
+        "lenses", centres, (hx, hy), {"type": "spectrum", "value": 1.0}, 1.0)})
+    emitter = scene.emitters()[0]
+    f = tunnel.meta["frame"]
+    l_v = tunnel.meta["luminaire_flux_lm"] / (np.pi * 4 * hx * hy)
+    m = 1 << 18
+    for x, y in ((f.x_m, (f.y_south_m + f.y_north_m) / 2 + 0.3), (f.x_m + 1.75, f.y_south_m + 30.0),
+                 (f.x_m - 1.75, f.y_north_m - 2.0)):
+        it, u = _points(mi, (x, y, 0.0), m, 2)
+        ds, weight = emitter.sample_direction(it, u)
+        visible = np.array(scene.ray_intersect(mi.Ray3f(it.p, ds.d)).is_valid())
+        e = l_v * np.array(weight, dtype=np.float64)[0] * np.array(ds.d.z, dtype=np.float64) * visible
+        want = _row_illuminance(tunnel, np.array([[x, y]]))[0]
+        assert abs(e.mean() - want) < 4 * e.std() / np.sqrt(m) and e.mean() == pytest.approx(want, rel=0.005)
+        assert e.std() / e.mean() < 0.35, e.std() / e.mean()
+
+
+def test_the_row_sampler_costs_the_same_for_20_and_200_lenses(mi):
+    """Issue 33: the sampler was a loop over the lenses (and every lens its own emitter): a tunnel
+    frame 60 % dearer for a row of 93 lenses instead of 18. Now the kernel of sample_direction and
+    pdf_direction has the same operation count for 20 lenses as for 200 (a closed form)."""
+    import drjit as dr
+    counts = []
+    was = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        for n in (20, 200):
+            scene, emitter, _ = _row(mi, n)
+            it, u = _points(mi, (0.3, 7.0, 0.0), 1024, 3)
+            dr.eval(it, u)
+            dr.kernel_history()
+            ds, weight = emitter.sample_direction(it, u)
+            pdf = emitter.pdf_direction(it, ds)
+            dr.eval(ds, weight, pdf)
+            counts.append(sum(k["operation_count"] for k in dr.kernel_history() if "operation_count" in k))
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, was)
+    assert counts[0] == counts[1] > 0, counts
+
+
+@pytest.mark.parametrize("night", [False, True])
+def test_the_row_is_one_labelled_shape_weighing_its_share(mi, night):
+    """lamps.tunnel_emitters gives one mesh per tunnel, labelled with the tunnel's instance id,
+    whose one emitter has the row's share of Mitsuba's light selection: by day 1 (beside a light
+    of weight 3: 1/4), at night the row's total flux."""
+    from types import SimpleNamespace
+
+    from workbench.render.lamps import tunnel_emitters
+    tunnel = _sample_tunnel()
+    lenses = tunnel_emitters(SimpleNamespace(objects=[tunnel]), None if night else 1.0)
+    assert list(lenses) == [f"tunnel_{tunnel.instance_id}_lenses"]
+    (instance_id, mesh), = lenses.values()
+    n = len(tunnel.meta["luminaires_m"])
+    assert instance_id == tunnel.instance_id and mesh.face_count() == 2 * n
+    weight = tunnel.meta["luminaire_flux_lm"] * n if night else 1.0
+    scene = mi.load_dict({"type": "scene", "lenses": mesh, "other": {"type": "constant", "sampling_weight": 3 * weight}})
+    row = [k for k, e in enumerate(scene.emitters()) if e is mesh.emitter()]
+    assert len(row) == 1 and float(scene.pdf_emitter(row[0])[0]) == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("centres, half, what", [
+    ([[0.0, 0.0, 5.0], [0.0, 1.6, 5.0], [0.0, 3.5, 5.0]], (0.2, 0.75), "unequal spacing"),
+    ([[0.0, 0.0, 5.0], [0.1, 1.6, 5.0]], (0.2, 0.75), "off the line"),
+    ([[0.0, 0.0, 5.0], [0.0, 1.6, 5.2]], (0.2, 0.75), "two heights"),
+    ([[0.0, 0.0, 5.0], [0.0, 1.0, 5.0]], (0.2, 0.75), "overlapping lenses"),
+])
+def test_a_row_must_be_equally_spaced_lenses_on_a_line(centres, half, what):
+    with pytest.raises(InvalidValueError, match="equally spaced along y"):
+        row_layout(np.array(centres), half)
 
 
 def _tunnel_city(car: bool):
@@ -160,16 +309,6 @@ def test_labels_of_the_tunnel_and_a_car_inside_are_exact(mi):
     np.testing.assert_allclose(obj.bbox_xywh, want, atol=1.0)
 
 
-def test_the_row_registry_keeps_only_the_newest_rows(mi):
-    """Each distinct row is registered for its scene's loading; a long data set of tunnel cities
-    keeps at most MAX_ROWS of them, and the newest always loads."""
-    from workbench.render import luminaire_row
-    for k in range(luminaire_row.MAX_ROWS + 5):
-        lenses = _lenses([(0.0, float(k), 5.0)], "led", 1000.0)
-    assert len(luminaire_row._ROWS) == luminaire_row.MAX_ROWS
-    assert mi.load_dict(lenses[0]) is not None
-
-
 # The row before issue 33: 20,000 lm luminaires with 1.2 m lenses every 8 m (a few blobs in the view).
 OLD_ROW = dict(luminaire_flux_lm=20000.0, luminaire_spacing_m=8.0, luminaire_length_m=1.2)
 
@@ -224,7 +363,7 @@ def test_the_sample_row_renders_its_closed_form_illuminance(mi):
     f = tunnel.meta["frame"]
     centre = np.array([f.x_m + 1.75, (f.y_south_m + f.y_north_m) / 2 + 0.3, 0.0])
     moved = CityObject("tunnel", 1, [], meta={**tunnel.meta, "luminaires_m": tunnel.meta["luminaires_m"] - centre})
-    lenses = [shape for _, shape in tunnel_emitters(SimpleNamespace(objects=[moved])).values()]
+    (_, lenses), = tunnel_emitters(SimpleNamespace(objects=[moved])).values()
     got, sem = _e_v(mi, lenses, 0.5, 128)
     want = _row_illuminance(tunnel, centre[None, :2])[0]
     assert 4 * sem < 0.01 * want

@@ -178,14 +178,14 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
     return result
 
 
-def tunnel_emitters(city, sampling_weight: float | None = None) -> dict[str, tuple[int, dict]]:
-    """The glowing lenses of every tunnel's luminaires (scene/city/tunnel.py) as Mitsuba shapes
-    that emit and share one sampler (render/luminaire_row.py): {shape id: (tunnel instance id,
-    shape dict)}. Each lens is a Lambertian emitter of the tunnel's kind whose luminous flux is
-    the luminaire's: on-axis intensity I₀ = Φ/π, radiance I₀(λ)/A. sampling_weight: the row's
-    share of Mitsuba's light selection (by day 1, like the sun and the sky); None = its total
-    flux (lm), as the street lamps at night."""
-    from workbench.render.luminaire_row import luminaire_row_shapes
+def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None) -> dict[str, tuple[int, object]]:
+    """The glowing lenses of every tunnel's luminaires (scene/city/tunnel.py) as one Mitsuba mesh
+    per tunnel with one emitter that samples its whole row (render/luminaire_row.py): {shape id:
+    (tunnel instance id, mesh)}. Each lens is a Lambertian emitter of the tunnel's kind whose
+    luminous flux is the luminaire's: on-axis intensity I₀ = Φ/π, radiance I₀(λ)/A. sampling_weight:
+    the row's share of Mitsuba's light selection (by day 1, like the sun and the sky); None = its
+    total flux (lm), as the street lamps at night. exterior: a loaded medium around the lenses."""
+    from workbench.render.luminaire_row import luminaire_row_shape
 
     out = {}
     for obj in (o for o in city.objects if o.class_name == "tunnel"):
@@ -195,9 +195,9 @@ def tunnel_emitters(city, sampling_weight: float | None = None) -> dict[str, tup
         wl = LAMP_WAVELENGTHS_NM
         radiance = luminous_intensity_spectrum(kind, flux / np.pi, wl) / (4 * hx * hy)
         weight = flux * len(centres) if sampling_weight is None else sampling_weight
-        shapes = luminaire_row_shapes(centres, (hx, hy), {"type": "spectrum", "value": list(zip(
-            wl.tolist(), radiance.tolist()))}, weight)
-        out.update({f"tunnel_{obj.instance_id}_lens_{k}": (obj.instance_id, shape) for k, shape in enumerate(shapes)})
+        spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), radiance.tolist()))}
+        sid = f"tunnel_{obj.instance_id}_lenses"
+        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum, weight, exterior))
     return out
 
 

@@ -241,8 +241,6 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         daylight = sun_through_layer(daylight, world.fog)
     night = world.lighting == "night"
     lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
-    # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
-    lenses = tunnel_emitters(city, None if night else 1.0)
     # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
     portals = [] if night else tunnel_boxes_m(city)
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
@@ -259,6 +257,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
         id_table[FOG_BOX_ID] = None
+    # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
+    lenses = tunnel_emitters(city, None if night else 1.0, medium)
     rng = film_srfs.range_nm
     bsdfs = {}
     surfaces = procedural_surfaces(world.wet_road_fraction) if world.materials == "procedural" else {}
@@ -285,8 +285,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             else:
                 scene[sid] = _mesh(mi, sid, m.vertices, m.faces, bsdfs[key], medium)
             id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
-    for sid, (instance_id, shape) in lenses.items():
-        scene[sid] = shape if medium is None else {**shape, "exterior": medium}
+    for sid, (instance_id, mesh) in lenses.items():
+        scene[sid] = mesh
         id_table[sid] = ShapeLabel("tunnel", int(instance_id))
     for sid, (instance_id, shape) in faces.items():
         scene[sid] = shape if medium is None else {**shape, "exterior": medium}
