@@ -14,16 +14,22 @@ next direction from the one-sample mixture
 
     p(ω) = (1 − α) p_bsdf(ω) + α p_portal(ω),   α = GUIDE_SHARE,
 
-p_portal picking portal i with probability P_i ∝ Ω̃_i (max(n·ω_i, 0) + COS_FLOOR), Ω̃_i = A cos θ_i / r²
-(≤ 2π) the portal's approximate solid angle from x, then a point uniformly on its rectangle
-(density r² / (A |cos θ_i|) in solid angle). Every sample is weighted f cos / p(ω) and reported
-with p(ω), and `pdf`/`eval_pdf` return the same mixture, so the path integrator's multiple
-importance weights stay right: the estimator is unbiased (the expected image is unchanged), and
-the bounded weight f cos / p ≤ albedo / (1 − α) keeps it defensive where the portal guess is poor.
-This is the BSDF/guide mixture of practical path guiding (Müller, Gross & Novák 2017, α = ½)
-with the portals, known from the scene, as the guiding distribution. Delta lobes (a wet film, a
-window's mirror) pass through with their discrete probability × (1 − α). Outside the box α = 0:
-the wrapper is the nested BSDF.
+p_portal picking portal i with probability P_i ∝ S_i (max(n·ω_i, 0) + COS_FLOOR), S_i the
+portal's solid angle from x and ω_i the direction to its centre, then a direction uniform in that
+solid angle (the spherical-rectangle sampling of Ureña, Fajardo & King 2013). Every sample is
+weighted f cos / p(ω) and reported with p(ω), and `pdf`/`eval_pdf` return the same mixture, so the
+path integrator's multiple importance weights stay right: the estimator is unbiased (the expected
+image is unchanged), and the bounded weight f cos / p ≤ albedo / (1 − α) keeps it defensive where
+the portal guess is poor. This is the BSDF/guide mixture of practical path guiding (Müller, Gross
+& Novák 2017, α = ½) with the portals, known from the scene, as the guiding distribution. Delta
+lobes (a wet film, a window's mirror) pass through with their discrete probability × (1 − α).
+Outside the box α = 0: the wrapper is the nested BSDF.
+
+Where the sun shines in through a portal, the floor and walls of its mouth are a second source as
+bright as the outside (measured on city_tunnel frame 2: the render-noise p90 3.2 with the portal
+as target, 2.0 with the inset). The target is then the tunnel's cross-section as deep inside as
+the sunlight reaches (`tunnel_portals`): a direction through it ends on the sunlit mouth or goes
+on out of the portal. Points within the mouth aim at the portal itself.
 """
 from __future__ import annotations
 
@@ -63,11 +69,11 @@ def _bsdf_class():
     class PortalGuide(mi.BSDF):
         """A BSDF whose samples inside a tunnel go partly toward its portals (module docstring)."""
 
-        def __init__(self, props, nested, box_m):
+        def __init__(self, props, nested, box_m, insets_m):
             mi.BSDF.__init__(self, props)
             self.nested = nested
             (self.x0, self.y0, self.z0), (self.x1, self.y1, self.z1) = box_m
-            self.area = (self.x1 - self.x0) * (self.z1 - self.z0)
+            self.inset0, self.inset1 = insets_m
             self.m_flags = nested.flags()
             self.m_components = [nested.flags(i) for i in range(nested.component_count())]
 
@@ -77,17 +83,53 @@ def _bsdf_class():
                       (p.z > self.z0 - e) & (p.z < self.z1 + e))
             return dr.select(inside, GUIDE_SHARE, 0.0)
 
-        def _portal_weights(self, si):
+        def _planes(self, p):
+            """(y_south, y_north) of the two target rectangles seen from p: each portal's
+            cross-section inset by its sunlit depth, or the portal itself from within that depth."""
+            ys, yn = self.y0 + self.inset0, self.y1 - self.inset1
+            return dr.select(p.y > ys, ys, self.y0), dr.select(p.y < yn, yn, self.y1)
+
+        def _rect(self, p, y):
+            """The portal at y seen from p as a spherical rectangle (Ureña, Fajardo & King 2013,
+            'An area-preserving parametrization for spherical rectangles'): its local frame
+            (x across, y up, z toward p's side of the plane, z0 < 0), the bounds, b0, b1, k and
+            the solid angle S (sr)."""
+            x0, x1 = self.x0 - p.x, self.x1 - p.x
+            y0, y1 = self.z0 - p.z, self.z1 - p.z
+            z0 = -dr.maximum(dr.abs(y - p.y), 1e-6)
+            l0, l1 = dr.sqrt(z0 * z0 + y0 * y0), dr.sqrt(z0 * z0 + x1 * x1)
+            l2, l3 = dr.sqrt(z0 * z0 + y1 * y1), dr.sqrt(z0 * z0 + x0 * x0)
+            g0 = dr.acos(dr.clip(y0 * x1 / (l0 * l1), -1.0, 1.0))
+            g1 = dr.acos(dr.clip(-x1 * y1 / (l1 * l2), -1.0, 1.0))
+            g2 = dr.acos(dr.clip(x0 * y1 / (l2 * l3), -1.0, 1.0))
+            g3 = dr.acos(dr.clip(-x0 * y0 / (l3 * l0), -1.0, 1.0))
+            k = 2 * dr.pi - g2 - g3
+            return {"x0": x0, "x1": x1, "y0": y0, "y1": y1, "z0": z0, "b0": -y0 / l0, "b1": y1 / l2, "k": k,
+                    "S": dr.maximum(g0 + g1 - k, 0.0)}
+
+        @staticmethod
+        def _rect_point(r, u, v):
+            """(x, z) offsets from p of the point on the portal whose direction is uniform in
+            solid angle for the unit sample (u, v) (the same paper's sampling)."""
+            au = u * r["S"] + r["k"]
+            fu = (dr.cos(au) * r["b0"] - r["b1"]) / dr.sin(au)
+            cu = dr.clip(dr.select(fu >= 0, 1.0, -1.0) * dr.rsqrt(fu * fu + r["b0"] * r["b0"]), -1.0, 1.0)
+            xu = dr.clip(-(cu * r["z0"]) * dr.rsqrt(dr.maximum(1 - cu * cu, 1e-12)), r["x0"], r["x1"])
+            d = dr.sqrt(xu * xu + r["z0"] * r["z0"])
+            h0 = r["y0"] * dr.rsqrt(d * d + r["y0"] * r["y0"])
+            h1 = r["y1"] * dr.rsqrt(d * d + r["y1"] * r["y1"])
+            hv = h0 + v * (h1 - h0)
+            yv = dr.select(hv * hv < 1 - 1e-6, hv * d * dr.rsqrt(dr.maximum(1 - hv * hv, 1e-12)), r["y1"])
+            return xu, dr.clip(yv, r["y0"], r["y1"])
+
+        def _portal_weights(self, si, planes, rects):
             """(P_south, P_north): the portals' selection probabilities at si (sum 1 or 0)."""
             p, n = si.p, si.sh_frame.n
             cx, cz = 0.5 * (self.x0 + self.x1), 0.5 * (self.z0 + self.z1)
             out = []
-            for y in (self.y0, self.y1):
-                d = mi.Vector3f(cx, y, cz) - p
-                r2 = dr.maximum(dr.squared_norm(d), 1e-6)
-                u = d * dr.rsqrt(r2)
-                omega = dr.minimum(self.area * dr.abs(u.y) / r2, 2 * dr.pi)
-                out.append(omega * (dr.maximum(dr.dot(n, u), 0.0) + COS_FLOOR))
+            for y, r in zip(planes, rects):
+                u = dr.normalize(mi.Vector3f(cx, y, cz) - p)
+                out.append(r["S"] * (dr.maximum(dr.dot(n, u), 0.0) + COS_FLOOR))
             total = out[0] + out[1]
             ok = total > 0
             return dr.select(ok, out[0] / total, 0.0), dr.select(ok, out[1] / total, 0.0)
@@ -95,14 +137,16 @@ def _bsdf_class():
         def _portal_pdf(self, si, wo_world):
             """Solid-angle density of p_portal for the world direction wo_world."""
             p = si.p
-            w_s, w_n = self._portal_weights(si)
+            planes = self._planes(p)
+            rects = [self._rect(p, y) for y in planes]
+            weights = self._portal_weights(si, planes, rects)
             pdf = mi.Float(0.0)
-            for y, w in ((self.y0, w_s), (self.y1, w_n)):
+            for y, w, r in zip(planes, weights, rects):
                 t = (y - p.y) / wo_world.y
                 x = p.x + t * wo_world.x
                 z = p.z + t * wo_world.z
-                hit = (t > 0) & (x >= self.x0) & (x <= self.x1) & (z >= self.z0) & (z <= self.z1)
-                pdf += dr.select(hit, w * t * t / (self.area * dr.abs(wo_world.y)), 0.0)
+                hit = (t > 0) & (x >= self.x0) & (x <= self.x1) & (z >= self.z0) & (z <= self.z1) & (r["S"] > 0)
+                pdf += dr.select(hit, w / r["S"], 0.0)
             return pdf
 
         def _mix_pdf(self, ctx, si, wo, alpha, active):
@@ -117,11 +161,14 @@ def _bsdf_class():
             s1 = dr.select(guided, 0.0, (sample1 - alpha) / (1 - alpha))
             bs, weight = self.nested.sample(ctx, si, dr.clip(s1, 0.0, 1.0 - 1e-7), sample2, active & ~guided)
             delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
-            # a portal direction: portal i by sample1 / α against P_i, a point on it by sample2
-            w_s, _ = self._portal_weights(si)
-            y = dr.select(sample1 < alpha * w_s, self.y0, self.y1)
-            q = mi.Point3f(self.x0 + sample2.x * (self.x1 - self.x0), y, self.z0 + sample2.y * (self.z1 - self.z0))
-            d = dr.normalize(q - si.p)
+            # a portal direction: portal i by sample1 / α against P_i, uniform in its solid angle by sample2
+            planes = self._planes(si.p)
+            rects = [self._rect(si.p, y) for y in planes]
+            w_s, _ = self._portal_weights(si, planes, rects)
+            south = sample1 < alpha * w_s
+            r = {key: dr.select(south, a, b) for (key, a), b in zip(rects[0].items(), rects[1].values())}
+            dx, dz = self._rect_point(r, sample2.x, sample2.y)
+            d = dr.normalize(mi.Vector3f(dx, dr.select(south, planes[0], planes[1]) - si.p.y, dz))
             wo = dr.select(guided, si.to_local(d), bs.wo)
             value, pdf = self._mix_pdf(ctx, si, wo, alpha, active & (guided | ~delta))
             ok = active & (pdf > 0) & (guided | ~delta)
@@ -157,37 +204,51 @@ def _bsdf_class():
     return PortalGuide
 
 
-def tunnel_boxes_m(city) -> list[tuple[tuple[float, float, float], tuple[float, float, float]]]:
-    """The interior boxes ((x0, y0, z0), (x1, y1, z1), m) of the city's tunnels
-    (scene/city/tunnel.py TunnelFrame: between the walls' inner faces, from road to soffit)."""
+def tunnel_portals(city, daylight) -> list[tuple[tuple, tuple[float, float]]]:
+    """(box, insets) of the city's tunnels: the interior box ((x0, y0, z0), (x1, y1, z1), m;
+    scene/city/tunnel.py TunnelFrame: between the walls' inner faces, from road to soffit; the
+    portals are its faces at y0 and y1) and how far the sun shines in through each portal along
+    the tunnel (m: soffit height × |s_y| / s_z for the sun's direction s, 0 at the portal the sun
+    does not face or without a sun), within which the floor is a second source of light."""
+    from workbench.render.daylight import sun_angles, sun_direction
+
+    sun = daylight.sun_scale > 0 and daylight.sky_model != "overcast"
+    s = sun_direction(*sun_angles(daylight)) if sun else np.array([0.0, 0.0, 1.0])
     out = []
     for obj in (o for o in city.objects if o.class_name == "tunnel"):
         f = obj.meta["frame"]
-        out.append(((f.x_m - f.half_width_m, f.y_south_m, f.road_z_m),
-                    (f.x_m + f.half_width_m, f.y_north_m, f.soffit_z_m)))
+        depth = min((f.soffit_z_m - f.road_z_m) * abs(s[1]) / s[2], (f.y_north_m - f.y_south_m) / 3)
+        insets = (depth if s[1] < 0 else 0.0, depth if s[1] > 0 else 0.0)   # sunlight travels along −s
+        out.append((((f.x_m - f.half_width_m, f.y_south_m, f.road_z_m),
+                     (f.x_m + f.half_width_m, f.y_north_m, f.soffit_z_m)), insets))
     return out
 
 
-def guide_toward_portals(bsdf, boxes_m) -> object:
-    """`bsdf` guided toward the portals of every tunnel box in boxes_m (one wrapper per box; the
-    boxes do not overlap, so at most one guides a point); a BSDF with no smooth lobe (a pane, a
-    mirror) is returned as it is: it has no direction to choose."""
+def guide_toward_portals(bsdf, portals) -> object:
+    """`bsdf` guided toward the portals of every (box, insets) in `portals` (one wrapper per
+    tunnel; tunnels do not overlap, so at most one guides a point); a BSDF with no smooth lobe (a
+    pane, a mirror) is returned as it is: it has no direction to choose."""
     import mitsuba as mi
 
     if not _ENABLED[-1] or not mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth):
         return bsdf
-    for box in boxes_m:
-        bsdf = portal_guided(bsdf, box)
+    for box, insets in portals:
+        bsdf = portal_guided(bsdf, box, insets)
     return bsdf
 
 
-def portal_guided(nested, box_m) -> object:
+def portal_guided(nested, box_m, insets_m=(0.0, 0.0)) -> object:
     """`nested` (a loaded Mitsuba BSDF) wrapped so that inside box_m ((x0, y0, z0), (x1, y1, z1),
     m: the tunnel's interior between its walls, road and soffit; the portals are its faces at y0
-    and y1) part of its samples head for the portals."""
+    and y1) part of its samples head for the portals, or for the cross-sections insets_m (south,
+    north; m) inside them."""
     import mitsuba as mi
 
     lo, hi = (np.asarray(b, dtype=np.float64) for b in box_m)
     if lo.shape != (3,) or hi.shape != (3,) or not np.all(np.isfinite(np.r_[lo, hi])) or np.any(hi <= lo):
         raise InvalidValueError(f"portal box must be two finite 3-vectors with min < max, got {box_m}")
-    return _bsdf_class()(mi.Properties(), nested, (tuple(lo.tolist()), tuple(hi.tolist())))
+    d0, d1 = (float(d) for d in insets_m)
+    if not (0 <= d0 and 0 <= d1 and d0 + d1 < hi[1] - lo[1]):
+        raise InvalidValueError(f"portal insets {insets_m} m must be ≥ 0 and together shorter than the tunnel "
+                                f"({hi[1] - lo[1]:g} m)")
+    return _bsdf_class()(mi.Properties(), nested, (tuple(lo.tolist()), tuple(hi.tolist())), (d0, d1))

@@ -21,7 +21,7 @@ from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
 from workbench.render.lamp_heads import lamp_faces
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
-from workbench.render.portal_guide import guide_toward_portals, tunnel_boxes_m
+from workbench.render.portal_guide import guide_toward_portals, tunnel_portals
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -242,7 +242,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     night = world.lighting == "night"
     lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
     # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
-    portals = [] if night else tunnel_boxes_m(city)
+    portals = [] if night else tunnel_portals(city, daylight)
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
