@@ -164,6 +164,27 @@ def _car_city():
                 seed=0, extent_m=(-50, -50, 50, 50))
 
 
+
+@pytest.mark.parametrize("variant", ["lamp_arm_8m", "lamp_arm_6m"])
+def test_a_city_street_lamp_shines_from_under_its_head_not_from_its_foot(mi, variant):
+    """The city's lamp asset (assets._lamp) merges the pole's dark foot and the luminaire head into
+    one 'metal_dark' mesh; the point emitter belongs 2 cm under the head, just under the lens,
+    not 2 cm under the foot (inside the sidewalk, 0.13 m up: where it lit the pavement round the
+    pole at ~10⁵ lx and leaked as the night frames' fireflies). Fails on the foot."""
+    from workbench.scene.city.catalog import VARIANTS
+    build, *args = VARIANTS["lamp"][variant]
+    asset = build(*args)
+    meshes = [Mesh(m.vertices + np.array([20.0, 0.0, 0.15]), m.faces, m.material) for m in asset.meshes()]
+    city = _car_city()
+    city = City(city.objects + [CityObject("lamp", 9, meshes)], city.materials, 0, city.extent_m)
+    (lamp,) = [e for k, e in night_emitters(city, NightParams()).items() if k.startswith("street_lamp")]
+    p = np.asarray(lamp["to_world"].translation())
+    lens = np.concatenate([m.vertices for m in meshes if m.material == "lens_clear"])
+    head = np.concatenate([m.vertices for m in meshes if m.material == "metal_dark"])
+    assert lens.min(0)[0] < p[0] < lens.max(0)[0] and lens.min(0)[1] < p[1] < lens.max(0)[1]   # under the lens
+    assert lens[:, 2].max() - 0.03 < p[2] < lens[:, 2].min()                                     # just below it
+    assert p[2] == pytest.approx(head[head[:, 2] > lens[:, 2].max(), 2].min() - 0.02)           # 2 cm under the head
+
 def test_labels_exact_with_fog_and_glass(mi):
     city = _car_city()
     pose = CameraPose(np.array([0.0, 0.0, 1.5]), pan_deg=0.0, tilt_deg=-3.0, roll_deg=0.0)

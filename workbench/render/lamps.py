@@ -137,8 +137,10 @@ def cone_solid_angle_sr(cutoff_deg: float) -> float:
 
 
 def _lamp_head_points(city) -> list[np.ndarray]:
-    """Emitter points of the city's street lamps: 2 cm below the centre of each lamp's highest
-    'metal_dark' mesh (the luminaire head; assets._lamp)."""
+    """Emitter points of the city's street lamps: 2 cm below the centre of each lamp's luminaire
+    head, the part of its highest 'metal_dark' mesh above its 'lens_clear' lens (assets._lamp
+    merges the pole's dark foot and the head into one mesh: its lowest point is the foot, on the
+    sidewalk; a lamp without a lens: the whole mesh)."""
     points = []
     for obj in city.objects:
         if obj.class_name != "lamp":
@@ -147,6 +149,12 @@ def _lamp_head_points(city) -> list[np.ndarray]:
         if not heads:
             raise InvalidValueError(f"lamp {obj.instance_id} has no 'metal_dark' luminaire head mesh")
         head = max(heads, key=lambda v: v[:, 2].max())
+        lenses = [m.vertices for m in obj.meshes if m.material == "lens_clear"]
+        if lenses:
+            head = head[head[:, 2] >= np.concatenate(lenses)[:, 2].max()]
+            if not len(head):
+                raise InvalidValueError(f"lamp {obj.instance_id}: its 'lens_clear' lens lies above its "
+                                        f"'metal_dark' head; put the lens under the head")
         lo, hi = head.min(0), head.max(0)
         points.append(np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2] - 0.02]))
     return points
