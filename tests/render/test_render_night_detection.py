@@ -81,3 +81,17 @@ def test_the_committed_results_data_set_is_still_the_one_city_detection_quick_ma
     folder = Path(__file__).resolve().parents[2] / "docs" / "results" / name
     recorded = json.loads((folder / "results.json").read_text())["dataset"]["fingerprint"]
     assert dataset_fingerprint(load_project("city_detection_quick"), "float16", render_city_frame) == recorded
+
+
+def test_night_data_sets_made_before_the_lamp_fix_are_not_resumed():
+    """Night frames made while the street lamps sat inside the pavement cannot be mixed with new
+    ones: a night project's fingerprint carries NIGHT_LIGHTS_VERSION (a day project's does not,
+    above)."""
+    from unittest import mock
+
+    from workbench.datasets import dataset
+    from workbench.render.city_frame import render_city_frame
+    night = load_project("city_detection_night")
+    now = dataset.dataset_fingerprint(night, "float16", render_city_frame)
+    with mock.patch.object(dataset, "NIGHT_LIGHTS_VERSION", 1):
+        assert dataset.dataset_fingerprint(night, "float16", render_city_frame) != now
