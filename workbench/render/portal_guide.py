@@ -134,14 +134,17 @@ def _bsdf_class():
             ok = total > 0
             return dr.select(ok, out[0] / total, 0.0), dr.select(ok, out[1] / total, 0.0)
 
-        def _portal_pdf(self, si, wo_world):
+        def _targets(self, si):
+            """(planes, spherical rectangles, selection probabilities) of the two portals at si."""
+            planes = self._planes(si.p)
+            rects = [self._rect(si.p, y) for y in planes]
+            return planes, rects, self._portal_weights(si, planes, rects)
+
+        def _portal_pdf(self, si, wo_world, targets):
             """Solid-angle density of p_portal for the world direction wo_world."""
             p = si.p
-            planes = self._planes(p)
-            rects = [self._rect(p, y) for y in planes]
-            weights = self._portal_weights(si, planes, rects)
             pdf = mi.Float(0.0)
-            for y, w, r in zip(planes, weights, rects):
+            for y, r, w in zip(*targets):
                 t = (y - p.y) / wo_world.y
                 x = p.x + t * wo_world.x
                 z = p.z + t * wo_world.z
@@ -149,10 +152,10 @@ def _bsdf_class():
                 pdf += dr.select(hit, w / r["S"], 0.0)
             return pdf
 
-        def _mix_pdf(self, ctx, si, wo, alpha, active):
+        def _mix_pdf(self, ctx, si, wo, alpha, active, targets=None):
             """(nested value, mixture pdf) of the local direction wo."""
             value, pdf_b = self.nested.eval_pdf(ctx, si, wo, active)
-            pdf_p = self._portal_pdf(si, si.to_world(wo))
+            pdf_p = self._portal_pdf(si, si.to_world(wo), targets or self._targets(si))
             return value, (1 - alpha) * pdf_b + alpha * pdf_p
 
         def sample(self, ctx, si, sample1, sample2, active=True):
@@ -162,15 +165,14 @@ def _bsdf_class():
             bs, weight = self.nested.sample(ctx, si, dr.clip(s1, 0.0, 1.0 - 1e-7), sample2, active & ~guided)
             delta = mi.has_flag(bs.sampled_type, mi.BSDFFlags.Delta)
             # a portal direction: portal i by sample1 / α against P_i, uniform in its solid angle by sample2
-            planes = self._planes(si.p)
-            rects = [self._rect(si.p, y) for y in planes]
-            w_s, _ = self._portal_weights(si, planes, rects)
+            targets = self._targets(si)
+            planes, rects, (w_s, _) = targets
             south = sample1 < alpha * w_s
             r = {key: dr.select(south, a, b) for (key, a), b in zip(rects[0].items(), rects[1].values())}
             dx, dz = self._rect_point(r, sample2.x, sample2.y)
             d = dr.normalize(mi.Vector3f(dx, dr.select(south, planes[0], planes[1]) - si.p.y, dz))
             wo = dr.select(guided, si.to_local(d), bs.wo)
-            value, pdf = self._mix_pdf(ctx, si, wo, alpha, active & (guided | ~delta))
+            value, pdf = self._mix_pdf(ctx, si, wo, alpha, active & (guided | ~delta), targets)
             ok = active & (pdf > 0) & (guided | ~delta)
             out = dr.zeros(mi.BSDFSample3f)
             out.wo = wo
