@@ -1,7 +1,7 @@
 """Render noise against shot noise for night, tunnel and day samples: core-seconds per frame at the
-data sets' criterion, before and after the night light selection per shading point and the
-tunnels' portal guiding (part of `workbench bench render`, and alone as `workbench bench
-render-noise`).
+data sets' criterion, before and after the night light selection per shading point and, in the
+tunnels, portal guiding and then the sun carried by the luminaire row (tunnel_sun_share.py)
+(part of `workbench bench render`, and alone as `workbench bench render-noise`).
 
 Each case is a sample project (city_night, city_tunnel, city_tunnel_entrance, and the day data
 set city_detection_quick) rendered small: the sensor's rows and columns and the focal length
@@ -27,11 +27,14 @@ from workbench.bench import BenchResult, register_bench
 
 DAY = "day (city_detection_quick)"
 GUIDE = "portal_guide"     # a setting's key that is no NightParams field: False renders without portal guiding
+SUN_SHARE = "sun_share"    # another: False keeps the sun its own emitter (render/tunnel_sun_share.py)
 CASES = (  # (label, sample project, scale, {setting: NightParams updates})
     (DAY, "city_detection_quick", 2, {"before": {}}),
     ("night", "city_night", 4, {"before": {"light_selection": "view"}, "after": {"light_selection": "shading"}}),
-    ("tunnel", "city_tunnel", 4, {"before": {GUIDE: False}, "after": {}}),
-    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {GUIDE: False}, "after": {}}),
+    ("tunnel", "city_tunnel", 4, {"before": {GUIDE: False, SUN_SHARE: False}, "guided": {SUN_SHARE: False},
+                                  "after": {}}),
+    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {GUIDE: False, SUN_SHARE: False},
+                                                    "guided": {SUN_SHARE: False}, "after": {}}),
 )
 
 
@@ -43,7 +46,7 @@ def noise_plan(quick: bool) -> tuple[int, int, int, int]:
 
 def _project(name: str, scale: int, night: dict, spp: int):
     from workbench.project import load_project
-    night = {k: v for k, v in night.items() if k != GUIDE}
+    night = {k: v for k, v in night.items() if k not in (GUIDE, SUN_SHARE)}
     p = load_project(name)
     s, r = p.sensor, p.render
     world = r.world.updated(night=r.world.night.updated(**night)) if night else r.world
@@ -54,12 +57,14 @@ def _project(name: str, scale: int, night: dict, spp: int):
                                       shot_noise_ratio=None, world=world))
 
 
-def _render(project, index: int, reference: bool, guided: bool = True):
+def _render(project, index: int, reference: bool, guided: bool = True, sun_share: bool = True):
     """(electron rate H×W, instance ids, auto exposure s, CPU seconds) of frame `index`; guided
-    False: without portal guiding (render/portal_guide.py)."""
-    from contextlib import nullcontext
+    False: without portal guiding (render/portal_guide.py); sun_share False: the sun its own
+    emitter (render/tunnel_sun_share.py)."""
+    from contextlib import ExitStack
 
     from workbench.render.portal_guide import unguided
+    from workbench.render.tunnel_sun_share import separate_sun
     from workbench.detect.data import experiment_sensor
     from workbench.experiments.render_noise import REFERENCE_SEED_TAG
     from workbench.jobs import run_job
@@ -70,7 +75,11 @@ def _render(project, index: int, reference: bool, guided: bool = True):
     if reference:
         seeds = replace(seeds, render=int(np.random.SeedSequence([seeds.render, REFERENCE_SEED_TAG]).generate_state(1)[0]))
     t0 = time.process_time()
-    with nullcontext() if guided else unguided():
+    with ExitStack() as stack:
+        if not guided:
+            stack.enter_context(unguided())
+        if not sun_share:
+            stack.enter_context(separate_sun())
         ren = run_job(city_scene_job(city_scene_inputs(project), seeds))
     cpu = time.process_time() - t0
     sensor = experiment_sensor(project)
@@ -93,7 +102,7 @@ def scene_noise_rows(quick: bool) -> list[dict]:
             exposure_s = min(ae * 2.0 ** ev_min, ref_project.sensor.max_exposure_s)
             for setting, night in settings.items():
                 rate, _, _, cpu = _render(_project(name, scale * extra, night, test_spp), index, False,
-                                          night.get(GUIDE, True))
+                                          night.get(GUIDE, True), night.get(SUN_SHARE, True))
                 r = noise_ratios(rate, ref, exposure_s, edge_pixels(ids))
                 k = 1 / np.sqrt(1 + test_spp / ref_spp)
                 med, p90, edge = (r[key] * k for key in ("median_ratio", "p90_ratio", "edge_ratio"))

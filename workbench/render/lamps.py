@@ -186,13 +186,16 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
     return result
 
 
-def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None) -> dict[str, tuple[int, object]]:
+def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None,
+                    sun_shares: dict | None = None) -> dict[str, tuple[int, object]]:
     """The glowing lenses of every tunnel's luminaires (scene/city/tunnel.py) as one Mitsuba mesh
     per tunnel with one emitter that samples its whole row (render/luminaire_row.py): {shape id:
     (tunnel instance id, mesh)}. Each lens is a Lambertian emitter of the tunnel's kind whose
     luminous flux is the luminaire's: on-axis intensity I₀ = Φ/π, radiance I₀(λ)/A. sampling_weight:
     the row's share of Mitsuba's light selection (by day 1, like the sun and the sky); None = its
-    total flux (lm), as the street lamps at night. exterior: a loaded medium around the lenses."""
+    total flux (lm), as the street lamps at night. exterior: a loaded medium around the lenses.
+    sun_shares: {tunnel instance id: its row's weight and the sun it carries} (by day with a sun:
+    tunnel_sun_share.row_sun_shares); such a row's emitter picks the sun or the row per point."""
     from workbench.render.luminaire_row import luminaire_row_shape
 
     out = {}
@@ -203,9 +206,12 @@ def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None) -
         wl = LAMP_WAVELENGTHS_NM
         radiance = luminous_intensity_spectrum(kind, flux / np.pi, wl) / (4 * hx * hy)
         weight = flux * len(centres) if sampling_weight is None else sampling_weight
+        share = (sun_shares or {}).get(obj.instance_id)
         spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), radiance.tolist()))}
         sid = f"tunnel_{obj.instance_id}_lenses"
-        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum, weight, exterior))
+        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum,
+                                                         share["sampling_weight"] if share else weight, exterior,
+                                                         share["sun"] if share else None))
     return out
 
 

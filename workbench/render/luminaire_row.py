@@ -37,18 +37,19 @@ import numpy as np
 
 from workbench.errors import InvalidValueError
 
-_REGISTERED: set[str] = set()
+_CLASSES: dict[str, type] = {}    # the emitter class per Mitsuba variant
 PLUGIN = "luminaire_row"
 ROW_TOLERANCE_M = 1e-4             # how far lens centres may stray from the equally spaced line
 
 
-def _register() -> None:
-    """Register the `luminaire_row` emitter plugin for the current Mitsuba variant (once)."""
+def row_emitter_class() -> type:
+    """The `luminaire_row` emitter class of the current Mitsuba variant, registered as a plugin
+    (once per variant)."""
     import drjit as dr
     import mitsuba as mi
 
-    if mi.variant() in _REGISTERED:
-        return
+    if mi.variant() in _CLASSES:
+        return _CLASSES[mi.variant()]
 
     class LuminaireRow(mi.Emitter):
         """All lenses of a row: emits `radiance` downward, samples the row in O(1) (module docstring)."""
@@ -127,7 +128,8 @@ def _register() -> None:
             return f"LuminaireRow[{self.n} lenses every {self.spacing} m]"
 
     mi.register_emitter(PLUGIN, lambda props: LuminaireRow(props))
-    _REGISTERED.add(mi.variant())
+    _CLASSES[mi.variant()] = LuminaireRow
+    return LuminaireRow
 
 
 def row_layout(centres_m: np.ndarray, half_size_m: tuple[float, float]) -> dict[str, float]:
@@ -154,20 +156,26 @@ def row_layout(centres_m: np.ndarray, half_size_m: tuple[float, float]) -> dict[
 
 
 def luminaire_row_shape(name: str, centres_m: np.ndarray, half_size_m: tuple[float, float],
-                        radiance_spectrum: dict, sampling_weight: float, exterior=None):
+                        radiance_spectrum: dict, sampling_weight: float, exterior=None, sun: dict | None = None):
     """One Mitsuba mesh `name` of the lenses (a spectral variant must be set): horizontal
     rectangles facing down at centres_m (N×3, m; row_layout), half sizes (x, y) m, black, with
     one `luminaire_row` emitter of `radiance_spectrum` (a Mitsuba spectrum dict, W/sr/m²/nm)
-    weighing `sampling_weight` in Mitsuba's light selection; `exterior` an optional loaded medium."""
+    weighing `sampling_weight` in Mitsuba's light selection; `exterior` an optional loaded medium.
+    sun: the sun's properties (tunnel_sun_share.sun_share_props) when the emitter carries the sun
+    too, chosen per shading point (render/tunnel_sun_share.py)."""
     import mitsuba as mi
 
     if not sampling_weight > 0:
         raise InvalidValueError(f"sampling_weight must be > 0, got {sampling_weight}")
     row = row_layout(centres_m, half_size_m)
-    _register()
+    row_emitter_class()
     props = mi.Properties()
-    props["emitter"] = mi.load_dict({"type": PLUGIN, "sampling_weight": float(sampling_weight),
-                                     "radiance": mi.load_dict(radiance_spectrum), **row})
+    emitter = {"type": PLUGIN, "sampling_weight": float(sampling_weight), "radiance": mi.load_dict(radiance_spectrum),
+               **row}
+    if sun is not None:
+        from workbench.render.tunnel_sun_share import row_and_sun_plugin
+        emitter.update(type=row_and_sun_plugin(), **sun)
+    props["emitter"] = mi.load_dict(emitter)
     if exterior is not None:
         props["exterior"] = exterior
     n, hx, hy = row["count"], row["half_x_m"], row["half_y_m"]

@@ -22,6 +22,7 @@ from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_m
 from workbench.render.lamp_heads import lamp_faces
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.portal_guide import guide_toward_portals, tunnel_portals
+from workbench.render.tunnel_sun_share import row_sun_shares
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
 from workbench.scene.city.textures import bake
@@ -243,6 +244,10 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
     # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
     portals = [] if night else tunnel_portals(city, daylight)
+    # and its luminaire row carries the sun, each picked where it can shine (tunnel_sun_share.py)
+    sun_shares = row_sun_shares(city, daylight, lights.get("sun")) if portals else {}
+    if sun_shares:
+        lights.pop("sun")
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
              "sensor": cam, **lights}
@@ -257,8 +262,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
         id_table[FOG_BOX_ID] = None
-    # a tunnel's luminaires burn by day too; then they weigh as much as the sun in light selection
-    lenses = tunnel_emitters(city, None if night else 1.0, medium)
+    # a tunnel's luminaires burn by day too; then they weigh as much as the sky in light selection
+    lenses = tunnel_emitters(city, None if night else 1.0, medium, sun_shares)
     rng = film_srfs.range_nm
     bsdfs = {}
     surfaces = procedural_surfaces(world.wet_road_fraction) if world.materials == "procedural" else {}
