@@ -39,10 +39,9 @@ def _emitters(mi):
            "sun_y": toward[1], "sun_z": toward[2], "sun_distance_m": 5000.0,
            "box_x0": BOX[0][0], "box_y0": BOX[0][1], "box_z0": BOX[0][2], "box_x1": BOX[1][0], "box_y1": BOX[1][1],
            "box_z1": BOX[1][2], "sunlit_depth_south_m": MOUTH_M, "sunlit_depth_north_m": 0.0}
-    row_and_sun_plugin()
     centres = np.array([[0.0, 1.0 + 1.6 * k, 5.0] for k in range(60)])
     radiance = {"type": "spectrum", "value": 1.0}
-    both = luminaire_row_shape("both", centres, (0.2, 0.75), radiance, 1.0, sun=sun).emitter()
+    both = luminaire_row_shape("both", centres, (0.2, 0.75), radiance, 1.0, None, row_and_sun_plugin(), sun).emitter()
     plain = luminaire_row_shape("plain", centres, (0.2, 0.75), radiance, 1.0).emitter()
     return both, plain
 

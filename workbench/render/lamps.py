@@ -209,9 +209,10 @@ def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None,
         share = (sun_shares or {}).get(obj.instance_id)
         spectrum = {"type": "spectrum", "value": list(zip(wl.tolist(), radiance.tolist()))}
         sid = f"tunnel_{obj.instance_id}_lenses"
-        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum,
-                                                         share["sampling_weight"] if share else weight, exterior,
-                                                         share["sun"] if share else None))
+        out[sid] = (obj.instance_id, luminaire_row_shape(sid, centres, (hx, hy), spectrum, weight, exterior)
+                    if share is None else
+                    luminaire_row_shape(sid, centres, (hx, hy), spectrum, share["sampling_weight"], exterior,
+                                        share["plugin"], share["sun"]))
     return out
 
 

@@ -156,13 +156,14 @@ def row_layout(centres_m: np.ndarray, half_size_m: tuple[float, float]) -> dict[
 
 
 def luminaire_row_shape(name: str, centres_m: np.ndarray, half_size_m: tuple[float, float],
-                        radiance_spectrum: dict, sampling_weight: float, exterior=None, sun: dict | None = None):
+                        radiance_spectrum: dict, sampling_weight: float, exterior=None, plugin: str = PLUGIN,
+                        extra: dict | None = None):
     """One Mitsuba mesh `name` of the lenses (a spectral variant must be set): horizontal
     rectangles facing down at centres_m (N×3, m; row_layout), half sizes (x, y) m, black, with
     one `luminaire_row` emitter of `radiance_spectrum` (a Mitsuba spectrum dict, W/sr/m²/nm)
     weighing `sampling_weight` in Mitsuba's light selection; `exterior` an optional loaded medium.
-    sun: the sun's properties (tunnel_sun_share.sun_share_props) when the emitter carries the sun
-    too, chosen per shading point (render/tunnel_sun_share.py)."""
+    plugin, extra: a registered subclass of the row's emitter and its further properties (the row
+    that carries the sun: render/tunnel_sun_share.py)."""
     import mitsuba as mi
 
     if not sampling_weight > 0:
@@ -170,12 +171,8 @@ def luminaire_row_shape(name: str, centres_m: np.ndarray, half_size_m: tuple[flo
     row = row_layout(centres_m, half_size_m)
     row_emitter_class()
     props = mi.Properties()
-    emitter = {"type": PLUGIN, "sampling_weight": float(sampling_weight), "radiance": mi.load_dict(radiance_spectrum),
-               **row}
-    if sun is not None:
-        from workbench.render.tunnel_sun_share import row_and_sun_plugin
-        emitter.update(type=row_and_sun_plugin(), **sun)
-    props["emitter"] = mi.load_dict(emitter)
+    props["emitter"] = mi.load_dict({"type": plugin, "sampling_weight": float(sampling_weight),
+                                     "radiance": mi.load_dict(radiance_spectrum), **row, **(extra or {})})
     if exterior is not None:
         props["exterior"] = exterior
     n, hx, hy = row["count"], row["half_x_m"], row["half_y_m"]

@@ -118,7 +118,7 @@ def row_and_sun_plugin() -> str:
 
 
 def row_sun_shares(city, daylight, sun_emitter: dict | None) -> dict[int, dict]:
-    """{tunnel instance id: {'sampling_weight', 'sun': the row-and-sun emitter's sun properties}}
+    """{tunnel instance id: {'sampling_weight', 'plugin' (registered), 'sun': the sun's properties}}
     for every tunnel of the city when the scene has a sun (sun_emitter: sky.daylight_emitters'
     'sun' dict); {} without a sun, without tunnels, or inside separate_sun()."""
     import mitsuba as mi
@@ -136,9 +136,10 @@ def row_sun_shares(city, daylight, sun_emitter: dict | None) -> dict[int, dict]:
     out = {}
     for obj, (box, (south, north)) in zip(tunnels, tunnel_portals(city, daylight)):
         (bx0, by0, bz0), (bx1, by1, bz1) = box
-        out[obj.instance_id] = {"sampling_weight": ROW_AND_SUN_WEIGHT / len(tunnels), "sun": {
-            "sun_irradiance": irradiance, "sun_x": float(toward_sun[0]), "sun_y": float(toward_sun[1]),
-            "sun_z": float(toward_sun[2]), "sun_distance_m": distance,
-            "box_x0": bx0, "box_y0": by0, "box_z0": bz0, "box_x1": bx1, "box_y1": by1, "box_z1": bz1,
-            "sunlit_depth_south_m": float(south), "sunlit_depth_north_m": float(north)}}
+        sun = {"sun_irradiance": irradiance, "sun_distance_m": distance,
+               "sun_x": float(toward_sun[0]), "sun_y": float(toward_sun[1]), "sun_z": float(toward_sun[2]),
+               "box_x0": bx0, "box_y0": by0, "box_z0": bz0, "box_x1": bx1, "box_y1": by1, "box_z1": bz1,
+               "sunlit_depth_south_m": float(south), "sunlit_depth_north_m": float(north)}
+        out[obj.instance_id] = {"sampling_weight": ROW_AND_SUN_WEIGHT / len(tunnels), "plugin": row_and_sun_plugin(),
+                                "sun": sun}
     return out
