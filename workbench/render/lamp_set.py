@@ -14,9 +14,23 @@ I_k the lamp's peak intensity (cd), g_k a cone factor (1 inside the beam, fallin
 cos θ to 0 at the cut-off: zero exactly where the lamp sheds no light), r_k the distance and θ_x
 the angle at the receiver (the floor keeps a lamp in the tangent plane or behind a pane
 possible): a lamp's share follows its unshadowed direct light at x, as a light tree does in
-PBRT-v4, without the tree (a linear scan: the city has tens of lamps). The value returned is the
-Mitsuba `spot` emitter's own (intensity × the spot's angular falloff / r²) divided by p_k, so the
-expected image is that of the separate spots; only the noise changes. Occlusion is not known to
+PBRT-v4.
+
+Scoring every lamp at every sample cost a night frame 2.7× a day frame's time per sample (a dense
+night city has ~250 lights: 60 cars' head- and tail-lights and the street lamps). The weights
+are therefore taken only over the CANDIDATES lamps of x's cell in a horizontal grid (CELL_M
+cells over the lamps' extent), those whose bound of w_k over the cell (nearest distance, the cone
+tested against the cell with its angular radius as a margin) is largest, and a share
+GLOBAL_SHARE of the samples comes from a table of all lamps by flux Φ_k (peak × cone solid angle):
+
+    p_k(x) = (1 − ε) w_k(x) / Σ_{j in cell} w_j(x) · [k in cell] + ε Φ_k / Σ_j Φ_j,
+
+(ε = 1 where no candidate lights x). Every lamp keeps a positive probability everywhere, so a
+lamp the grid leaves out costs variance, never bias; the cost per sample no longer grows with
+the number of lamps (city_detection_night_rccc, 320×240: 0.33 → 0.17 core-s per sample per
+frame, a day frame 0.10). The value returned is the Mitsuba `spot` emitter's own (intensity ×
+the spot's angular falloff / r²) divided by p_k, so the expected image is that of the separate
+spots; only the noise changes. Occlusion is not known to
 the weights (a lamp behind a wall keeps its share). Lamps are point sources (delta position):
 BSDF sampling never hits them, so no MIS weight is needed.
 """
@@ -30,6 +44,11 @@ from workbench.errors import InvalidValueError
 
 PLUGIN = "lamp_set"
 COS_FLOOR = 0.05
+CELL_M = 8.0               # the candidate grid's cells (m)
+GRID_MARGIN_M = 40.0       # the grid reaches this far past the outermost lamps; points beyond use its edge cells
+CANDIDATES = 16            # lamps per cell weighed exactly at the shading point
+GLOBAL_SHARE = 0.05        # share of samples from the table of all lamps by flux: every lamp possible everywhere
+R_MIN_M = 1.0              # nearest distance the cell bound assumes
 _SETS: dict[str, dict] = {}        # set key → lamp arrays and spectra (read while its scene loads)
 MAX_SETS = 64
 _REGISTERED: set[str] = set()
@@ -67,9 +86,46 @@ def _spot_arrays(spots: dict) -> dict:
         peak.append(float(e["sampling_weight"]) / (2 * np.pi * (1 - np.cos(np.radians(c_deg)))))
         kind.append(shapes[key])
         scale.append(s)
-    return {"pos": np.array(pos), "axis": np.array(axis), "cos_cut": np.array(cos_cut),
-            "cos_beam": np.array(cos_beam), "cut": np.array(cut), "inv_tw": np.array(inv_tw),
-            "peak": np.array(peak), "kind": np.array(kind), "scale": np.array(scale), "spectra": spectra}
+    arrays = {"pos": np.array(pos), "axis": np.array(axis), "cos_cut": np.array(cos_cut),
+              "cos_beam": np.array(cos_beam), "cut": np.array(cut), "inv_tw": np.array(inv_tw),
+              "peak": np.array(peak), "kind": np.array(kind), "scale": np.array(scale), "spectra": spectra}
+    arrays["solid_angle"] = 2 * np.pi * (1 - arrays["cos_cut"])
+    arrays["grid"] = _candidate_grid(arrays)
+    return arrays
+
+
+def _candidate_grid(arrays: dict) -> dict:
+    """The grid of candidate lamps (module docstring): origin (m), cell size, cells along x and y,
+    and per cell CANDIDATES lamp indices with a 0/1 flag (a slot past the lamps that can light the
+    cell is flagged 0), ranked by a bound of each lamp's weight over the cell."""
+    pos, axis, cos_cut, peak = arrays["pos"], arrays["axis"], arrays["cos_cut"], arrays["peak"]
+    lo = pos[:, :2].min(0) - GRID_MARGIN_M
+    n = np.maximum(np.ceil((pos[:, :2].max(0) + GRID_MARGIN_M - lo) / CELL_M).astype(int), 1)
+    cx = lo[0] + (np.arange(n[0]) + 0.5) * CELL_M
+    cy = lo[1] + (np.arange(n[1]) + 0.5) * CELL_M
+    centre = np.stack(np.meshgrid(cx, cy, indexing="xy"), -1).reshape(-1, 2)          # cell y-major, then x
+    half = 0.5 * CELL_M
+    gap = np.maximum(np.abs(pos[None, :, :2] - centre[:, None, :]) - half, 0.0)        # cells × lamps × 2
+    r2 = np.maximum((gap ** 2).sum(-1), R_MIN_M ** 2)
+    # can the lamp's cone reach the cell? its axis against the directions to the cell's centre on
+    # the ground, at the lamp's height and above it, with the cell's angular radius as a margin
+    reach = np.zeros(r2.shape, bool)
+    for z in (0.0, 1.0, 2.0):
+        v = np.concatenate([centre[:, None, :] - pos[None, :, :2],
+                            np.broadcast_to((z * pos[:, 2] - pos[:, 2])[None, :, None], r2.shape + (1,))], -1)
+        dist = np.linalg.norm(v, axis=-1)
+        ang = np.arccos(np.clip((v * axis[None]).sum(-1) / np.maximum(dist, 1e-9), -1.0, 1.0))
+        margin = np.arctan2(half * np.sqrt(2.0), dist)
+        reach |= ang - margin < np.arccos(cos_cut)[None]
+    bound = np.where(reach, peak[None] * (1.0 + COS_FLOOR) / r2, 0.0)
+    k = min(CANDIDATES, len(pos))
+    order = np.argsort(-bound, axis=1, kind="stable")[:, :k]
+    valid = np.take_along_axis(bound, order, 1) > 0
+    if k < CANDIDATES:                                  # fewer lamps than slots: flagged-off padding
+        order = np.pad(order, ((0, 0), (0, CANDIDATES - k)))
+        valid = np.pad(valid, ((0, 0), (0, CANDIDATES - k)))
+    return {"origin": lo, "cells": n, "candidates": order.astype(np.uint32).ravel(),
+            "valid": valid.astype(np.float32).ravel()}
 
 
 def _register() -> None:
@@ -87,58 +143,87 @@ def _register() -> None:
             mi.Emitter.__init__(self, props)
             self.m_flags = mi.EmitterFlags.DeltaPosition
             s = _SETS[props["set"]]
-            self.lamps = [tuple(float(x) for x in row) for row in np.c_[
-                s["pos"], s["axis"], s["cos_cut"], s["cos_beam"], s["cut"], s["inv_tw"], s["peak"], s["scale"]]]
-            self.kind = [int(k) for k in s["kind"]]
+            self.count = len(s["peak"])
+            self.params = {name: mi.Float(np.asarray(col, np.float32)) for name, col in (
+                ("px", s["pos"][:, 0]), ("py", s["pos"][:, 1]), ("pz", s["pos"][:, 2]), ("ax", s["axis"][:, 0]),
+                ("ay", s["axis"][:, 1]), ("az", s["axis"][:, 2]), ("cos_cut", s["cos_cut"]),
+                ("cos_beam", s["cos_beam"]), ("cut", s["cut"]), ("inv_tw", s["inv_tw"]), ("peak", s["peak"]),
+                ("scale", s["scale"]))}
+            self.kind = mi.UInt32(np.asarray(s["kind"], np.uint32))
             self.spectra = [mi.load_dict(d) for d in s["spectra"]]
+            g = s["grid"]
+            self.origin, self.nx, self.ny = (float(g["origin"][0]), float(g["origin"][1])), *(int(c) for c in g["cells"])
+            self.candidates = mi.UInt32(g["candidates"])
+            self.valid = mi.Float(g["valid"])
+            self.table = mi.DiscreteDistribution(mi.Float(np.asarray(s["peak"] * s["solid_angle"], np.float32)))
 
-        def _weights(self, it):
-            out = []
-            for px, py, pz, ax, ay, az, cc, cb, _, _, peak, _ in self.lamps:
-                d = mi.Vector3f(px, py, pz) - it.p
-                r2 = dr.maximum(dr.squared_norm(d), 1e-8)
-                u = d * dr.rsqrt(r2)
-                cos_l = -(u.x * ax + u.y * ay + u.z * az)
-                cone = dr.clip((cos_l - cc) / (cb - cc), 0.0, 1.0)
-                out.append(peak * cone * (dr.abs(dr.dot(it.n, u)) + COS_FLOOR) / r2)
-            total = out[0]
-            for w in out[1:]:
-                total = total + w
-            return out, total
+        def _lamp(self, k):
+            """The parameters of the lamps k (UInt32 indices)."""
+            return {name: dr.gather(mi.Float, col, k) for name, col in self.params.items()}
+
+        @staticmethod
+        def _weight(lamp, it):
+            """w_k(x) of the gathered lamps at the shading point it (module docstring)."""
+            d = mi.Vector3f(lamp["px"], lamp["py"], lamp["pz"]) - it.p
+            r2 = dr.maximum(dr.squared_norm(d), 1e-8)
+            u = d * dr.rsqrt(r2)
+            cos_l = -(u.x * lamp["ax"] + u.y * lamp["ay"] + u.z * lamp["az"])
+            cone = dr.clip((cos_l - lamp["cos_cut"]) / (lamp["cos_beam"] - lamp["cos_cut"]), 0.0, 1.0)
+            return lamp["peak"] * cone * (dr.abs(dr.dot(it.n, u)) + COS_FLOOR) / r2
+
+        def _candidates(self, it):
+            """(indices, weights at it) of the CANDIDATES lamps of it's grid cell."""
+            ix = dr.clip(mi.Int32(dr.floor((it.p.x - self.origin[0]) / CELL_M)), 0, self.nx - 1)
+            iy = dr.clip(mi.Int32(dr.floor((it.p.y - self.origin[1]) / CELL_M)), 0, self.ny - 1)
+            base = mi.UInt32(iy * self.nx + ix) * CANDIDATES
+            ids, weights = [], []
+            for j in range(CANDIDATES):
+                k = dr.gather(mi.UInt32, self.candidates, base + j)
+                ids.append(k)
+                weights.append(dr.gather(mi.Float, self.valid, base + j) * self._weight(self._lamp(k), it))
+            return ids, weights
 
         def sample_direction(self, it, sample, active=True):
-            w, total = self._weights(it)
-            u = sample.x * total
-            cum = mi.Float(0.0)
-            done = mi.Bool(False)
-            lamp = [mi.Float(v) for v in self.lamps[-1]]
-            kind, w_k = mi.UInt32(self.kind[-1]), w[-1]
-            for row, k, wk in zip(self.lamps, self.kind, w):
-                take = ~done & (u < cum + wk) & (wk > 0)
-                lamp = [dr.select(take, v, old) for v, old in zip(row, lamp)]
-                kind = dr.select(take, k, kind)
-                w_k = dr.select(take, wk, w_k)
+            ids, weights = self._candidates(it)
+            total = weights[0]
+            for w in weights[1:]:
+                total = total + w
+            local_share = dr.select(total > 0, 1.0 - GLOBAL_SHARE, 0.0)
+            local = sample.x < local_share
+            u = sample.x / dr.select(local_share > 0, local_share, 1.0) * total
+            cum, done, k_local = mi.Float(0.0), mi.Bool(False), ids[-1]
+            for k, w in zip(ids, weights):
+                take = ~done & (u < cum + w) & (w > 0)
+                k_local = dr.select(take, k, k_local)
                 done = done | take
-                cum = cum + wk
-            px, py, pz, ax, ay, az, cc, cb, cut, inv_tw, _, scale = lamp
-            ok = active & (total > 0) & (w_k > 0)
-            p = mi.Point3f(px, py, pz)
+                cum = cum + w
+            u_global = dr.clip((sample.x - local_share) / (1.0 - local_share), 0.0, 1.0 - 1e-7)
+            k = dr.select(local, k_local, self.table.sample(u_global, active))
+            w_k = mi.Float(0.0)
+            for kj, w in zip(ids, weights):
+                w_k += dr.select(kj == k, w, 0.0)
+            pdf = (local_share * w_k / dr.select(total > 0, total, 1.0)
+                   + (1.0 - local_share) * self.table.eval_pmf_normalized(k, active))
+            lamp = self._lamp(k)
+            ok = active & (pdf > 0)
+            p = mi.Point3f(lamp["px"], lamp["py"], lamp["pz"])
             d = p - it.p
             dist = dr.norm(d)
             ds = dr.zeros(mi.DirectionSample3f)
             ds.p, ds.d, ds.dist, ds.n = p, d / dist, dist, mi.Normal3f(0.0)
-            pdf = dr.select(ok, w_k / total, 0.0)
-            ds.pdf, ds.delta, ds.time = pdf, True, it.time
+            ds.pdf, ds.delta, ds.time = dr.select(ok, pdf, 0.0), True, it.time
             ds.emitter = mi.EmitterPtr(self)
-            cos_t = -(ds.d.x * ax + ds.d.y * ay + ds.d.z * az)
-            falloff = dr.select(cos_t >= cb, 1.0, (cut - dr.acos(dr.clip(cos_t, -1.0, 1.0))) * inv_tw)
-            falloff = dr.select(cos_t > cc, falloff, 0.0)
+            cos_t = -(ds.d.x * lamp["ax"] + ds.d.y * lamp["ay"] + ds.d.z * lamp["az"])
+            falloff = dr.select(cos_t >= lamp["cos_beam"], 1.0,
+                                (lamp["cut"] - dr.acos(dr.clip(cos_t, -1.0, 1.0))) * lamp["inv_tw"])
+            falloff = dr.select(cos_t > lamp["cos_cut"], falloff, 0.0)
             si = dr.zeros(mi.SurfaceInteraction3f)
             si.wavelengths = it.wavelengths
+            kind = dr.gather(mi.UInt32, self.kind, k)
             spec = self.spectra[0].eval(si, ok)
             for j, tex in enumerate(self.spectra[1:], start=1):
                 spec = dr.select(kind == j, tex.eval(si, ok), spec)
-            value = spec * (scale * falloff / (dist * dist) / dr.select(ok, pdf, 1.0))
+            value = spec * (lamp["scale"] * falloff / (dist * dist) / dr.select(ok, pdf, 1.0))
             return ds, dr.select(ok, value, 0.0)
 
         def pdf_direction(self, it, ds, active=True):
@@ -154,7 +239,7 @@ def _register() -> None:
             pass
 
         def to_string(self):
-            return f"LampSet[{len(self.lamps)} lamps]"
+            return f"LampSet[{self.count} lamps, {self.nx}×{self.ny} cells]"
 
     mi.register_emitter(PLUGIN, lambda props: LampSet(props))
     _REGISTERED.add(mi.variant())
@@ -167,7 +252,7 @@ def lamp_set_emitter(spots: dict) -> dict:
     if not spots:
         raise InvalidValueError("lamp set: no lamps given")
     arrays = _spot_arrays(spots)
-    key = hashlib.sha1(b"".join(np.ascontiguousarray(v).tobytes() for k, v in arrays.items() if k != "spectra")
+    key = hashlib.sha1(b"".join(np.ascontiguousarray(v).tobytes() for k, v in arrays.items() if k not in ("spectra", "grid"))
                        + repr(arrays["spectra"]).encode()).hexdigest()
     _SETS.pop(key, None)
     _SETS[key] = arrays
