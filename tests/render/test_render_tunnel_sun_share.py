@@ -1,7 +1,7 @@
 """The sun carried by a tunnel's luminaire row, picked per shading point (render/tunnel_sun_share.py).
 
-- The emitter alone, at a point deep in the tunnel, in its sunlit mouth and outside: it picks the
-  sun with the share q the module states; its sun samples average to the sun's irradiance E(λ)
+- The emitter alone, at points deep in the tunnel (the sun cannot reach them), in its sunlit mouth
+  and outside: it picks the sun with the share q the module states; its sun samples average to the sun's irradiance E(λ)
   (exactly: E/q, a fraction q of the time); its row samples estimate the row's illuminance as the
   plain row emitter does (same mean within 4 standard errors; the plain row's estimate is checked
   against the closed form in test_render_tunnel.py), and pdf_direction reports their density.
@@ -21,8 +21,7 @@ import pytest
 
 from workbench.render.luminaire_row import luminaire_row_shape
 from workbench.render.params import DaylightParams
-from workbench.render.tunnel_sun_share import (SUN_SHARE_INSIDE, SUN_SHARE_MOUTH, SUN_SHARE_OUTSIDE,
-                                               separate_sun)
+from workbench.render.tunnel_sun_share import SUN_SHARE_LIT, SUN_SHARE_UNLIT, separate_sun
 from workbench.scene.city import CityRecipe, TunnelParams, generate_city
 
 BOX = ((-5.0, 0.0, 0.0), (5.0, 100.0, 6.0))
@@ -57,9 +56,9 @@ def _points(mi, p, m: int, seed: int):
     return it, mi.Point2f(mi.Float(u[0]), mi.Float(u[1]))
 
 
-@pytest.mark.parametrize("p, share", [((1.0, 50.0, 0.0), SUN_SHARE_INSIDE), ((1.0, 2.0, 0.0), SUN_SHARE_MOUTH),
-                                      ((1.0, 98.0, 0.0), SUN_SHARE_INSIDE), ((1.0, -3.0, 0.0), SUN_SHARE_OUTSIDE),
-                                      ((8.0, 50.0, 0.0), SUN_SHARE_OUTSIDE)])
+@pytest.mark.parametrize("p, share", [((1.0, 50.0, 0.0), SUN_SHARE_UNLIT), ((1.0, 2.0, 0.0), SUN_SHARE_LIT),
+                                      ((1.0, 98.0, 0.0), SUN_SHARE_UNLIT), ((1.0, -3.0, 0.0), SUN_SHARE_LIT),
+                                      ((8.0, 50.0, 0.0), SUN_SHARE_LIT)])
 def test_the_emitter_picks_the_sun_by_its_share_and_keeps_both_lights_unbiased(mi, p, share):
     both, plain = _emitters(mi)
     m = 1 << 18
