@@ -191,8 +191,8 @@ def main() -> None:
                     "so the 44 deg field of view is kept, f/2, exposure at most 1/30 s, analog gain 4x) with an RGGB "
                     "filter and an IR-cut filter at 650 nm; rendered in the sensor's own channels (one multijitter "
                     "chunk of 225 spp, lamps picked per shading point: render noise at EV -4 meets the data sets' "
-                    "criterion (worst of 3 frames: median 0.17, p90 0.26, edges 0.19 of the shot noise, between two "
-                    "independent renders) at 3.2-4.3x a day frame's CPU time, issue 33); "
+                    "criterion (worst of 3 frames: median 0.14, p90 0.29, edges 0.19 of the shot noise, between two "
+                    "independent renders) at 2.0-3.2x a day frame's CPU time, issue 33); "
                     "procedural materials (puddles on 5 % of the road); exposure biases -4...+4 EV. Render its data "
                     "set with: workbench dataset city_detection_night --frames 612 --out DIR",
         optics=detection.optics.updated(f_number=2.0),
@@ -209,9 +209,9 @@ def main() -> None:
                         "the same cities, poses, lamps and exposure rule, only the filters differ, and it renders "
                         "one chunk of 324 spp, not 225: a clear pixel collects ~3x the electrons of a Bayer pixel, so "
                         "the same render noise weighs sqrt(3) more against its shot noise. At 324 spp its render noise "
-                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.30, p90 0.46, edges 0.32 "
+                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.25, p90 0.42, edges 0.31 "
                         "of the shot noise, between two independent renders; against a 1,024-spp reference, whose "
-                        "own noise counts in, frame 0 reads 0.37, 0.61, 0.39) at 4.5-6.3x a day frame's CPU time "
+                        "own noise counts in, frame 0 reads 0.36, 0.60, 0.37) at 3.9-4.3x a day frame's CPU time "
                         "(issue 33). Render its data set with: workbench dataset city_detection_night_rccc --frames "
                         "612 --out DIR",
             sensor=night_camera,
