@@ -33,28 +33,22 @@ on out of the portal. Points within the mouth aim at the portal itself.
 """
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.render.switch import Switch
 
 GUIDE_SHARE = 0.5          # α: share of samples sent toward the portals inside the tunnel
 COS_FLOOR = 0.05           # keeps a portal at the receiver's horizon possible
 BOX_MARGIN_M = 0.05        # the box grown across (not along) the tunnel: surfaces on its faces are inside
 _CLASSES: dict[str, type] = {}
-_ENABLED = [True]          # off only inside unguided(): the benchmark's 'before'
+_SWITCH = Switch()         # off only inside unguided(): the benchmark's 'before'
 
 
-@contextmanager
 def unguided():
     """Scenes built inside the block are not guided (guide_toward_portals returns BSDFs as they
     are): the render-noise benchmark's 'before', with the same expected image."""
-    _ENABLED.append(False)
-    try:
-        yield
-    finally:
-        _ENABLED.pop()
+    return _SWITCH.off()
 
 
 def _bsdf_class():
@@ -232,7 +226,7 @@ def guide_toward_portals(bsdf, portals) -> object:
     pane, a mirror) is returned as it is: it has no direction to choose."""
     import mitsuba as mi
 
-    if not _ENABLED[-1] or not mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth):
+    if not _SWITCH.on or not mi.has_flag(bsdf.flags(), mi.BSDFFlags.Smooth):
         return bsdf
     for box, insets in portals:
         bsdf = portal_guided(bsdf, box, insets)

@@ -32,9 +32,9 @@ the sky's 1 in the scene's light selection.
 """
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numpy as np
+
+from workbench.render.switch import Switch
 
 SUN_SHARE_UNLIT = 0.05       # the sun's share of a point in the tunnel beyond its reach
 SUN_SHARE_LIT = 0.95         # and elsewhere: there the row's light is small beside the daylight
@@ -43,18 +43,13 @@ ROW_AND_SUN_WEIGHT = 16.0    # the row-and-sun emitters' weight in light selecti
                              # median ratio: weight 2 0.69, 4 0.62, 8 0.58, 16 0.56)
 PLUGIN = "luminaire_row_sun"
 _REGISTERED: set[str] = set()
-_ENABLED = [True]            # off only inside separate_sun(): the benchmark's 'before'
+_SWITCH = Switch()           # off only inside separate_sun(): the benchmark's 'before'
 
 
-@contextmanager
 def separate_sun():
     """Scenes built inside the block keep the sun as its own emitter (row_sun_shares returns
     nothing): the render-noise benchmark's 'before', with the same expected image."""
-    _ENABLED.append(False)
-    try:
-        yield
-    finally:
-        _ENABLED.pop()
+    return _SWITCH.off()
 
 
 def row_and_sun_plugin() -> str:
@@ -127,7 +122,7 @@ def row_sun_shares(city, daylight, sun_emitter: dict | None) -> dict[int, dict]:
     from workbench.render.portal_guide import tunnel_portals
 
     tunnels = [o for o in city.objects if o.class_name == "tunnel"]
-    if sun_emitter is None or not tunnels or not _ENABLED[-1]:
+    if sun_emitter is None or not tunnels or not _SWITCH.on:
         return {}
     toward_sun = -np.asarray(sun_emitter["direction"], dtype=np.float64)
     toward_sun /= np.linalg.norm(toward_sun)
