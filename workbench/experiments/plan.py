@@ -17,7 +17,7 @@ BUDGET_SEEDS = 2
 # The standard profile's training budget B per net: the one place it is set. `experiment budget`
 # tests it against 2B; while the study says 2B gains ≥ BUDGET_TOLERANCE, B doubles here (the
 # budget folder keeps every earlier step as the ladder's evidence: budget_ladder_configs).
-STANDARD_EPOCHS = {"mobile": 480, "resnet18": 160}
+STANDARD_EPOCHS = {"mobile": 480, "resnet18": 320}
 
 
 def config_digest(config: dict, fingerprint: str, split_digest: str | None = None) -> str:
