@@ -89,7 +89,7 @@ def _spot_arrays(spots: dict) -> dict:
     arrays = {"pos": np.array(pos), "axis": np.array(axis), "cos_cut": np.array(cos_cut),
               "cos_beam": np.array(cos_beam), "cut": np.array(cut), "inv_tw": np.array(inv_tw),
               "peak": np.array(peak), "kind": np.array(kind), "scale": np.array(scale), "spectra": spectra}
-    arrays["solid_angle"] = 2 * np.pi * (1 - arrays["cos_cut"])
+    arrays["flux"] = np.array([float(e["sampling_weight"]) for e in spots.values()])   # lm: peak × cone solid angle
     arrays["grid"] = _candidate_grid(arrays)
     return arrays
 
@@ -155,7 +155,7 @@ def _register() -> None:
             self.origin, self.nx, self.ny = (float(g["origin"][0]), float(g["origin"][1])), *(int(c) for c in g["cells"])
             self.candidates = mi.UInt32(g["candidates"])
             self.valid = mi.Float(g["valid"])
-            self.table = mi.DiscreteDistribution(mi.Float(np.asarray(s["peak"] * s["solid_angle"], np.float32)))
+            self.table = mi.DiscreteDistribution(mi.Float(np.asarray(s["flux"], np.float32)))
 
         def _lamp(self, k):
             """The parameters of the lamps k (UInt32 indices)."""

@@ -245,7 +245,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
     portals = [] if night else tunnel_portals(city, daylight)
     # and its luminaire row carries the sun, each picked where it can shine (tunnel_sun_share.py)
-    sun_shares = row_sun_shares(city, daylight, lights.get("sun")) if portals else {}
+    sun_shares = row_sun_shares(city, portals, lights.get("sun")) if portals else {}
     if sun_shares:
         lights.pop("sun")
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
@@ -262,7 +262,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
         id_table[FOG_BOX_ID] = None
-    # a tunnel's luminaires burn by day too; then they weigh as much as the sky in light selection
+    # a tunnel's luminaires burn by day too: weighing as much as the sky, or (carrying the sun) ROW_AND_SUN_WEIGHT
     lenses = tunnel_emitters(city, None if night else 1.0, medium, sun_shares)
     rng = film_srfs.range_nm
     bsdfs = {}

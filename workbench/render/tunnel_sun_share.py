@@ -113,13 +113,12 @@ def row_and_sun_plugin() -> str:
     return PLUGIN
 
 
-def row_sun_shares(city, daylight, sun_emitter: dict | None) -> dict[int, dict]:
+def row_sun_shares(city, portals: list, sun_emitter: dict | None) -> dict[int, dict]:
     """{tunnel instance id: {'sampling_weight', 'plugin' (registered), 'sun': the sun's properties}}
     for every tunnel of the city when the scene has a sun (sun_emitter: sky.daylight_emitters'
-    'sun' dict); {} without a sun, without tunnels, or inside separate_sun()."""
+    'sun' dict; portals: portal_guide.tunnel_portals of the city, one (box, sunlit depths) per
+    tunnel in the city's order); {} without a sun, without tunnels, or inside separate_sun()."""
     import mitsuba as mi
-
-    from workbench.render.portal_guide import tunnel_portals
 
     tunnels = [o for o in city.objects if o.class_name == "tunnel"]
     if sun_emitter is None or not tunnels or not _SWITCH.on:
@@ -130,7 +129,7 @@ def row_sun_shares(city, daylight, sun_emitter: dict | None) -> dict[int, dict]:
     distance = 2.0 * (float(np.hypot(x1 - x0, y1 - y0)) + 1000.0)      # beyond everything, as Mitsuba's 2R
     irradiance = mi.load_dict(sun_emitter["irradiance"])
     out = {}
-    for obj, (box, (south, north)) in zip(tunnels, tunnel_portals(city, daylight)):
+    for obj, (box, (south, north)) in zip(tunnels, portals, strict=True):
         (bx0, by0, bz0), (bx1, by1, bz1) = box
         sun = {"sun_irradiance": irradiance, "sun_distance_m": distance,
                "sun_x": float(toward_sun[0]), "sun_y": float(toward_sun[1]), "sun_z": float(toward_sun[2]),
