@@ -145,7 +145,7 @@ def readback_bases(tmp_path_factory):
             "state": load_checkpoint(folder / "run.pt"), "reference": reference}
 
 
-COMMITTED_RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "budget-standard" / "results.json"
+COMMITTED_RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "schedule-study" / "budget-batch16" / "results.json"
 
 
 def _readback_cases(bases):

@@ -18,9 +18,11 @@ from workbench.experiments.detection import (BUDGET_TOLERANCE, PROFILES, borrowe
 from workbench.experiments.plan import STANDARD_EPOCHS, budget_ladder_configs, kept_roles, plan_configs
 from workbench.experiments.results import read_bootstraps, read_results
 
-COMMITTED = Path(__file__).resolve().parents[2] / "docs" / "results" / "budget-standard"
+COMMITTED = Path(__file__).resolve().parents[2] / "docs" / "results" / "schedule-study" / "budget-batch16"
 COMMITTED_EPOCHS = {"mobile": 120, "resnet18": 80}        # the budget the committed folder was planned with
 GROWN = {"mobile": 240, "resnet18": 160}
+# the committed ladder was trained at batch 16 (the standard profile trains at batch 8 since)
+BATCH16 = replace(PROFILES["standard"], batch_size=16)
 
 
 # The committed folder grows every sitting: the tests read it as it stood when the ladder was built
@@ -74,7 +76,7 @@ def test_the_committed_budget_folder_grows_into_a_ladder_without_retraining(comm
     160-epoch runs are the new B runs, its 120- and 80-epoch runs the ladder's step below, its runs
     of the old split stay superseded, and the runs to train are the 2B runs (480, 320) and seed 1's."""
     folder, doc = committed
-    grown = replace(PROFILES["standard"], epochs=GROWN)
+    grown = replace(BATCH16, epochs=GROWN)
     args = _plan_args(doc)
     records = doc["runs"] + doc["superseded_runs"]
     runs, superseded = sort_records(records, kept_roles("budget", grown, *args))
@@ -113,7 +115,7 @@ def test_the_committed_folder_reads_as_before_under_the_standard_budget(committe
     and 80 → 160 steps are on seed 0 only, so the budget is not settled yet."""
     folder, doc = committed
     assert doc["settings"]["epochs"] == COMMITTED_EPOCHS
-    profile = replace(PROFILES["standard"], epochs=COMMITTED_EPOCHS)
+    profile = replace(BATCH16, epochs=COMMITTED_EPOCHS)
     runs, superseded = sort_records(doc["runs"] + doc["superseded_runs"], kept_roles("budget", profile,
                                                                                     *_plan_args(doc)))
     assert [r["role"] for r in runs] == [r["role"] for r in doc["runs"]] and len(superseded) == 7
@@ -130,19 +132,19 @@ def test_isp_and_exposure_use_only_runs_at_the_current_budget(committed):
     for kind in ("isp", "exposure"):
         for epochs, lent_epochs in ((COMMITTED_EPOCHS, [("mobile", 0, 120), ("mobile", 1, 120), ("resnet18", 0, 80)]),
                                     (GROWN, [("mobile", 0, 240), ("resnet18", 0, 160)])):
-            profile = replace(PROFILES["standard"], epochs=epochs)
+            profile = replace(BATCH16, epochs=epochs)
             jobs = [(role, SimpleNamespace(key=key, test_evs=test_evs))
                     for role, key, _, test_evs in plan_configs(kind, profile, *args)]
             lent, _ = borrowed_runs([folder], jobs, doc["dataset"]["fingerprint"])
             assert _epochs(lent) == lent_epochs
-        runs, superseded = sort_records(doc["runs"], kept_roles(kind, replace(PROFILES["standard"], epochs=GROWN),
+        runs, superseded = sort_records(doc["runs"], kept_roles(kind, replace(BATCH16, epochs=GROWN),
                                                                 *args))
         assert _epochs(runs) == [("mobile", 0, 240), ("resnet18", 0, 160)]
         assert {r["config"]["epochs"] for r in superseded} == {120, 80}
 
 
 def test_the_ladder_reaches_down_by_halves_and_is_never_trained():
-    profile = replace(PROFILES["standard"], epochs={"mobile": 240, "resnet18": 80})
+    profile = replace(BATCH16, epochs={"mobile": 240, "resnet18": 80})
     ladder = budget_ladder_configs(profile, 2, (0.0,), "f" * 64, "s" * 64)
     got = sorted({(config.net, config.epochs, role["budget_factor"]) for role, _, config, _ in ladder})
     assert got == [("mobile", 15, 1 / 16), ("mobile", 30, 1 / 8), ("mobile", 60, 1 / 4), ("mobile", 120, 1 / 2),

@@ -135,7 +135,7 @@ def test_records_written_before_sealing_still_count(synthetic_dir, sealed, tmp_p
     assert len(result.reused) == 3 and not result.trained
 
 
-@pytest.mark.parametrize("name", ["budget-standard", "isp-standard"])
+@pytest.mark.parametrize("name", ["budget-standard", "isp-standard", "schedule-study/budget-batch16"])
 def test_the_committed_result_folders_load_and_keep_every_run(tmp_path, name):
     """The committed folders (filled over sittings, by older code too) load with today's checks and
     keep every record they hold, current and superseded."""

@@ -218,7 +218,7 @@ def test_photodiode_aperture_needs_a_whole_number_of_samples_per_pixel():
         irradiance_to_signal_rate(oi, sp.pixel_response)
 
 
-@pytest.mark.parametrize("folder", ["budget-standard", "isp-standard"])
+@pytest.mark.parametrize("folder", ["budget-standard", "isp-standard", "schedule-study/budget-batch16"])
 def test_committed_standard_results_keep_their_projects_and_fingerprints(folder):
     """The committed result folders' projects load (read-only) with the microlens default, and their
     frame inputs, pixel response and sensor digest as on the code before pixel_aperture (05165ea)."""

@@ -70,7 +70,7 @@ def test_a_data_set_renders_from_each_night_sample_and_feeds_the_loader(mi, tmp_
         assert 0 < target["exposure_s"] <= 1 / 30 + 1e-9
 
 
-@pytest.mark.parametrize("name", ["budget-standard", "isp-standard"])
+@pytest.mark.parametrize("name", ["budget-standard", "isp-standard", "schedule-study/budget-batch16"])
 def test_the_committed_results_data_set_is_still_the_one_city_detection_quick_makes(name):
     """Adding the night samples and the tunnel's luminaire length leaves city_detection_quick's
     data-set fingerprint the one the committed result folders were measured on."""

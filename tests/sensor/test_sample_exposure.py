@@ -80,7 +80,7 @@ def test_the_detection_data_and_the_committed_results_are_unchanged():
     sensor = experiment_sensor(quick)
     assert (sensor.auto_exposure_method, sensor.auto_exposure_level, sensor.ev_bias) == (*PAPER_RULE, 0.0)
     fingerprint = dataset_fingerprint(quick, "float16", render_city_frame)
-    for name in ("budget-standard", "isp-standard"):
+    for name in ("budget-standard", "isp-standard", "schedule-study/budget-batch16"):
         doc = json.loads((COMMITTED / name / "results.json").read_text())
         committed = json.loads((COMMITTED / name / "project.json").read_text())
         assert doc["dataset"]["fingerprint"] == fingerprint, name
