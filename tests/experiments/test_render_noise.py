@@ -36,3 +36,27 @@ def test_gaussian_render_errors_read_back_as_their_ratio_to_the_shot_noise(ratio
     assert biased["edge_bias"] == pytest.approx(0.01) and biased["median_ratio"] == 0.0
     assert out["power_ratio"] == pytest.approx(ratio * np.sqrt(0.9 + 0.1 * 4), rel=0.03)
     assert out["p90_ratio"] > out["median_ratio"] and out["edge_pixels"] == edges.sum()
+
+
+def test_the_clipped_power_ratio_reads_the_images_as_the_sensor_records_them():
+    """A pixel saturated in both images (a lamp face) carries no render noise into the data however
+    large its error before clipping; below the full well the clipped ratio is the power ratio."""
+    rng = np.random.default_rng(5)
+    t, full_well = 1e-3, 20000.0
+    reference = rng.uniform(1e5, 1e7, size=(200, 300))                  # 100–10,000 e⁻ at t
+    rate = reference + 0.4 * np.sqrt(reference / t) * rng.standard_normal(reference.shape)
+    plain = noise_ratios(rate, reference, t, full_well_e=full_well)
+    assert plain["power_ratio_clipped"] == pytest.approx(plain["power_ratio"], rel=1e-9)
+    assert plain["power_ratio"] == pytest.approx(0.4, rel=0.03)
+    lamp = reference.copy(), rate.copy()
+    lamp[0][:2, :2], lamp[1][:2, :2] = 5e8, 5e9                           # 0.5 and 5 million e⁻: both clip
+    lamp[0][5, 5], lamp[1][5, 5] = 5e5, 5e9                               # 500 e⁻ against a clipped firefly
+    out = noise_ratios(lamp[1], lamp[0], t, full_well_e=full_well)
+    assert out["power_ratio"] > 100 * plain["power_ratio"]
+    n = lamp[0] * t
+    firefly = (full_well - 500.0) ** 2
+    want = np.sqrt((plain["power_ratio"] ** 2 * np.sum(reference * t) - np.sum(((rate - reference) * t)[:2, :2] ** 2)
+                    - ((rate - reference) * t)[5, 5] ** 2 + firefly) / n.sum())
+    assert out["power_ratio_clipped"] == pytest.approx(want, rel=1e-6)
+    with pytest.raises(Exception, match="full_well_e"):
+        noise_ratios(rate, reference, t, full_well_e=0.0)

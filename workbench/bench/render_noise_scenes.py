@@ -12,7 +12,9 @@ stream; every setting has the same expected image) and a test render at TEST_SPP
 are turned into the experiment sensor's electron rates; experiments.render_noise.noise_ratios
 compares them at the lowest EV the project tests (the data-set check's exposure). Columns:
 median, p90, edge and power ratios (the reference's own noise taken out: × 1/√(1 + test/ref
-spp)), top_0.1pct (the share of the error power in the worst 0.1 % of pixels: fireflies), spp at
+spp)), the power ratio of the images as the sensor records them (clipped at its full well: a
+lamp face that saturates either way carries no render noise into the data), top_0.1pct (the
+share of the error power in the worst 0.1 % of pixels: fireflies), spp at
 the criterion (≤ ⅓ median, ≤ ⅔ p90 and edges; ratios fall as 1/√spp), the process CPU seconds
 (all threads: core-seconds) of that frame from t = a + b·spp fitted to the two renders, per
 1000 pixels, and that cost over the day frames'."""
@@ -89,6 +91,7 @@ def _render(project, index: int, reference: bool, guided: bool = True, sun_share
 
 def scene_noise_rows(quick: bool) -> list[dict]:
     """One row per case, setting and frame (module docstring), then the cost over the day's."""
+    from workbench.detect.data import experiment_sensor
     from workbench.experiments.render_noise import TAIL_RATIO, TARGET_RATIO, edge_pixels, noise_ratios
 
     frames, ref_spp, test_spp, extra = noise_plan(quick)
@@ -100,10 +103,11 @@ def scene_noise_rows(quick: bool) -> list[dict]:
             ref, ids, ae, ref_cpu = _render(ref_project, index, True)
             ev_min = float(min(ref_project.experiment.ev_biases))
             exposure_s = min(ae * 2.0 ** ev_min, ref_project.sensor.max_exposure_s)
+            full_well_e = experiment_sensor(ref_project).full_well_e
             for setting, night in settings.items():
                 rate, _, _, cpu = _render(_project(name, scale * extra, night, test_spp), index, False,
                                           night.get(GUIDE, True), night.get(SUN_SHARE, True))
-                r = noise_ratios(rate, ref, exposure_s, edge_pixels(ids))
+                r = noise_ratios(rate, ref, exposure_s, edge_pixels(ids), full_well_e)
                 k = 1 / np.sqrt(1 + test_spp / ref_spp)
                 med, p90, edge = (r[key] * k for key in ("median_ratio", "p90_ratio", "edge_ratio"))
                 spp = int(np.ceil(test_spp * max((med / TARGET_RATIO) ** 2, (p90 / TAIL_RATIO) ** 2,
@@ -116,6 +120,7 @@ def scene_noise_rows(quick: bool) -> list[dict]:
                              "frame": index, "px": int(ref.size), "mean_e": round(float(ref.mean() * exposure_s), 2),
                              "spp": test_spp, "cpu_s": round(cpu, 2), "median": round(med, 3), "p90": round(p90, 3),
                              "edge": round(edge, 3), "power": round(r["power_ratio"] * k, 3),
+                             "power_clipped": round(r["power_ratio_clipped"] * k, 3),
                              "top_0.1pct": round(float(e2[:max(1, e2.size // 1000)].sum() / max(e2.sum(), 1e-300)), 3),
                              "spp_at_criterion": spp,
                              "core_s_per_kpx_at_criterion": round((a + b * spp) / (ref.size / 1000), 3)})

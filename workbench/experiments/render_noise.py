@@ -14,6 +14,9 @@ at the lowest EV the experiment tests (t = auto-exposure · 2^EV_min). Reported 
                    ≤ TAIL_RATIO;
     power_ratio    √(Σe² / ΣN): render noise power over shot noise power, all pixels (fireflies
                    weigh in here; reported, not a criterion);
+    power_ratio_clipped  the same with both images clipped at the sensor's full well, as it records
+                   them (given full_well_e): a lamp face or a sun glint that saturates either way
+                   carries no render noise into the data, however large its error before clipping;
     edge_bias      Σe / ΣN over the edge pixels: the render's mean error there relative to the
                    signal (a blurring denoiser or a biased sampler shows here);
     median_render_rel, median_shot_rel: the two noises as fractions of the signal (÷ 0.6745 for
@@ -52,9 +55,9 @@ def edge_pixels(instance_id: np.ndarray) -> np.ndarray:
 
 
 def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float,
-                 edges: np.ndarray | None = None) -> dict:
+                 edges: np.ndarray | None = None, full_well_e: float | None = None) -> dict:
     """The figures of the module docstring for one frame (rates in e⁻/s per pixel, H×W; edges
-    the H×W object-edge mask, for edge_ratio and edge_bias)."""
+    the H×W object-edge mask, for edge_ratio and edge_bias; full_well_e, for power_ratio_clipped)."""
     n = np.asarray(reference_rate, np.float64) * exposure_s
     e = (np.asarray(rate, np.float64) - np.asarray(reference_rate, np.float64)) * exposure_s
     lit = n > 0
@@ -65,6 +68,11 @@ def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float
         ne, ee = n[lit & edges], e[lit & edges]
         edge = {"edge_ratio": float(np.median(np.abs(ee) / np.sqrt(ne)) / 0.6745),
                 "edge_bias": float(np.sum(ee) / np.sum(ne)), "edge_pixels": int(ne.size)}
+    if full_well_e is not None:
+        if not full_well_e > 0:
+            raise InvalidValueError(f"render noise: full_well_e must be > 0 e⁻, got {full_well_e}")
+        clipped = np.minimum(n + e, full_well_e) - np.minimum(n, full_well_e)
+        edge["power_ratio_clipped"] = float(np.sqrt(np.sum(clipped[lit] ** 2) / np.sum(n[lit])))
     n, e = n[lit], e[lit]
     r = np.abs(e) / np.sqrt(n)
     return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645), **edge,
@@ -119,7 +127,7 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
         exposure_s = min(float(auto_exposure(ref_rate, sensor)) * 2.0 ** ev_min, sensor.max_exposure_s)
         edges = edge_pixels(ref_render.labels.instance_id)
         rows.append({"frame": rec.index, "exposure_s": exposure_s,
-                     **noise_ratios(rate, ref_rate, exposure_s, edges), "reference_seconds": time.perf_counter() - t0})
+                     **noise_ratios(rate, ref_rate, exposure_s, edges, sensor.full_well_e), "reference_seconds": time.perf_counter() - t0})
         yield Progress(k + 1, len(records), f"frame {rec.index}: median σ ratio {rows[-1]['median_ratio']:.3f}")
     worst = {k: max((r[k] for r in rows if k in r), default=None) for k in ("median_ratio", "p90_ratio", "edge_ratio")}
     report = {"dataset": str(dataset.folder), "fingerprint": dataset.fingerprint,
