@@ -22,7 +22,9 @@ sys.exit(1 if open_ else 0)
 PY
 }
 worker() {
-  nice -n 5 "$W" experiment budget "$P" "${common[@]}" --out "$R/budget-standard"
+  # resnet18 trains at batch 16 as the batch-16 ladder did (plan.STANDARD_BATCH): its runs there are lent
+  nice -n 5 "$W" experiment budget "$P" "${common[@]}" --out "$R/budget-standard" \
+    --reuse "$R/schedule-study/budget-batch16"
   # The ISP and exposure runs wait for the budget: at a budget that must still grow they would be
   # retrained. 'grow': set plan.STANDARD_EPOCHS to 2B, commit, and run this script again.
   budget_settled || { echo "ISP and exposure runs wait until the budget is settled"; return 0; }
