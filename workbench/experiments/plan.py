@@ -43,8 +43,9 @@ def run_key(config: dict, fingerprint: str, split_digest: str | None = None) -> 
 @dataclass(frozen=True)
 class Profile:
     """How big an experiment is. epochs: the training budget per net (every condition of a net
-    gets the same); batch_size: one for every net, or one per net; precision: per net, one of detect.devices.PRECISIONS; per_ev_biases:
-    the EVs at which the exposure experiment trains per-EV nets; crop_hw: training windows;
+    gets the same); batch_size: one for every net, or one per net (dict); precision: per net, one
+    of detect.devices.PRECISIONS; per_ev_biases: the EVs at which the exposure experiment trains
+    per-EV nets; crop_hw: training windows;
     curve_points: train-mAP measurements per run."""
 
     name: str

@@ -68,14 +68,16 @@ def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float
         ne, ee = n[lit & edges], e[lit & edges]
         edge = {"edge_ratio": float(np.median(np.abs(ee) / np.sqrt(ne)) / 0.6745),
                 "edge_bias": float(np.sum(ee) / np.sum(ne)), "edge_pixels": int(ne.size)}
+    clipped = {}
     if full_well_e is not None:
         if not full_well_e > 0:
-            raise InvalidValueError(f"render noise: full_well_e must be > 0 e⁻, got {full_well_e}")
-        clipped = np.minimum(n + e, full_well_e) - np.minimum(n, full_well_e)
-        edge["power_ratio_clipped"] = float(np.sqrt(np.sum(clipped[lit] ** 2) / np.sum(n[lit])))
+            raise InvalidValueError(f"render noise: full_well_e must be > 0 e⁻ (the sensor's full well), "
+                                    f"got {full_well_e}")
+        ec = np.minimum(n + e, full_well_e) - np.minimum(n, full_well_e)
+        clipped = {"power_ratio_clipped": float(np.sqrt(np.sum(ec[lit] ** 2) / np.sum(n[lit])))}
     n, e = n[lit], e[lit]
     r = np.abs(e) / np.sqrt(n)
-    return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645), **edge,
+    return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645), **edge, **clipped,
             "power_ratio": float(np.sqrt(np.sum(e * e) / np.sum(n))),
             "median_render_rel": float(np.median(np.abs(e) / n) / 0.6745),
             "median_shot_rel": float(np.median(1.0 / np.sqrt(n))), "mean_electrons": float(n.mean()),
@@ -127,7 +129,8 @@ def measure_render_noise(folder: str | Path, frames: int = 3, reference_spp: int
         exposure_s = min(float(auto_exposure(ref_rate, sensor)) * 2.0 ** ev_min, sensor.max_exposure_s)
         edges = edge_pixels(ref_render.labels.instance_id)
         rows.append({"frame": rec.index, "exposure_s": exposure_s,
-                     **noise_ratios(rate, ref_rate, exposure_s, edges, sensor.full_well_e), "reference_seconds": time.perf_counter() - t0})
+                     **noise_ratios(rate, ref_rate, exposure_s, edges, sensor.full_well_e),
+                     "reference_seconds": time.perf_counter() - t0})
         yield Progress(k + 1, len(records), f"frame {rec.index}: median σ ratio {rows[-1]['median_ratio']:.3f}")
     worst = {k: max((r[k] for r in rows if k in r), default=None) for k in ("median_ratio", "p90_ratio", "edge_ratio")}
     report = {"dataset": str(dataset.folder), "fingerprint": dataset.fingerprint,

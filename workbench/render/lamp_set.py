@@ -20,16 +20,16 @@ Scoring every lamp at every sample cost a night frame 2.7× a day frame's time p
 night city has ~250 lights: 60 cars' head- and tail-lights and the street lamps). The weights
 are therefore taken only over the CANDIDATES lamps of x's cell in a horizontal grid (CELL_M
 cells over the lamps' extent), those whose bound of w_k over the cell is largest (over the cell's
-column as cubes: the nearest distance to each, the cone at the axis's smallest angle to it), and a share
-ε = GLOBAL_SHARE of the samples comes from a table t of all lamps, half alike, half by flux Φ_k
+column as cubes: the nearest distance to each, the cone at the axis's smallest angle to it), and
+a share ε = GLOBAL_SHARE of the samples comes from a table t of all lamps, half alike, half by flux Φ_k
 (peak × cone solid angle):
 
     p_k(x) = (1 − ε) w_k(x) / Σ_{j in cell} w_j(x) · [k in cell] + ε t_k,   t_k = ½/N + ½ Φ_k / Σ_j Φ_j,
 
 (ε = 1 where no candidate lights x). The even half is for dim lamps that alone light a point the
 cell's bright candidates miss (a tail-light on a dark façade behind a queue of head-lights: by
-flux alone 1e-4 of the samples, and city_night's dark façades sparkled). Every lamp keeps a positive probability everywhere, so a
-lamp the grid leaves out costs variance, never bias; the cost per sample no longer grows with
+flux alone 1e-4 of the samples, and city_night's dark façades sparkled). Every lamp keeps a
+positive probability everywhere, so a lamp the grid leaves out costs variance, never bias; the cost per sample no longer grows with
 the number of lamps (city_detection_night_rccc, 320×240: 0.33 → 0.17 core-s per sample per
 frame, a day frame 0.10). The value returned is the Mitsuba `spot` emitter's own (intensity ×
 the spot's angular falloff / r²) divided by p_k, so the expected image is that of the separate
@@ -50,7 +50,7 @@ COS_FLOOR = 0.05
 CELL_M = 8.0               # the candidate grid's cells (m)
 GRID_MARGIN_M = 40.0       # the grid reaches this far past the outermost lamps; points beyond use its edge cells
 CANDIDATES = 16            # lamps per cell weighed exactly at the shading point
-GLOBAL_SHARE = 0.05        # share of samples from the table of all lamps by flux: every lamp possible everywhere
+GLOBAL_SHARE = 0.05        # share of samples from the table of all lamps (global_table): every lamp possible everywhere
 UNIFORM_SHARE = 0.5        # of the global share, spread evenly over the lamps (the rest by flux)
 R_MIN_M = 1.0              # nearest distance the cell bound assumes
 RECEIVER_TOP_M = 64.0      # the cone test covers shading points up to this height (higher: the global share)
