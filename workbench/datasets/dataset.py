@@ -52,8 +52,9 @@ DATASET_FORMAT = "camera-workbench-dataset"
 FRAME_FORMAT = "camera-workbench-frame"
 FRAME_VERSION = 1
 # Night frames only: 2 since the street lamps shine from under their heads (issue 33; they sat 0.13 m
-# up, inside the pavement, before). A separate tag, so day sets keep their fingerprints and results.
-NIGHT_LIGHTS_VERSION = 2
+# up, inside the pavement, before); 3 since head-lights are low beams (render/low_beam.py) instead of a
+# symmetric cone. A separate tag, so day sets keep their fingerprints and results.
+NIGHT_LIGHTS_VERSION = 3
 IRRADIANCE_DTYPES = ("float16", "float32")
 FLOAT16_REL_ERROR = 2.0 ** -11
 FRAMES_DIR = "frames"

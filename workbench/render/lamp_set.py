@@ -11,8 +11,10 @@ emitter holds all the lamps (`spot_emitter` dicts) and samples lamp k with proba
     p_k(x) = w_k(x) / Σ_j w_j(x),   w_k(x) = I_k · g_k(x) · (|cos θ_x| + COS_FLOOR) / r_k²,
 
 I_k the lamp's peak intensity (cd), g_k a cone factor (1 inside the beam, falling linearly in
-cos θ to 0 at the cut-off: zero exactly where the lamp sheds no light), r_k the distance and θ_x
-the angle at the receiver (the floor keeps a lamp in the tangent plane or behind a pane
+cos θ to 0 at the cut-off: zero exactly where the lamp sheds no light) times, for a spot with a
+projection texture (the low-beam head-lights, render/low_beam.py), the texture max-pooled onto a
+coarse grid (render/spot_pattern.py: a bound of the texture near the direction), r_k the distance
+and θ_x the angle at the receiver (the floor keeps a lamp in the tangent plane or behind a pane
 possible): a lamp's share follows its unshadowed direct light at x, as a light tree does in
 PBRT-v4.
 
@@ -20,7 +22,8 @@ Scoring every lamp at every sample cost a night frame 2.7× a day frame's time p
 night city has ~250 lights: 60 cars' head- and tail-lights and the street lamps). The weights
 are therefore taken only over the CANDIDATES lamps of x's cell in a horizontal grid (CELL_M
 cells over the lamps' extent), those whose bound of w_k over the cell is largest (over the cell's
-column as cubes: the nearest distance to each, the cone at the axis's smallest angle to it), and
+column as cubes: the nearest distance to each, the cone at the axis's smallest angle to it, a
+texture's coarse grid dilated over the cube's angular radius), and
 a share ε = GLOBAL_SHARE of the samples comes from a table t of all lamps, half alike, half by flux Φ_k
 (peak × cone solid angle):
 
@@ -32,7 +35,7 @@ flux alone 1e-4 of the samples, and city_night's dark façades sparkled). Every 
 positive probability everywhere, so a lamp the grid leaves out costs variance, never bias; the cost per sample no longer grows with
 the number of lamps (city_detection_night_rccc, 320×240: 0.33 → 0.17 core-s per sample per
 frame, a day frame 0.10). The value returned is the Mitsuba `spot` emitter's own (intensity ×
-the spot's angular falloff / r²) divided by p_k, so the expected image is that of the separate
+the spot's angular falloff × its texture at Mitsuba's uv / r²) divided by p_k, so the expected image is that of the separate
 spots; only the noise changes. Occlusion is not known to
 the weights (a lamp behind a wall keeps its share). Lamps are point sources (delta position):
 BSDF sampling never hits them, so no MIS weight is needed.
@@ -44,6 +47,7 @@ import hashlib
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.render import spot_pattern
 
 PLUGIN = "lamp_set"
 COS_FLOOR = 0.05
@@ -60,17 +64,18 @@ _REGISTERED: set[str] = set()
 
 
 def _spot_arrays(spots: dict) -> dict:
-    """Per-lamp arrays from spot_emitter dicts: position (m), axis, cone (cosines; cut-off in rad,
-    1/(cut-off − beam) in 1/rad), peak intensity (cd), and the distinct spectral shapes with each
-    lamp's index into them and scale (W/sr/nm at the shape's maximum)."""
-    pos, axis, cos_cut, cos_beam, cut, inv_tw, peak, kind, scale = ([] for _ in range(9))
+    """Per-lamp arrays from spot_emitter dicts: position (m), frame (left, up, axis), cone (cosines;
+    cut-off in rad, 1/(cut-off − beam) in 1/rad, tan of the cut-off), peak intensity (cd), the
+    distinct spectral shapes with each lamp's index into them and scale (W/sr/nm at the shape's
+    maximum), and the distinct projection textures with each lamp's slot (0: none; slot s > 0 is
+    textures[s − 1]) and their coarse tables (spot_pattern.coarse_tables; slot 0 all ones)."""
+    pos, left, up, axis, cos_cut, cos_beam, cut, inv_tw, peak, kind, scale, slot = ([] for _ in range(12))
     shapes: dict[bytes, int] = {}
-    spectra = []
+    spectra, textures = [], []
     for name, e in spots.items():
         if e.get("type") != "spot":
             raise InvalidValueError(f"lamp set: emitter '{name}' is a {e.get('type')!r}, only 'spot' lamps can join")
-        m = np.array(e["to_world"].matrix, dtype=np.float64)
-        a = m[:3, 2] / np.linalg.norm(m[:3, 2])
+        p, lf, u, a = spot_pattern.frame(e)
         c_deg, b_deg = float(e["cutoff_angle"]), float(e["beam_width"])
         wl, v = (np.array(x, dtype=np.float64) for x in zip(*e["intensity"]["value"]))
         s = float(v.max())
@@ -80,21 +85,30 @@ def _spot_arrays(spots: dict) -> dict:
         if key not in shapes:
             shapes[key] = len(spectra)
             spectra.append({"type": "spectrum", "value": list(zip(wl.tolist(), (v / s).tolist()))})
-        pos.append(m[:3, 3])
+        tex = e.get("texture")
+        if tex is not None and not any(t is tex for t in textures):
+            textures.append(tex)
+        pos.append(p)
+        left.append(lf)
+        up.append(u)
         axis.append(a)
         cos_cut.append(np.cos(np.radians(c_deg)))
         cos_beam.append(np.cos(np.radians(b_deg)))
         cut.append(np.radians(c_deg))
         inv_tw.append(1.0 / np.radians(c_deg - b_deg))
-        # cd: spot_emitter's sampling_weight over its cone's solid angle 2π(1 − cos), as lamps.cone_solid_angle_sr
-        # (not imported: lamps imports this module)
-        peak.append(float(e["sampling_weight"]) / (2 * np.pi * (1 - np.cos(np.radians(c_deg)))))
+        peak.append(spot_pattern.peak_cd(e))
         kind.append(shapes[key])
         scale.append(s)
-    arrays = {"pos": np.array(pos), "axis": np.array(axis), "cos_cut": np.array(cos_cut),
-              "cos_beam": np.array(cos_beam), "cut": np.array(cut), "inv_tw": np.array(inv_tw),
-              "peak": np.array(peak), "kind": np.array(kind), "scale": np.array(scale), "spectra": spectra}
-    arrays["flux"] = np.array([float(e["sampling_weight"]) for e in spots.values()])   # lm: peak × cone solid angle
+        slot.append(0 if tex is None else 1 + next(i for i, t in enumerate(textures) if t is tex))
+    cut_deg = {sl: float(np.degrees(c)) for sl, c in zip(slot, cut) if sl}
+    pyramids = [np.ones((1, spot_pattern.COARSE_TEXELS, spot_pattern.COARSE_TEXELS))]
+    pyramids += [spot_pattern.coarse_tables(spot_pattern.texture_data(t)) for t in textures]
+    arrays = {"pos": np.array(pos), "left": np.array(left), "up": np.array(up), "axis": np.array(axis),
+              "cos_cut": np.array(cos_cut), "cos_beam": np.array(cos_beam), "cut": np.array(cut),
+              "inv_tw": np.array(inv_tw), "uv_factor": np.tan(np.array(cut)), "peak": np.array(peak),
+              "kind": np.array(kind), "scale": np.array(scale), "slot": np.array(slot), "spectra": spectra,
+              "textures": textures, "pyramids": pyramids, "texture_cut_deg": cut_deg}
+    arrays["flux"] = np.array([float(e["sampling_weight"]) for e in spots.values()])   # lm (a bound for a plain spot)
     arrays["grid"] = _candidate_grid(arrays)
     return arrays
 
@@ -127,6 +141,11 @@ def _candidate_grid(arrays: dict) -> dict:
         margin = np.where(dist > radius, np.arcsin(np.minimum(radius / np.maximum(dist, 1e-9), 1.0)), np.pi)
         nearest = np.maximum(ang - margin, 0.0)
         cone = np.where(nearest < cut[None], np.clip((cut - nearest) / np.maximum(cut - beam, 1e-6), 0.0, 1.0), 0.0)
+        for sl in np.unique(arrays["slot"][arrays["slot"] > 0]):
+            k = np.flatnonzero(arrays["slot"] == sl)
+            local = np.stack([(v[:, k] * arrays[c][k][None]).sum(-1) for c in ("left", "up", "axis")], -1)
+            cone[:, k] *= spot_pattern.coarse_bound(arrays["pyramids"][sl], arrays["texture_cut_deg"][sl],
+                                                    local, margin[:, k])
         bound = np.maximum(bound, peak[None] * cone * (1.0 + COS_FLOOR) / r2)
     k = min(CANDIDATES, len(pos))
     order = np.argsort(-bound, axis=1, kind="stable")[:, :k]
@@ -162,11 +181,15 @@ def _register() -> None:
             self.count = len(s["peak"])
             self.params = {name: mi.Float(np.asarray(col, np.float32)) for name, col in (
                 ("px", s["pos"][:, 0]), ("py", s["pos"][:, 1]), ("pz", s["pos"][:, 2]), ("ax", s["axis"][:, 0]),
-                ("ay", s["axis"][:, 1]), ("az", s["axis"][:, 2]), ("cos_cut", s["cos_cut"]),
-                ("cos_beam", s["cos_beam"]), ("cut", s["cut"]), ("inv_tw", s["inv_tw"]), ("peak", s["peak"]),
-                ("scale", s["scale"]))}
+                ("ay", s["axis"][:, 1]), ("az", s["axis"][:, 2]), ("lx", s["left"][:, 0]), ("ly", s["left"][:, 1]),
+                ("lz", s["left"][:, 2]), ("ux", s["up"][:, 0]), ("uy", s["up"][:, 1]), ("uz", s["up"][:, 2]),
+                ("cos_cut", s["cos_cut"]), ("cos_beam", s["cos_beam"]), ("cut", s["cut"]), ("inv_tw", s["inv_tw"]),
+                ("uv_factor", s["uv_factor"]), ("peak", s["peak"]), ("scale", s["scale"]))}
             self.kind = mi.UInt32(np.asarray(s["kind"], np.uint32))
+            self.slot = mi.UInt32(np.asarray(s["slot"], np.uint32))
             self.spectra = [mi.load_dict(d) for d in s["spectra"]]
+            self.textures = list(s["textures"])
+            self.coarse = mi.Float(np.concatenate([p[0].ravel() for p in s["pyramids"]]).astype(np.float32))
             g = s["grid"]
             self.origin, self.nx, self.ny = (float(g["origin"][0]), float(g["origin"][1])), *(int(c) for c in g["cells"])
             self.candidates = mi.UInt32(g["candidates"])
@@ -175,17 +198,31 @@ def _register() -> None:
 
         def _lamp(self, k):
             """The parameters of the lamps k (UInt32 indices)."""
-            return {name: dr.gather(mi.Float, col, k) for name, col in self.params.items()}
+            lamp = {name: dr.gather(mi.Float, col, k) for name, col in self.params.items()}
+            lamp["slot"] = dr.gather(mi.UInt32, self.slot, k)
+            return lamp
 
         @staticmethod
-        def _weight(lamp, it):
+        def _uv(lamp, to_point):
+            """Mitsuba's spot uv of the unit direction to_point (from the lamp), and its cosine to the axis."""
+            z = to_point.x * lamp["ax"] + to_point.y * lamp["ay"] + to_point.z * lamp["az"]
+            scale = 0.5 / (dr.select(z > 1e-6, z, 1.0) * lamp["uv_factor"])
+            x = to_point.x * lamp["lx"] + to_point.y * lamp["ly"] + to_point.z * lamp["lz"]
+            y = to_point.x * lamp["ux"] + to_point.y * lamp["uy"] + to_point.z * lamp["uz"]
+            return mi.Point2f(0.5 + x * scale, 0.5 + y * scale), z
+
+        def _weight(self, lamp, it):
             """w_k(x) of the gathered lamps at the shading point it (module docstring)."""
             d = mi.Vector3f(lamp["px"], lamp["py"], lamp["pz"]) - it.p
             r2 = dr.maximum(dr.squared_norm(d), 1e-8)
             u = d * dr.rsqrt(r2)
-            cos_l = -(u.x * lamp["ax"] + u.y * lamp["ay"] + u.z * lamp["az"])
+            uv, cos_l = self._uv(lamp, -u)
             cone = dr.clip((cos_l - lamp["cos_cut"]) / (lamp["cos_beam"] - lamp["cos_cut"]), 0.0, 1.0)
-            return lamp["peak"] * cone * (dr.abs(dr.dot(it.n, u)) + COS_FLOOR) / r2
+            t = spot_pattern.COARSE_TEXELS
+            cell = (dr.clip(mi.UInt32(dr.clip(uv.y, 0.0, 1.0) * t), 0, t - 1) * t
+                    + dr.clip(mi.UInt32(dr.clip(uv.x, 0.0, 1.0) * t), 0, t - 1))
+            pattern = dr.gather(mi.Float, self.coarse, lamp["slot"] * (t * t) + cell)
+            return lamp["peak"] * cone * pattern * (dr.abs(dr.dot(it.n, u)) + COS_FLOOR) / r2
 
         def _candidates(self, it):
             """(indices, weights at it) of the CANDIDATES lamps of it's grid cell."""
@@ -239,6 +276,10 @@ def _register() -> None:
             spec = self.spectra[0].eval(si, ok)
             for j, tex in enumerate(self.spectra[1:], start=1):
                 spec = dr.select(kind == j, tex.eval(si, ok), spec)
+            if self.textures:
+                si.uv, _ = self._uv(lamp, -ds.d)
+                for j, tex in enumerate(self.textures, start=1):
+                    falloff = dr.select(lamp["slot"] == j, falloff * tex.eval_1(si, ok & (lamp["slot"] == j)), falloff)
             value = spec * (lamp["scale"] * falloff / (dist * dist) / dr.select(ok, pdf, 1.0))
             return ds, dr.select(ok, value, 0.0)
 
@@ -268,8 +309,9 @@ def lamp_set_emitter(spots: dict) -> dict:
     if not spots:
         raise InvalidValueError("lamp set: no lamps given")
     arrays = _spot_arrays(spots)
-    key = hashlib.sha1(b"".join(np.ascontiguousarray(v).tobytes() for k, v in arrays.items() if k not in ("spectra", "grid"))
-                       + repr(arrays["spectra"]).encode()).hexdigest()
+    listed = ("spectra", "grid", "textures", "pyramids", "texture_cut_deg")
+    key = hashlib.sha1(b"".join(np.ascontiguousarray(v).tobytes() for k, v in arrays.items() if k not in listed)
+                       + repr(arrays["spectra"]).encode() + repr([id(t) for t in arrays["textures"]]).encode()).hexdigest()
     _SETS.pop(key, None)
     _SETS[key] = arrays
     while len(_SETS) > MAX_SETS:                    # the oldest first: a long data set stays small

@@ -16,10 +16,12 @@ Street lamps are full-cut-off point sources: uniform intensity over the lower he
 upward (the housing), scaled so that the luminous flux Φ_v = 683 lm/W · ∫ 2π I(λ) V(λ) dλ equals
 the rated flux: E_v(d) = Φ_v / (2π d²) straight below at distance d. (A point inside the head
 lighting its underside from 5 cm would be a firefly source.) Vehicle lights
-are Mitsuba `spot` emitters given their peak luminous intensity (cd) along the beam. Each
-emitter's `sampling_weight` (Mitsuba picks the light for next-event estimation in proportion)
-is its luminous flux, or for a spot an upper bound peak × cone solid angle, so that the dim
-tail-lights and the sky glow do not take samples from the street lamps. With
+are Mitsuba `spot` emitters given their peak luminous intensity (cd): tail-lights a cone, head-lights
+a low beam (render/low_beam.py: SAE J1383's pattern as the spot's projection texture, aimed by its
+pattern, its axis horizontal). Each emitter's `sampling_weight` (Mitsuba picks the light for
+next-event estimation in proportion) is its luminous flux, or for a plain spot an upper bound
+peak × cone solid angle, so that the dim tail-lights and the sky glow do not take samples from the
+street lamps. With
 NightParams.light_selection 'view' (view_light_weights) the loaded scene's weights are then
 reset for its camera: a light's share goes with its direct illuminance on the surfaces the camera
 sees, the root of Σ over visible points of (I cos θ / r² · visibility)² (the choice that minimises
@@ -131,6 +133,23 @@ def spot_emitter(position_m, direction, kind: str, peak_cd: float, cutoff_deg: f
             "intensity": _spectrum(kind, peak_cd)}
 
 
+def headlight_emitter(position_m, direction, kind: str, peak_cd: float) -> dict:
+    """Mitsuba `spot` emitter of a low-beam head-light (render/low_beam.py) at position_m, its axis
+    the horizontal `direction` the vehicle faces: the pattern as the spot's projection texture,
+    peak_cd at its hot spot (1.5° down, 2° right); sampling_weight its luminous flux (lm)."""
+    from workbench.render.low_beam import TEXTURE_CUTOFF_DEG, low_beam_flux_lm, low_beam_texture
+
+    d = np.asarray(direction, dtype=np.float64)
+    if abs(d[2]) > 1e-9 * np.linalg.norm(d):
+        raise InvalidValueError(f"head-light direction must be horizontal (the pattern is aimed in its own "
+                                f"frame), got {d.tolist()}")
+    spot = spot_emitter(position_m, d, kind, peak_cd, cutoff_deg=TEXTURE_CUTOFF_DEG,
+                        beam_deg=TEXTURE_CUTOFF_DEG - 0.5)
+    spot["texture"] = low_beam_texture()
+    spot["sampling_weight"] = low_beam_flux_lm(peak_cd)
+    return spot
+
+
 def cone_solid_angle_sr(cutoff_deg: float) -> float:
     """Solid angle (sr) of a cone of half-angle cutoff_deg: 2π(1 − cos)."""
     return float(2 * np.pi * (1 - np.cos(np.radians(cutoff_deg))))
@@ -228,9 +247,8 @@ def night_emitters(city, night) -> dict:
     if night.vehicle_lights:
         for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES and not o.meta.get("parked")):
             for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_clear")):
-                beam = d + np.array([0.0, 0.0, -0.03])          # low beam aimed ~1.7° down
-                out[f"headlight_{obj.instance_id}_{j}"] = spot_emitter(
-                    p, beam, night.headlight_kind, night.headlight_cd, cutoff_deg=30.0, beam_deg=10.0)
+                out[f"headlight_{obj.instance_id}_{j}"] = headlight_emitter(p, d, night.headlight_kind,
+                                                                            night.headlight_cd)
             for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_red")):
                 out[f"taillight_{obj.instance_id}_{j}"] = spot_emitter(
                     p, d, "led_red", night.taillight_cd, cutoff_deg=60.0, beam_deg=20.0)
@@ -255,16 +273,16 @@ IMPORTANCE_GRID_PX = 96 * 72   # most visible points the view weights are estima
 
 def spot_importance(points_m: np.ndarray, normals: np.ndarray, emitter: dict) -> np.ndarray:
     """Direct illuminance proxy (cd/m², unit reflectance) of a spot_emitter dict at each point
-    (P×3, normals P×3, either side): peak intensity inside its cutoff cone × |cos θ| / r², no
-    visibility. The peak is its sampling_weight / cone solid angle (spot_emitter's definition)."""
-    m = np.array(emitter["to_world"].matrix, dtype=np.float64)
-    origin, axis = m[:3, 3], m[:3, 2] / np.linalg.norm(m[:3, 2])
+    (P×3, normals P×3, either side): its intensity toward the point (peak × falloff × texture,
+    render/spot_pattern.py) × |cos θ| / r², no visibility."""
+    from workbench.render import spot_pattern
+
+    origin = spot_pattern.frame(emitter)[0]
     v = np.asarray(points_m, dtype=np.float64) - origin
     r2 = np.maximum(np.einsum("ij,ij->i", v, v), 1e-12)
     u = v / np.sqrt(r2)[:, None]
-    inside = u @ axis >= np.cos(np.radians(emitter["cutoff_angle"]))
-    peak = emitter["sampling_weight"] / cone_solid_angle_sr(emitter["cutoff_angle"])
-    return np.where(inside, peak * np.abs(np.einsum("ij,ij->i", u, np.asarray(normals))) / r2, 0.0)
+    cd = spot_pattern.peak_cd(emitter) * spot_pattern.relative_intensity(emitter, u)
+    return cd * np.abs(np.einsum("ij,ij->i", u, np.asarray(normals))) / r2
 
 
 def view_light_weights(mi_scene, emitters: dict, *, defensive: float = DEFENSIVE_SHARE) -> dict[str, float]:

@@ -77,7 +77,9 @@ class NightParams(Params):
     vehicle_lights: bool = Field(True, description="head- and tail-lights of moving vehicles on (parked cars "
                                                    "stay dark); night render")
     headlight_kind: Literal["halogen", "led"] = Field("led", description="head-light spectrum; night render")
-    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6, description="head-light peak intensity (cd); night render")
+    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6,
+                                description="head-light low beam's hot-spot intensity (cd, 1.5° down, 2° right; "
+                                            "SAE J1383 allows ≤ 20,000 at 0.5° down, 1.5° right); night render")
     taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
     sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
                                                                           "night render")
