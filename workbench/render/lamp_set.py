@@ -71,7 +71,7 @@ def _spot_arrays(spots: dict) -> dict:
     textures[s − 1]) and their coarse tables (spot_pattern.coarse_tables; slot 0 all ones)."""
     pos, left, up, axis, cos_cut, cos_beam, cut, inv_tw, peak, kind, scale, slot = ([] for _ in range(12))
     shapes: dict[bytes, int] = {}
-    spectra, textures = [], []
+    spectra, textures, shape_cd = [], [], []
     for name, e in spots.items():
         if e.get("type") != "spot":
             raise InvalidValueError(f"lamp set: emitter '{name}' is a {e.get('type')!r}, only 'spot' lamps can join")
@@ -85,6 +85,7 @@ def _spot_arrays(spots: dict) -> dict:
         if key not in shapes:
             shapes[key] = len(spectra)
             spectra.append({"type": "spectrum", "value": list(zip(wl.tolist(), (v / s).tolist()))})
+            shape_cd.append(spot_pattern.peak_cd({"intensity": spectra[-1]}))      # cd per unit of the shape
         tex = e.get("texture")
         if tex is not None and not any(t is tex for t in textures):
             textures.append(tex)
@@ -96,7 +97,7 @@ def _spot_arrays(spots: dict) -> dict:
         cos_beam.append(np.cos(np.radians(b_deg)))
         cut.append(np.radians(c_deg))
         inv_tw.append(1.0 / np.radians(c_deg - b_deg))
-        peak.append(spot_pattern.peak_cd(e))
+        peak.append(s * shape_cd[shapes[key]])
         kind.append(shapes[key])
         scale.append(s)
         slot.append(0 if tex is None else 1 + next(i for i, t in enumerate(textures) if t is tex))

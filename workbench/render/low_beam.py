@@ -137,7 +137,7 @@ def low_beam_flux_lm(peak_cd: float = J1383_PEAK_CD) -> float:
 
 
 @lru_cache(maxsize=1)
-def _flux_per_cd(step_deg: float = 0.1) -> float:
+def _flux_per_cd(step_deg: float = 0.25) -> float:
     """∫ I dΩ of the pattern at peak 1 cd over the cone, on a grid of step_deg in (h, v)."""
     h = np.radians(np.arange(-90.0 + step_deg / 2, 90.0, step_deg))
     hh, vv = np.meshgrid(h, h)
