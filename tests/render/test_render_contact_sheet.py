@@ -172,3 +172,24 @@ def test_a_sheet_and_its_record_are_written_together_or_not_at_all(tmp_path, mon
     assert rc == 2 and "cs.json" in err and "No space left" in err
     assert out.read_bytes() == b"older sheet" and out.with_suffix(".json").read_text() == "older record"
     assert _files(tmp_path) == ["cs.json", "cs.png"]
+
+
+def test_with_the_sensor_noise_off_two_captures_of_one_render_are_the_same():
+    """`--sensor-noise off` (issue 33: tell the renderer's grain from the sensor's): the tile of one
+    rendered frame, exposed with two different temporal-noise seeds, is the same image with the
+    sensor's noise off and differs with it on; the caption and record say so."""
+    from workbench.datasets.contact_sheet import camera_tile, sheet_project
+    cache = {}
+
+    def renderer(project, seeds):                  # one render, whatever the frame's seeds
+        if "data" not in cache:
+            cache["data"] = city_frame.render_city_frame(project, seeds)
+        return cache["data"]
+    tiles = {}
+    for noise in (True, False):
+        project = sheet_project(load_project("city_night"), W, H, 2, sensor_noise=noise)
+        tiles[noise] = [camera_tile(project, i, renderer) for i in (0, 1)]
+    assert not np.array_equal(tiles[True][0].srgb, tiles[True][1].srgb)
+    np.testing.assert_array_equal(tiles[False][0].srgb, tiles[False][1].srgb)
+    assert tiles[False][0].record["sensor_noise_flag"] == 0 and "no sensor noise" in tiles[False][0].caption[-1]
+    assert tiles[True][0].record["sensor_noise_flag"] == 2 and "no sensor noise" not in tiles[True][0].caption[-1]

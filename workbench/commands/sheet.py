@@ -26,6 +26,9 @@ def register(sub) -> None:
     p.add_argument("--colours", type=int, default=None,
                    help="store the PNG with a palette of this many colours (7–256; box, text and background "
                         "colours exact) instead of RGB: about a third the size for noisy frames")
+    p.add_argument("--sensor-noise", choices=("on", "off"), default="on",
+                   help="'off': each sensor without its noise (gain, clipping and quantisation kept), so the grain "
+                        "left is the renderer's (default on)")
     p.set_defaults(func=cmd_contact_sheet)
 
 
@@ -62,6 +65,7 @@ def cmd_contact_sheet(args) -> int:
     with hold_file_lock(args.out, "workbench contact-sheet"):      # a second sheet into this file is refused
         png, record = write_contact_sheet(projects, args.frames_per_scene, args.out, width=args.width,
                                           height=args.height, spp=args.spp, columns=args.columns, keep=keep_box,
-                                          colours=args.colours, on_tile=report)
+                                          colours=args.colours, sensor_noise=args.sensor_noise == "on",
+                                          on_tile=report)
     print(json.dumps({"png": str(png), "json": str(record)}))
     return 0

@@ -171,10 +171,11 @@ def to_palette(sheet, colours: int, exact: Sequence[tuple[int, int, int]]):
     return sheet.quantize(palette=reference, dither=Image.Dither.NONE)
 
 
-def sheet_project(project, width: int, height: int, spp: int):
+def sheet_project(project, width: int, height: int, spp: int, sensor_noise: bool = True):
     """The project at width × height (sensor binned: pixel pitch × cols / width, same horizontal
-    field of view) rendered at a fixed `spp`; a size or spp the project refuses is a one-line
-    ParameterError naming the option."""
+    field of view) rendered at a fixed `spp`; sensor_noise False: the sensor's noise_flag 0 (gain,
+    offset, clipping and quantisation, no noise), so what grain is left is the renderer's; a size
+    or spp the project refuses is a one-line ParameterError naming the option."""
     for name, value, lo, hi in (("width", width, 8, MAX_TILE_PX), ("height", height, 8, MAX_TILE_PX),
                                 ("spp", spp, 1, 1 << 16)):
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
@@ -184,7 +185,8 @@ def sheet_project(project, width: int, height: int, spp: int):
     if pitch_um > 100.0:
         raise ParameterError("--width", width, f"too small for {project.name}: binning its {sensor.cols} columns "
                                                f"to {width} needs a {pitch_um:.0f} µm pixel (at most 100 µm)")
-    return project.updated(sensor=sensor.updated(rows=height, cols=width, pixel_pitch_um=pitch_um),
+    noise = {} if sensor_noise else {"noise_flag": 0}
+    return project.updated(sensor=sensor.updated(rows=height, cols=width, pixel_pitch_um=pitch_um, **noise),
                            render=project.render.updated(spp=spp, target_rel_error=None, shot_noise_ratio=None))
 
 
@@ -245,10 +247,12 @@ def camera_tile(project, index: int, renderer: Callable | None = None, keep: Kee
     lighting, features = lighting_caption(project), features_caption(project)
     caption = [f"{project.name} #{index}  ({image.pattern})", lighting, features,
                "  ".join(f"{'ped' if c == 'pedestrian' else c} {n}" for c, n in counts.items()),
-               f"{spp} spp {render_s:.1f} s  t {_duration(exposure_s)}  clip {100 * clipped:.1f} %"]
+               f"{spp} spp {render_s:.1f} s  t {_duration(exposure_s)}  clip {100 * clipped:.1f} %"
+               + ("" if project.sensor.noise_flag else "  no sensor noise")]
     record = {"project": project.name, "frame": index, "seeds": asdict(seeds), "lighting": lighting,
               "features": features, "cfa": image.pattern, "spp": spp, "render_s": round(render_s, 3),
-              "sensor_isp_s": round(camera_s, 3), "exposure_s": exposure_s, "clipped_fraction": clipped,
+              "sensor_isp_s": round(camera_s, 3), "sensor_noise_flag": project.sensor.noise_flag,
+              "exposure_s": exposure_s, "clipped_fraction": clipped,
               "visible_objects_of_interest": counts,
               "kept_objects_of_interest": {c: sum(o.class_name == c and k for o, k in objects)
                                            for c in CLASSES_OF_INTEREST},
@@ -261,14 +265,15 @@ def camera_tile(project, index: int, renderer: Callable | None = None, keep: Kee
 
 def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str | Path, *, width: int = 320,
                         height: int = 240, spp: int = 32, columns: int = 4, renderer: Callable | None = None,
-                        keep: KeepRule | None = None, colours: int | None = None,
+                        keep: KeepRule | None = None, colours: int | None = None, sensor_noise: bool = True,
                         on_tile: Callable[[int, int, SheetTile], None] | None = None) -> tuple[Path, Path]:
     """Render frames 0 … frames_per_scene − 1 of each city project (camera_tile, at width × height,
     fixed spp: sheet_project), compose them (compose_sheet) and write the PNG and a JSON record
     beside it (same name, .json), each atomically and only once every frame has rendered: a
     failed render writes nothing. keep: which boxes are drawn 2 px wide (module docstring);
     colours: store a palette PNG of that many colours (to_palette; class, text and background
-    colours exact) instead of RGB; on_tile(k, total, tile) is called after each frame."""
+    colours exact) instead of RGB; sensor_noise False: every sensor without its noise (sheet_project);
+    on_tile(k, total, tile) is called after each frame."""
     import io
 
     from workbench.files import atomic_write_files
@@ -286,7 +291,7 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
                              "smaller tiles")
     if colours is not None and not len(CLASS_COLOURS) + 2 < colours <= 256:
         raise InvalidValueError(f"colours must lie in {len(CLASS_COLOURS) + 3}…256, got {colours}")
-    sized = [sheet_project(p, width, height, spp) for p in projects]
+    sized = [sheet_project(p, width, height, spp, sensor_noise) for p in projects]
     total = len(sized) * frames_per_scene
     tiles, t0 = [], time.perf_counter()
     for p in sized:
@@ -296,7 +301,7 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
                 on_tile(len(tiles), total, tiles[-1])
     wall_s = time.perf_counter() - t0
     title = (f"{total} frames, {width}x{height}, {spp} spp (fixed, so noise differs by scene), through each "
-             f"project's lens, sensor and ISP")
+             f"project's lens, sensor and ISP" + ("" if sensor_noise else " (sensor noise off: the grain is the renderer's)"))
     sheet, layout = compose_sheet(tiles, columns, title, keep=keep)
     if colours is not None:
         sheet = to_palette(sheet, colours, [*CLASS_COLOURS.values(), TEXT, BACKGROUND])
