@@ -189,15 +189,16 @@ def main() -> None:
                     "street lamps (15,000 lm) and a 0.02 cd/m2 sky glow, the same six camera poses per city aimed at "
                     "objects 6-20 m away; an automotive night camera (MT9V024-like 6 um pixels, 10 bits, 320x240 "
                     "so the 44 deg field of view is kept, f/2, exposure at most 1/30 s, analog gain 4x) with an RGGB "
-                    "filter and an IR-cut filter at 650 nm; rendered in the sensor's own channels (one multijitter "
-                    "chunk of 225 spp, lamps picked per shading point: render noise at EV -4 meets the data sets' "
-                    "criterion (worst of 3 frames: median 0.14, p90 0.29, edges 0.19 of the shot noise, between two "
-                    "independent renders) at 2.0-3.2x a day frame's CPU time, issue 33); "
+                    "filter and an IR-cut filter at 650 nm; head-lights are SAE J1383 low beams; rendered in the "
+                    "sensor's own channels (one multijitter chunk of 100 spp, lamps picked per shading point: render "
+                    "noise at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.11, p90 0.19, edges "
+                    "0.15 of the shot noise, between two independent renders) at 1.3-1.9x a day frame's CPU time, "
+                    "issue 33); "
                     "procedural materials (puddles on 5 % of the road); exposure biases -4...+4 EV. Render its data "
                     "set with: workbench dataset city_detection_night --frames 612 --out DIR",
         optics=detection.optics.updated(f_number=2.0),
         sensor=night_camera.updated(cfa_pattern="RGGB", ir_cut_file="sensors/ir_cut_650.csv"),
-        render=DETECTION_RENDER.updated(spp=225, chunk_spp=225, preview_spp=225,
+        render=DETECTION_RENDER.updated(spp=100, chunk_spp=100, preview_spp=100,
                                         world=textured(0.05, lighting="night",
                                                        night=NightParams(light_selection="shading"))))
     samples += [
@@ -207,15 +208,14 @@ def main() -> None:
             description="city_detection_night seen through the RCCC variant of its night camera (red + three clear "
                         "pixels, no IR-cut filter, so the clear pixels also take the sodium lamps' 819 nm line): "
                         "the same cities, poses, lamps and exposure rule, only the filters differ, and it renders "
-                        "one chunk of 324 spp, not 225: a clear pixel collects ~3x the electrons of a Bayer pixel, so "
-                        "the same render noise weighs sqrt(3) more against its shot noise. At 324 spp its render noise "
-                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.25, p90 0.42, edges 0.31 "
-                        "of the shot noise, between two independent renders; against a 1,024-spp reference, whose "
-                        "own noise counts in, frame 0 reads 0.36, 0.60, 0.37) at 3.9-4.3x a day frame's CPU time "
+                        "one chunk of 144 spp, not 100: a clear pixel collects ~3x the electrons of a Bayer pixel, so "
+                        "the same render noise weighs sqrt(3) more against its shot noise. At 144 spp its render noise "
+                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.26, p90 0.38, edges 0.33 "
+                        "of the shot noise, between two independent renders) at 1.9-2.2x a day frame's CPU time "
                         "(issue 33). Render its data set with: workbench dataset city_detection_night_rccc --frames "
                         "612 --out DIR",
             sensor=night_camera,
-            render=night_detection.render.updated(spp=324, chunk_spp=324, preview_spp=324)),
+            render=night_detection.render.updated(spp=144, chunk_spp=144, preview_spp=144)),
     ]
     for project in samples:
         save_project(project, PROJECTS_DIR / f"{project.name}.json")

@@ -19,7 +19,7 @@ def test_the_night_samples_are_the_dense_city_at_night():
     for p in (bayer, rccc):
         assert p.render.world.lighting == "night" and p.render.world.night.vehicle_lights
         assert (p.seed, p.city, p.pose, p.experiment) == (quick.seed, quick.city, quick.pose, quick.experiment)
-        # the day set's sampler and film; one chunk of 225 spp (RGGB) or 324 (RCCC: its clear pixels take ~3x the
+        # the day set's sampler and film; one chunk of 100 spp (RGGB) or 144 (RCCC: its clear pixels take ~3x the
         # electrons, so the same render noise is larger against their shot noise), where each meets the criterion
         assert p.render.updated(world=quick.render.world, spp=quick.render.spp, chunk_spp=quick.render.chunk_spp,
                                 preview_spp=quick.render.preview_spp) == quick.render
@@ -28,7 +28,7 @@ def test_the_night_samples_are_the_dense_city_at_night():
         assert (p.sensor.rows, p.sensor.cols) == (240, 320)
         assert project_geometry(p).hfov_deg == pytest.approx(project_geometry(quick).hfov_deg, abs=0.01)
         assert p.sensor.max_exposure_s == pytest.approx(1 / 30) and p.optics.f_number == 2.0
-    assert (bayer.render.spp, rccc.render.spp) == (225, 324)
+    assert (bayer.render.spp, rccc.render.spp) == (100, 144)          # squares: the multijitter sampler keeps them
     assert (bayer.sensor.cfa_pattern, rccc.sensor.cfa_pattern) == ("RGGB", "RCCC")
     assert bayer.sensor.ir_cut_file is not None and rccc.sensor.ir_cut_file is None
     assert bayer.sensor.updated(cfa_pattern="RCCC", ir_cut_file=None) == rccc.sensor   # only the filters differ

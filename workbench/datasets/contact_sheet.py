@@ -301,7 +301,7 @@ def write_contact_sheet(projects: Sequence, frames_per_scene: int, out_png: str 
                 on_tile(len(tiles), total, tiles[-1])
     wall_s = time.perf_counter() - t0
     title = (f"{total} frames, {width}x{height}, {spp} spp (fixed, so noise differs by scene), through each "
-             f"project's lens, sensor and ISP" + ("" if sensor_noise else " (sensor noise off: the grain is the renderer's)"))
+             f"project's lens, sensor{'' if sensor_noise else ' (noise off)'} and ISP")
     sheet, layout = compose_sheet(tiles, columns, title, keep=keep)
     if colours is not None:
         sheet = to_palette(sheet, colours, [*CLASS_COLOURS.values(), TEXT, BACKGROUND])
