@@ -8,22 +8,33 @@ is weighted by 1/p, so the point is a firefly: at night the fireflies are the on
 light (render.max_depth 2 has none) of surfaces lit by a lamp whose global share is small. This
 emitter holds all the lamps (`spot_emitter` dicts) and samples lamp k with probability
 
-    p_k(x) = w_k(x) / Σ_j w_j(x),   w_k(x) = I_k · g_k(x) · (|cos θ_x| + COS_FLOOR) / r_k²,
+    p_k(x) = w_k(x) / Σ_j w_j(x),   w_k(x) = I_k(λ) · g_k(x) · max(cos θ_x + COS_FLOOR, BACK_FLOOR) / r_k²,
 
-I_k the lamp's peak intensity (cd), g_k a cone factor (1 inside the beam, falling linearly in
+I_k(λ) the lamp's on-axis radiant intensity (W/sr/nm) summed over the path's wavelengths (a camera
+that sees red and near-infrared, RCCC without an IR cut, takes a red tail-light's 625 nm or a sodium
+lamp's 819 nm line where the brighter white head-lights give nothing: weighed by luminous
+intensity, a tail-light 18 m from a façade in city_night frame 0 was picked with p = 2.7e-4 and its
+625 nm samples were worth ~1,600× the point's mean), g_k a cone factor (1 inside the beam, falling linearly in
 cos θ to 0 at the cut-off: zero exactly where the lamp sheds no light) times, for a spot with a
 projection texture (the low-beam head-lights, render/low_beam.py), the texture max-pooled onto a
 coarse grid (render/spot_pattern.py: a bound of the texture near the direction), r_k the distance
-and θ_x the angle at the receiver (the floor keeps a lamp in the tangent plane or behind a pane
-possible): a lamp's share follows its unshadowed direct light at x, as a light tree does in
-PBRT-v4.
+and θ_x the angle at the receiver between its geometric normal and the lamp: a lamp's share
+follows its unshadowed direct light at x, as a light tree does in PBRT-v4. The city's surfaces are
+opaque and their normals face out (no camera ray and 0.2–0.5 % of bounced rays of city_night
+frames 0–2 met a back face), so a lamp behind the surface (the street lamp on a building's other
+side) takes only BACK_FLOOR: weighed by |cos θ| it took 88 % of the samples at a façade point in
+city_night frame 0, the two head-lights 94 m away that light it 0.6 %, and at 550 nm their samples
+were worth ~90× the point's mean. COS_FLOOR keeps a lamp at grazing incidence sampled.
 
 Scoring every lamp at every sample cost a night frame 2.7× a day frame's time per sample (a dense
 night city has ~250 lights: 60 cars' head- and tail-lights and the street lamps). The weights
 are therefore taken only over the CANDIDATES lamps of x's cell in a horizontal grid (CELL_M
-cells over the lamps' extent), those whose bound of w_k over the cell is largest (over the cell's
+cells over the lamps' extent) and of the side its normal faces (±x, ±y, ±z: a lamp behind the whole
+cell on that side takes BACK_FLOOR), those whose share of a bound of w_k over the cell, in any
+40-nm band, is largest (over the cell's
 column as cubes: the nearest distance to each, the cone at the axis's smallest angle to it, a
-texture's coarse grid dilated over the cube's angular radius), and
+texture's coarse grid dilated over the cube's angular radius; in each band the lamp's mean
+intensity there), and
 a share ε = GLOBAL_SHARE of the samples comes from a table t of all lamps, half alike, half by flux Φ_k
 (peak × cone solid angle):
 
@@ -51,6 +62,10 @@ from workbench.render import spot_pattern
 
 PLUGIN = "lamp_set"
 COS_FLOOR = 0.05
+SHAPE_WL0_NM, SHAPE_WL_COUNT = 300.0, 801     # the spectral shapes on a 1-nm grid, 300–1100 nm, for the weights
+SIDES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))   # receiving normal: axis, sign
+SHAPE_BANDS_NM = tuple((a, a + 40.0) for a in np.arange(360.0, 1040.0, 40.0))   # the grid ranks lamps per band
+BACK_FLOOR = 1e-3          # weight factor of a lamp behind the receiving surface (it can light it only through it)
 CELL_M = 8.0               # the candidate grid's cells (m)
 GRID_MARGIN_M = 40.0       # the grid reaches this far past the outermost lamps; points beyond use its edge cells
 CANDIDATES = 16            # lamps per cell weighed exactly at the shading point
@@ -65,13 +80,13 @@ _REGISTERED: set[str] = set()
 
 def _spot_arrays(spots: dict) -> dict:
     """Per-lamp arrays from spot_emitter dicts: position (m), frame (left, up, axis), cone (cosines;
-    cut-off in rad, 1/(cut-off − beam) in 1/rad, tan of the cut-off), peak intensity (cd), the
-    distinct spectral shapes with each lamp's index into them and scale (W/sr/nm at the shape's
-    maximum), and the distinct projection textures with each lamp's slot (0: none; slot s > 0 is
+    cut-off in rad, 1/(cut-off − beam) in 1/rad, tan of the cut-off), the distinct spectral shapes
+    (max 1; also on a 1-nm grid, shape_table) with each lamp's index into them and scale (W/sr/nm
+    at the shape's maximum), and the distinct projection textures with each lamp's slot (0: none; slot s > 0 is
     textures[s − 1]) and their coarse tables (spot_pattern.coarse_tables; slot 0 all ones)."""
-    pos, left, up, axis, cos_cut, cos_beam, cut, inv_tw, peak, kind, scale, slot = ([] for _ in range(12))
+    pos, left, up, axis, cos_cut, cos_beam, cut, inv_tw, kind, scale, slot = ([] for _ in range(11))
     shapes: dict[bytes, int] = {}
-    spectra, textures, shape_cd = [], [], []
+    spectra, textures = [], []
     for name, e in spots.items():
         if e.get("type") != "spot":
             raise InvalidValueError(f"lamp set: emitter '{name}' is a {e.get('type')!r}, only 'spot' lamps can join")
@@ -85,7 +100,6 @@ def _spot_arrays(spots: dict) -> dict:
         if key not in shapes:
             shapes[key] = len(spectra)
             spectra.append({"type": "spectrum", "value": list(zip(wl.tolist(), (v / s).tolist()))})
-            shape_cd.append(spot_pattern.peak_cd({"intensity": spectra[-1]}))      # cd per unit of the shape
         tex = e.get("texture")
         if tex is not None and not any(t is tex for t in textures):
             textures.append(tex)
@@ -97,18 +111,20 @@ def _spot_arrays(spots: dict) -> dict:
         cos_beam.append(np.cos(np.radians(b_deg)))
         cut.append(np.radians(c_deg))
         inv_tw.append(1.0 / np.radians(c_deg - b_deg))
-        peak.append(s * shape_cd[shapes[key]])
         kind.append(shapes[key])
         scale.append(s)
         slot.append(0 if tex is None else 1 + next(i for i, t in enumerate(textures) if t is tex))
     cut_deg = {sl: float(np.degrees(c)) for sl, c in zip(slot, cut) if sl}
+    table_wl = SHAPE_WL0_NM + np.arange(SHAPE_WL_COUNT)
+    shape_table = np.concatenate([np.interp(table_wl, *(np.array(x, dtype=np.float64) for x in zip(*d["value"])),
+                                            left=0.0, right=0.0) for d in spectra])
     pyramids = [np.ones((1, spot_pattern.COARSE_TEXELS, spot_pattern.COARSE_TEXELS))]
     pyramids += [spot_pattern.coarse_tables(spot_pattern.texture_data(t)) for t in textures]
     arrays = {"pos": np.array(pos), "left": np.array(left), "up": np.array(up), "axis": np.array(axis),
               "cos_cut": np.array(cos_cut), "cos_beam": np.array(cos_beam), "cut": np.array(cut),
-              "inv_tw": np.array(inv_tw), "uv_factor": np.tan(np.array(cut)), "peak": np.array(peak),
+              "inv_tw": np.array(inv_tw), "uv_factor": np.tan(np.array(cut)),
               "kind": np.array(kind), "scale": np.array(scale), "slot": np.array(slot), "spectra": spectra,
-              "textures": textures, "pyramids": pyramids, "texture_cut_deg": cut_deg}
+              "textures": textures, "pyramids": pyramids, "texture_cut_deg": cut_deg, "shape_table": shape_table}
     arrays["flux"] = np.array([float(e["sampling_weight"]) for e in spots.values()])   # lm (a bound for a plain spot)
     arrays["grid"] = _candidate_grid(arrays)
     return arrays
@@ -117,8 +133,10 @@ def _spot_arrays(spots: dict) -> dict:
 def _candidate_grid(arrays: dict) -> dict:
     """The grid of candidate lamps (module docstring): origin (m), cell size, cells along x and y,
     and per cell CANDIDATES lamp indices with a 0/1 flag (a slot past the lamps that can light the
-    cell is flagged 0), ranked by a bound of each lamp's weight over the cell."""
-    pos, axis, cos_cut, peak = arrays["pos"], arrays["axis"], arrays["cos_cut"], arrays["peak"]
+    cell is flagged 0), ranked by their largest share, over SHAPE_BANDS_NM, of the bound of the
+    lamps' light in the cell: a red tail-light that dominates a façade's 600–640 nm is a candidate
+    beside the white lamps that dominate the rest."""
+    pos, axis, cos_cut = arrays["pos"], arrays["axis"], arrays["cos_cut"]
     lo = pos[:, :2].min(0) - GRID_MARGIN_M
     n = np.maximum(np.ceil((pos[:, :2].max(0) + GRID_MARGIN_M - lo) / CELL_M).astype(int), 1)
     cx = lo[0] + (np.arange(n[0]) + 0.5) * CELL_M
@@ -131,7 +149,9 @@ def _candidate_grid(arrays: dict) -> dict:
     # distance to the cube, and the cone at the axis's smallest angle to it (the angle to its
     # centre less its angular radius, arcsin R/d of its bounding sphere; 0 with the lamp inside)
     radius = half * np.sqrt(3.0)
-    bound = np.zeros(gap_xy.shape[:2])
+    # per receiving side (normal ±x, ±y, ±z): a lamp behind every point of the cube on that side
+    # lights it only through the surface (BACK_FLOOR)
+    bound = np.zeros((len(SIDES),) + gap_xy.shape[:2])
     for zc in np.arange(half, RECEIVER_TOP_M, CELL_M):
         gap_z = np.maximum(np.abs(pos[:, 2] - zc) - half, 0.0)
         r2 = np.maximum((gap_xy ** 2).sum(-1) + gap_z[None] ** 2, R_MIN_M ** 2)
@@ -147,13 +167,28 @@ def _candidate_grid(arrays: dict) -> dict:
             local = np.stack([(v[:, k] * arrays[c][k][None]).sum(-1) for c in ("left", "up", "axis")], -1)
             cone[:, k] *= spot_pattern.coarse_bound(arrays["pyramids"][sl], arrays["texture_cut_deg"][sl],
                                                     local, margin[:, k])
-        bound = np.maximum(bound, peak[None] * cone * (1.0 + COS_FLOOR) / r2)
+        geo = cone / r2
+        for c, (a, sign) in enumerate(SIDES):
+            # v = cube centre − lamp; the lamp is in front of some point of the cube on side `sign`
+            # along axis a when sign · (lamp − cube's far face) > 0, i.e. −sign · v_a + half > 0
+            front = -sign * v[..., a] + half > 0
+            bound[c] = np.maximum(bound[c], geo * np.where(front, 1.0 + COS_FLOOR, BACK_FLOOR))
+    # each lamp's mean intensity (W/sr/nm) in each band, and its share of the cell's bound there
+    table = arrays["shape_table"].reshape(-1, SHAPE_WL_COUNT)
+    wl = SHAPE_WL0_NM + np.arange(SHAPE_WL_COUNT)
+    band = np.stack([table[:, (wl >= a) & (wl < b)].mean(1) for a, b in SHAPE_BANDS_NM], 1)       # kinds × bands
+    intensity = arrays["scale"][:, None] * band[arrays["kind"]]                                     # lamps × bands
     k = min(CANDIDATES, len(pos))
-    order = np.argsort(-bound, axis=1, kind="stable")[:, :k]
-    valid = np.take_along_axis(bound, order, 1) > 0
+    orders, valids = [], []
+    for c in range(len(SIDES)):
+        light = bound[c][:, :, None] * intensity[None]                                             # cells × lamps × bands
+        score = (light / np.maximum(light.sum(1, keepdims=True), 1e-300)).max(-1)
+        orders.append(np.argsort(-score, axis=1, kind="stable")[:, :k])
+        valids.append(np.take_along_axis(bound[c] * intensity.max(1)[None], orders[-1], 1) > 0)
+    order, valid = np.stack(orders, 1), np.stack(valids, 1)                                          # cells × sides × k
     if k < CANDIDATES:                                  # fewer lamps than slots: flagged-off padding
-        order = np.pad(order, ((0, 0), (0, CANDIDATES - k)))
-        valid = np.pad(valid, ((0, 0), (0, CANDIDATES - k)))
+        order = np.pad(order, ((0, 0), (0, 0), (0, CANDIDATES - k)))
+        valid = np.pad(valid, ((0, 0), (0, 0), (0, CANDIDATES - k)))
     return {"origin": lo, "cells": n, "candidates": order.astype(np.uint32).ravel(),
             "valid": valid.astype(np.float32).ravel()}
 
@@ -179,18 +214,19 @@ def _register() -> None:
             mi.Emitter.__init__(self, props)
             self.m_flags = mi.EmitterFlags.DeltaPosition
             s = _SETS[props["set"]]
-            self.count = len(s["peak"])
+            self.count = len(s["scale"])
             self.params = {name: mi.Float(np.asarray(col, np.float32)) for name, col in (
                 ("px", s["pos"][:, 0]), ("py", s["pos"][:, 1]), ("pz", s["pos"][:, 2]), ("ax", s["axis"][:, 0]),
                 ("ay", s["axis"][:, 1]), ("az", s["axis"][:, 2]), ("lx", s["left"][:, 0]), ("ly", s["left"][:, 1]),
                 ("lz", s["left"][:, 2]), ("ux", s["up"][:, 0]), ("uy", s["up"][:, 1]), ("uz", s["up"][:, 2]),
                 ("cos_cut", s["cos_cut"]), ("cos_beam", s["cos_beam"]), ("cut", s["cut"]), ("inv_tw", s["inv_tw"]),
-                ("uv_factor", s["uv_factor"]), ("peak", s["peak"]), ("scale", s["scale"]))}
+                ("uv_factor", s["uv_factor"]), ("scale", s["scale"]))}
             self.kind = mi.UInt32(np.asarray(s["kind"], np.uint32))
             self.slot = mi.UInt32(np.asarray(s["slot"], np.uint32))
             self.spectra = [mi.load_dict(d) for d in s["spectra"]]
             self.textures = list(s["textures"])
             self.coarse = mi.Float(np.concatenate([p[0].ravel() for p in s["pyramids"]]).astype(np.float32))
+            self.shape_table = mi.Float(np.asarray(s["shape_table"], np.float32))
             g = s["grid"]
             self.origin, self.nx, self.ny = (float(g["origin"][0]), float(g["origin"][1])), *(int(c) for c in g["cells"])
             self.candidates = mi.UInt32(g["candidates"])
@@ -201,6 +237,7 @@ def _register() -> None:
             """The parameters of the lamps k (UInt32 indices)."""
             lamp = {name: dr.gather(mi.Float, col, k) for name, col in self.params.items()}
             lamp["slot"] = dr.gather(mi.UInt32, self.slot, k)
+            lamp["kind"] = dr.gather(mi.UInt32, self.kind, k)
             return lamp
 
         @staticmethod
@@ -223,13 +260,24 @@ def _register() -> None:
             cell = (dr.clip(mi.UInt32(dr.clip(uv.y, 0.0, 1.0) * t), 0, t - 1) * t
                     + dr.clip(mi.UInt32(dr.clip(uv.x, 0.0, 1.0) * t), 0, t - 1))
             pattern = dr.gather(mi.Float, self.coarse, lamp["slot"] * (t * t) + cell)
-            return lamp["peak"] * cone * pattern * (dr.abs(dr.dot(it.n, u)) + COS_FLOOR) / r2
+            side = dr.maximum(dr.dot(it.n, u) + COS_FLOOR, BACK_FLOOR)
+            base = lamp["kind"] * SHAPE_WL_COUNT
+            spectral = mi.Float(0.0)
+            for i in range(len(it.wavelengths)):
+                j = dr.clip(mi.Int32(dr.round(it.wavelengths[i] - SHAPE_WL0_NM)), 0, SHAPE_WL_COUNT - 1)
+                spectral += dr.gather(mi.Float, self.shape_table, base + mi.UInt32(j))
+            return lamp["scale"] * spectral * cone * pattern * side / r2
 
         def _candidates(self, it):
             """(indices, weights at it) of the CANDIDATES lamps of it's grid cell."""
             ix = dr.clip(mi.Int32(dr.floor((it.p.x - self.origin[0]) / CELL_M)), 0, self.nx - 1)
             iy = dr.clip(mi.Int32(dr.floor((it.p.y - self.origin[1]) / CELL_M)), 0, self.ny - 1)
-            base = mi.UInt32(iy * self.nx + ix) * CANDIDATES
+            n = it.n
+            ax, ay, az = dr.abs(n.x), dr.abs(n.y), dr.abs(n.z)
+            u32 = mi.UInt32
+            side = dr.select((az >= ax) & (az >= ay), dr.select(n.z < 0, u32(5), u32(4)),
+                             dr.select(ay >= ax, dr.select(n.y < 0, u32(3), u32(2)), dr.select(n.x < 0, u32(1), u32(0))))
+            base = (mi.UInt32(iy * self.nx + ix) * len(SIDES) + side) * CANDIDATES
             ids, weights = [], []
             for j in range(CANDIDATES):
                 k = dr.gather(mi.UInt32, self.candidates, base + j)
@@ -273,7 +321,7 @@ def _register() -> None:
             falloff = dr.select(cos_t > lamp["cos_cut"], falloff, 0.0)
             si = dr.zeros(mi.SurfaceInteraction3f)
             si.wavelengths = it.wavelengths
-            kind = dr.gather(mi.UInt32, self.kind, k)
+            kind = lamp["kind"]
             spec = self.spectra[0].eval(si, ok)
             for j, tex in enumerate(self.spectra[1:], start=1):
                 spec = dr.select(kind == j, tex.eval(si, ok), spec)
