@@ -249,8 +249,8 @@ def _register() -> None:
             y = to_point.x * lamp["ux"] + to_point.y * lamp["uy"] + to_point.z * lamp["uz"]
             return mi.Point2f(0.5 + x * scale, 0.5 + y * scale), z
 
-        def _weight(self, lamp, it):
-            """w_k(x) of the gathered lamps at the shading point it (module docstring)."""
+        def _weight(self, lamp, it, kinds):
+            """w_k(x) of the gathered lamps at the shading point it (module docstring); kinds: _kinds(it)."""
             d = mi.Vector3f(lamp["px"], lamp["py"], lamp["pz"]) - it.p
             r2 = dr.maximum(dr.squared_norm(d), 1e-8)
             u = d * dr.rsqrt(r2)
@@ -261,12 +261,18 @@ def _register() -> None:
                     + dr.clip(mi.UInt32(dr.clip(uv.x, 0.0, 1.0) * t), 0, t - 1))
             pattern = dr.gather(mi.Float, self.coarse, lamp["slot"] * (t * t) + cell)
             side = dr.maximum(dr.dot(it.n, u) + COS_FLOOR, BACK_FLOOR)
-            base = lamp["kind"] * SHAPE_WL_COUNT
-            spectral = mi.Float(0.0)
-            for i in range(len(it.wavelengths)):
-                j = dr.clip(mi.Int32(dr.round(it.wavelengths[i] - SHAPE_WL0_NM)), 0, SHAPE_WL_COUNT - 1)
-                spectral += dr.gather(mi.Float, self.shape_table, base + mi.UInt32(j))
+            spectral = kinds[0]
+            for j in range(1, len(kinds)):
+                spectral = dr.select(lamp["kind"] == j, kinds[j], spectral)
             return lamp["scale"] * spectral * cone * pattern * side / r2
+
+        def _kinds(self, it):
+            """Each spectral shape summed over the path's wavelengths (one gather per shape and
+            wavelength, not per candidate)."""
+            idx = [mi.UInt32(dr.clip(mi.Int32(dr.round(it.wavelengths[i] - SHAPE_WL0_NM)), 0, SHAPE_WL_COUNT - 1))
+                   for i in range(len(it.wavelengths))]
+            return [sum((dr.gather(mi.Float, self.shape_table, j * SHAPE_WL_COUNT + i) for i in idx), mi.Float(0.0))
+                    for j in range(len(self.spectra))]
 
         def _candidates(self, it):
             """(indices, weights at it) of the CANDIDATES lamps of it's grid cell."""
@@ -278,11 +284,11 @@ def _register() -> None:
             side = dr.select((az >= ax) & (az >= ay), dr.select(n.z < 0, u32(5), u32(4)),
                              dr.select(ay >= ax, dr.select(n.y < 0, u32(3), u32(2)), dr.select(n.x < 0, u32(1), u32(0))))
             base = (mi.UInt32(iy * self.nx + ix) * len(SIDES) + side) * CANDIDATES
-            ids, weights = [], []
+            ids, weights, kinds = [], [], self._kinds(it)
             for j in range(CANDIDATES):
                 k = dr.gather(mi.UInt32, self.candidates, base + j)
                 ids.append(k)
-                weights.append(dr.gather(mi.Float, self.valid, base + j) * self._weight(self._lamp(k), it))
+                weights.append(dr.gather(mi.Float, self.valid, base + j) * self._weight(self._lamp(k), it, kinds))
             return ids, weights
 
         def sample_direction(self, it, sample, active=True):
