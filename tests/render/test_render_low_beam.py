@@ -103,3 +103,18 @@ def test_a_head_light_is_aimed_by_its_pattern_not_by_tilting():
         headlight_emitter([0.0, 0.0, 0.65], [1.0, 0.0, -0.03], "led", 20000.0)
     with pytest.raises(InvalidValueError, match="peak_cd"):
         low_beam_flux_lm(0.0)
+
+
+def test_the_view_weights_read_the_pattern(mi):
+    """NightParams.light_selection 'view' weighs a head-light by spot_importance, which reads the
+    texture (nearest texel) as the lamp set does: it follows I(h, v) cos θ / r² to 5 %."""
+    from workbench.render.lamps import spot_importance
+    origin = np.array([0.0, 0.0, 0.65])
+    head = headlight_emitter(origin, [0.0, 1.0, 0.0], "led", 20000.0)
+    points = np.array([[0.9, 25.0, 0.0], [0.0, 2.0, 0.0], [0.0, 20.0, 3.0], [-6.0, 12.0, 0.0]])
+    d = points - origin
+    r = np.linalg.norm(d, axis=1)
+    want = (low_beam_cd(np.degrees(np.arctan2(d[:, 0], d[:, 1])), np.degrees(np.arcsin(d[:, 2] / r)))
+            * np.abs(d[:, 2]) / r / r ** 2)
+    got = spot_importance(points, np.tile([0.0, 0.0, 1.0], (len(points), 1)), head)
+    np.testing.assert_allclose(got, want, rtol=0.05)
