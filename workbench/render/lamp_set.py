@@ -36,7 +36,7 @@ column as cubes: the nearest distance to each, the cone at the axis's smallest a
 texture's coarse grid dilated over the cube's angular radius; in each band the lamp's mean
 intensity there), and
 a share ε = GLOBAL_SHARE of the samples comes from a table t of all lamps, half alike, half by flux Φ_k
-(peak × cone solid angle):
+(its sampling_weight, lm: a low beam's flux, or peak × cone solid angle for a plain spot):
 
     p_k(x) = (1 − ε) w_k(x) / Σ_{j in cell} w_j(x) · [k in cell] + ε t_k,   t_k = ½/N + ½ Φ_k / Σ_j Φ_j,
 
@@ -47,8 +47,9 @@ positive probability everywhere, so a lamp the grid leaves out costs variance, n
 the number of lamps (city_detection_night_rccc, 320×240: 0.33 → 0.17 core-s per sample per
 frame, a day frame 0.10). The value returned is the Mitsuba `spot` emitter's own (intensity ×
 the spot's angular falloff × its texture at Mitsuba's uv / r²) divided by p_k, so the expected image is that of the separate
-spots; only the noise changes. Occlusion is not known to
-the weights (a lamp behind a wall keeps its share). Lamps are point sources (delta position):
+spots; only the noise changes. Occlusion by other surfaces is not known to the weights or the
+candidate ranking (a head-light whose beam the car ahead blocks keeps its share; city_night
+frame 1's remaining dots). Lamps are point sources (delta position):
 BSDF sampling never hits them, so no MIS weight is needed.
 """
 from __future__ import annotations

@@ -40,12 +40,13 @@ import numpy as np
 
 from workbench.errors import InvalidValueError
 from workbench.spectra import blackbody_spd, luminous_efficiency
+from workbench.units import MAX_LUMINOUS_EFFICACY_LM_W
 
 LAMP_KINDS = ("lps", "hps", "led", "metal_halide")
 # typical rated luminous flux of a street lamp of each kind (lm): LPS 90 W, HPS 150 W,
 # LED ~80 W luminaire, metal halide 150 W
 RATED_FLUX_LM = {"lps": 13500.0, "hps": 15000.0, "led": 10000.0, "metal_halide": 12000.0}
-LUMINOUS_EFFICACY_LM_W = 683.0
+LUMINOUS_EFFICACY_LM_W = MAX_LUMINOUS_EFFICACY_LM_W      # lm/W at 555 nm (workbench.units)
 VEHICLE_CLASSES = ("car", "bus", "truck")     # objects whose lens_clear / lens_red meshes are lamps
 HEMISPHERE_CUTOFF_DEG = 89.9        # street lamps: full cut-off (no light above the horizontal)
 # fine grid so that 1-nm-wide lines are resolved (Mitsuba interpolates linearly between samples)

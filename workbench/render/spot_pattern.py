@@ -12,8 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.spectra import luminous_efficiency
-
-LUMINOUS_EFFICACY_LM_W = 683.0
+from workbench.units import MAX_LUMINOUS_EFFICACY_LM_W
 COARSE_TEXELS = 128            # the coarse tables' texels each way
 COARSE_LEVELS = 8              # dilations by 2^j texels, j < COARSE_LEVELS
 
@@ -21,7 +20,7 @@ COARSE_LEVELS = 8              # dilations by 2^j texels, j < COARSE_LEVELS
 def peak_cd(emitter: dict) -> float:
     """Peak luminous intensity (cd) of a spot dict: 683 lm/W ∫ I(λ) V(λ) dλ of its intensity."""
     wl, v = (np.array(x, dtype=np.float64) for x in zip(*emitter["intensity"]["value"]))
-    return float(LUMINOUS_EFFICACY_LM_W * np.trapezoid(v * luminous_efficiency(wl), wl))
+    return float(MAX_LUMINOUS_EFFICACY_LM_W * np.trapezoid(v * luminous_efficiency(wl), wl))
 
 
 def frame(emitter: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
