@@ -47,9 +47,10 @@ positive probability everywhere, so a lamp the grid leaves out costs variance, n
 the number of lamps (city_detection_night_rccc, 320×240: 0.33 → 0.17 core-s per sample per
 frame, a day frame 0.10). The value returned is the Mitsuba `spot` emitter's own (intensity ×
 the spot's angular falloff × its texture at Mitsuba's uv / r²) divided by p_k, so the expected image is that of the separate
-spots; only the noise changes. Occlusion by other surfaces is not known to the weights or the
-candidate ranking (a head-light whose beam the car ahead blocks keeps its share; city_night
-frame 1's remaining dots). Lamps are point sources (delta position):
+spots; only the noise changes. Once the scene is loaded, render/lamp_set_cache.py re-ranks each
+cell-side's candidates for the camera by the lamps' visible light at the points of a pre-pass, and
+weighs each slot (the `valid` factor) by the lamp's visible fraction there: the bound alone is
+blind to occlusion and to where the cell's surfaces are. Lamps are point sources (delta position):
 BSDF sampling never hits them, so no MIS weight is needed.
 """
 from __future__ import annotations
@@ -174,11 +175,8 @@ def _candidate_grid(arrays: dict) -> dict:
             # along axis a when sign · (lamp − cube's far face) > 0, i.e. −sign · v_a + half > 0
             front = -sign * v[..., a] + half > 0
             bound[c] = np.maximum(bound[c], geo * np.where(front, 1.0 + COS_FLOOR, BACK_FLOOR))
-    # each lamp's mean intensity (W/sr/nm) in each band, and its share of the cell's bound there
-    table = arrays["shape_table"].reshape(-1, SHAPE_WL_COUNT)
-    wl = SHAPE_WL0_NM + np.arange(SHAPE_WL_COUNT)
-    band = np.stack([table[:, (wl >= a) & (wl < b)].mean(1) for a, b in SHAPE_BANDS_NM], 1)       # kinds × bands
-    intensity = arrays["scale"][:, None] * band[arrays["kind"]]                                     # lamps × bands
+    # each lamp's share of the cell's bound in each band
+    intensity = band_intensity(arrays)
     k = min(CANDIDATES, len(pos))
     orders, valids = [], []
     for c in range(len(SIDES)):
@@ -192,6 +190,27 @@ def _candidate_grid(arrays: dict) -> dict:
         valid = np.pad(valid, ((0, 0), (0, 0), (0, CANDIDATES - k)))
     return {"origin": lo, "cells": n, "candidates": order.astype(np.uint32).ravel(),
             "valid": valid.astype(np.float32).ravel()}
+
+
+def band_intensity(arrays: dict) -> np.ndarray:
+    """Each lamp's mean on-axis intensity (W/sr/nm) in each of SHAPE_BANDS_NM (lamps × bands)."""
+    table = arrays["shape_table"].reshape(-1, SHAPE_WL_COUNT)
+    wl = SHAPE_WL0_NM + np.arange(SHAPE_WL_COUNT)
+    band = np.stack([table[:, (wl >= a) & (wl < b)].mean(1) for a, b in SHAPE_BANDS_NM], 1)       # kinds × bands
+    return arrays["scale"][:, None] * band[arrays["kind"]]
+
+
+def cell_side(grid: dict, points_m: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """The (cell, side) slot of each point (P×3, geometric normals P×3) in the candidate grid, as
+    the emitter picks it: cell y-major then x, clamped to the grid; side the normal's dominant axis
+    and sign, in SIDES order (z wins ties, then y)."""
+    origin, (nx, ny) = grid["origin"], grid["cells"]
+    ix = np.clip(np.floor((points_m[:, 0] - origin[0]) / CELL_M), 0, nx - 1).astype(np.int64)
+    iy = np.clip(np.floor((points_m[:, 1] - origin[1]) / CELL_M), 0, ny - 1).astype(np.int64)
+    a = np.abs(normals)
+    axis = np.where((a[:, 2] >= a[:, 0]) & (a[:, 2] >= a[:, 1]), 2, np.where(a[:, 1] >= a[:, 0], 1, 0))
+    negative = normals[np.arange(len(normals)), axis] < 0
+    return (iy * nx + ix) * len(SIDES) + 2 * axis + negative
 
 
 def global_table(flux: np.ndarray) -> np.ndarray:
@@ -214,7 +233,8 @@ def _register() -> None:
         def __init__(self, props):
             mi.Emitter.__init__(self, props)
             self.m_flags = mi.EmitterFlags.DeltaPosition
-            s = _SETS[props["set"]]
+            self.set_key = props["set"]
+            s = _SETS[self.set_key]
             self.count = len(s["scale"])
             self.params = {name: mi.Float(np.asarray(col, np.float32)) for name, col in (
                 ("px", s["pos"][:, 0]), ("py", s["pos"][:, 1]), ("pz", s["pos"][:, 2]), ("ax", s["axis"][:, 0]),

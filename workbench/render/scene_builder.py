@@ -20,6 +20,7 @@ from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
 from workbench.render.lamp_heads import lamp_faces
+from workbench.render.lamp_set_cache import cache_candidates
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.portal_guide import guide_toward_portals, tunnel_portals
 from workbench.render.tunnel_sun_share import row_sun_shares
@@ -299,6 +300,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     mi_scene = mi.load_dict(scene)
     if world.lighting == "night" and world.night.light_selection == "view":
         set_view_light_weights(mi_scene, lights)
+    if world.lighting == "night" and world.night.light_selection == "shading":
+        cache_candidates(mi_scene)
     return mi_scene, id_table
 
 
