@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.render import lamp_set, spot_pattern
+from workbench.render.lamps import camera_grid_hits
 
 PREPASS_POINTS = 96 * 72       # camera rays of the pre-pass (each also bounces once)
 SHARE_FLOOR = 1e-3             # a lamp's share of a point's light (in some band) that earns it a ranked slot
@@ -46,16 +47,10 @@ def prepass_points(mi_scene, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     import drjit as dr
     import mitsuba as mi
 
-    sensor = mi_scene.sensors()[0]
-    w, h = (int(v) for v in sensor.film().crop_size())
-    step = max(1, int(np.ceil(np.sqrt(w * h / PREPASS_POINTS))))
-    gw, gh = max(1, w // step), max(1, h // step)
-    idx = dr.arange(mi.UInt32, gw * gh)
-    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f((mi.Float(idx % gw) + 0.5) / gw,
-                                                    (mi.Float(idx // gw) + 0.5) / gh), mi.Point2f(0.5, 0.5))
-    first = mi_scene.ray_intersect(ray)
+    ray, first = camera_grid_hits(mi_scene, PREPASS_POINTS)
     rng = np.random.default_rng(seed)
-    u = mi.Point2f(*(mi.Float(rng.random(gw * gh).astype(np.float32)) for _ in range(2)))
+    count = dr.width(first.p)
+    u = mi.Point2f(*(mi.Float(rng.random(count).astype(np.float32)) for _ in range(2)))
     n = dr.select(dr.dot(first.n, ray.d) > 0, -first.n, first.n)
     out = first.spawn_ray(mi.Frame3f(n).to_world(mi.warp.square_to_cosine_hemisphere(u)))
     bounce = mi_scene.ray_intersect(out, first.is_valid())

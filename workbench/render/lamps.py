@@ -286,25 +286,33 @@ def spot_importance(points_m: np.ndarray, normals: np.ndarray, emitter: dict) ->
     return cd * np.abs(np.einsum("ij,ij->i", u, np.asarray(normals))) / r2
 
 
+def camera_grid_hits(mi_scene, max_points: int):
+    """(rays, their first hits) of the scene's camera through pixel centres of a regular grid of at
+    most max_points points over its film."""
+    import drjit as dr
+    import mitsuba as mi
+
+    sensor = mi_scene.sensors()[0]
+    w, h = (int(v) for v in sensor.film().crop_size())
+    step = max(1, int(np.ceil(np.sqrt(w * h / max_points))))
+    gw, gh = max(1, w // step), max(1, h // step)
+    idx = dr.arange(mi.UInt32, gw * gh)
+    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f((mi.Float(idx % gw) + 0.5) / gw, (mi.Float(idx // gw) + 0.5) / gh),
+                               mi.Point2f(0.5, 0.5))
+    return ray, mi_scene.ray_intersect(ray)
+
+
 def view_light_weights(mi_scene, emitters: dict, *, defensive: float = DEFENSIVE_SHARE) -> dict[str, float]:
     """Sampling weights of the spot emitters (by id) for the scene's camera (module docstring):
     total(flux weights) × [(1 − defensive) √S_i / Σ√S + defensive · flux_i / Σ flux], S_i the sum of
     squared spot_importance × visibility over first hits of pixel-centre rays on a grid of at most
     IMPORTANCE_GRID_PX points. Other emitters (the sky glow, tunnel luminaire rows) keep theirs."""
-    import drjit as dr
     import mitsuba as mi
 
     spots = {k: e for k, e in emitters.items() if isinstance(e, dict) and e.get("type") == "spot"}
     if not spots:
         return {}
-    sensor = mi_scene.sensors()[0]
-    w, h = (int(v) for v in sensor.film().crop_size())
-    step = max(1, int(np.ceil(np.sqrt(w * h / IMPORTANCE_GRID_PX))))
-    gw, gh = max(1, w // step), max(1, h // step)
-    idx = dr.arange(mi.UInt32, gw * gh)
-    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f((mi.Float(idx % gw) + 0.5) / gw, (mi.Float(idx // gw) + 0.5) / gh),
-                               mi.Point2f(0.5, 0.5))
-    si = mi_scene.ray_intersect(ray)
+    _, si = camera_grid_hits(mi_scene, IMPORTANCE_GRID_PX)
     hit = np.array(si.is_valid(), dtype=bool)
     pts = np.stack([np.array(c, dtype=np.float64) for c in (si.p.x, si.p.y, si.p.z)], -1)[hit]
     nrm = np.stack([np.array(c, dtype=np.float64) for c in (si.n.x, si.n.y, si.n.z)], -1)[hit]
