@@ -191,8 +191,8 @@ def main() -> None:
                     "so the 44 deg field of view is kept, f/2, exposure at most 1/30 s, analog gain 4x) with an RGGB "
                     "filter and an IR-cut filter at 650 nm; head-lights are SAE J1383 low beams; rendered in the "
                     "sensor's own channels (one multijitter chunk of 100 spp, lamps picked per shading point: render "
-                    "noise at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.11, p90 0.18, edges "
-                    "0.14 of the shot noise, between two independent renders) at 1.3-1.8x a day frame's CPU time, "
+                    "noise at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.10, p90 0.15, edges "
+                    "0.13 of the shot noise, between two independent renders) at 1.6-2.0x a day frame's CPU time, "
                     "issue 33); "
                     "procedural materials (puddles on 5 % of the road); exposure biases -4...+4 EV. Render its data "
                     "set with: workbench dataset city_detection_night --frames 612 --out DIR",
@@ -210,8 +210,8 @@ def main() -> None:
                         "the same cities, poses, lamps and exposure rule, only the filters differ, and it renders "
                         "one chunk of 144 spp, not 100: a clear pixel collects ~3x the electrons of a Bayer pixel, so "
                         "the same render noise weighs sqrt(3) more against its shot noise. At 144 spp its render noise "
-                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.21, p90 0.36, edges 0.25 "
-                        "of the shot noise, between two independent renders) at 1.9-2.2x a day frame's CPU time "
+                        "at EV -4 meets the data sets' criterion (worst of 3 frames: median 0.19, p90 0.28, edges 0.23 "
+                        "of the shot noise, between two independent renders) at 1.8-2.3x a day frame's CPU time "
                         "(issue 33). Render its data set with: workbench dataset city_detection_night_rccc --frames "
                         "612 --out DIR",
             sensor=night_camera,
