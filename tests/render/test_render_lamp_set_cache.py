@@ -7,7 +7,7 @@ fraction (a lamp behind a screen keeps VISIBLE_FLOOR of its weight). Claims chec
 becomes a candidate and the next-event value's relative standard deviation per sample at the wall
 drops from ~20 to < 0.5; a bright lamp behind a shelf stops taking the samples of the dim lamp that
 lights the wall (relative std ~7 → ~3); the image keeps Mitsuba's own spots' mean (4 standard errors);
-cell_side picks the slot the emitter picks."""
+cell_side picks the slot the emitter picks; a view of no surface keeps the bound's lists."""
 import numpy as np
 import pytest
 
@@ -139,3 +139,20 @@ def test_cell_side_picks_the_emitter_s_slot():
 def test_a_scene_without_a_lamp_set_is_left_alone(mi):
     from workbench.render.lamp_set_cache import cache_candidates
     assert cache_candidates(_scene(mi, _lamps(), False)) is None
+
+
+def test_a_camera_that_sees_no_surface_keeps_the_bound_s_lists(mi):
+    """A view of the empty sky (no pre-pass point): the grid's own candidates and flags stand."""
+    from workbench.render.lamp_set import _SETS, lamp_set_emitter
+    from workbench.render.lamp_set_cache import cache_candidates, lamp_set_of
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 30.0, "film": box_bands(450, 650, 1).mitsuba_film(8, 6),
+                   "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 1.5], target=[0, 0, 10.0], up=[0, 1, 0]),
+                   "sampler": {"type": "independent"}},
+        "lamps": lamp_set_emitter(_lamps())})
+    emitter = lamp_set_of(scene)
+    grid = _SETS[emitter.set_key]["grid"]
+    assert cache_candidates(scene) == {"points": 0, "cell_sides": 0}
+    np.testing.assert_array_equal(np.array(emitter.candidates), grid["candidates"])
+    np.testing.assert_array_equal(np.array(emitter.valid), grid["valid"])
