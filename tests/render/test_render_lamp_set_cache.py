@@ -6,8 +6,9 @@ list by each lamp's share of the visible light there, and weighs each slot by th
 fraction (a lamp behind a screen keeps VISIBLE_FLOOR of its weight). Claims checked: the far beam
 becomes a candidate and the next-event value's relative standard deviation per sample at the wall
 drops from 15.9 to 0.21 (measured 2026-11-28; asserted > 8 and < 0.5); a bright lamp behind a shelf
-stops taking the samples of the dim lamp that lights the wall (relative std 6.2 → 2.8); the image keeps Mitsuba's own spots' mean (4 standard errors);
-cell_side picks the slot the emitter picks; a view of no surface keeps the bound's lists."""
+stops taking the samples of the dim lamp that lights the wall (relative std 6.2 → 2.8); the image
+keeps Mitsuba's own spots' mean (4 standard errors); cell_side picks the slot the emitter picks; a
+view of no surface keeps the bound's lists."""
 import numpy as np
 import pytest
 
