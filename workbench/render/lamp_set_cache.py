@@ -19,7 +19,7 @@ changes which lamps a point samples well, never the expected image (the lamp set
 In the manner of importance caching for many lights (Georgiev et al. 2012), with the grid's bound
 (a light tree's kind of bound, as in PBRT-v4) where no point is. city_night frame 1 at EV 0
 (188×120, 121 spp against 1,024, pixels beyond 5σ away from saturated lamp faces): 166 without the
-cache, 43 with the ranking, 36 with the visible fractions too; the pre-pass (6,819 points, ~185
+cache, 43 with the ranking, 36 with the visible fractions too; the pre-pass (6,819 points, 92
 lamps) took 0.8–1.2 CPU-s beside 10–15 for the render (measured 2026-11-28, under load).
 """
 from __future__ import annotations
@@ -63,9 +63,9 @@ def prepass_points(mi_scene, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
 
 
 def direct_light(mi_scene, arrays: dict, points_m: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unshadowed, visible), each points × lamps: each lamp's w_k(x) without its intensity (cone ×
-    texture bound × cos θ / r², 0 behind the surface), and that times its visibility from the
-    point (a shadow ray)."""
+    """(unshadowed, visible), each points × lamps in 1/m²: each lamp's w_k(x) without its intensity
+    (cone × texture bound × cos θ / r², r in m; 0 behind the surface), and that times its
+    visibility from the point (a shadow ray leaving 1 mm off the surface)."""
     import mitsuba as mi
 
     unshadowed = np.zeros((len(points_m), len(arrays["pos"])))
