@@ -212,6 +212,18 @@ def test_aiming_past_the_skylit_mouth_finds_its_light(mi):
     assert v0 > 1.2 * v1 and t1 < 0.9 * t0, (v0 / v1, t0, t1)
 
 
+def test_mouth_target_per_portal(mi):
+    """A sun deeper in at one portal than the sky-lit mouth still leaves the other portal its
+    mouth target (the plans: sunlit depth or portal, then the mouth's depth with share β)."""
+    from workbench.render.portal_guide import MOUTH_SHARE, portal_guided
+    diffuse = mi.load_dict({"type": "diffuse", "reflectance": {"type": "spectrum", "value": 0.5}})
+    mouth = 18.0                                     # 3 heights of BOX, under a third of its 60 m
+    assert portal_guided(diffuse, BOX, (19.0, 0.0)).plans == [(19.0, 0.0, pytest.approx(1 - MOUTH_SHARE)),
+                                                              (19.0, mouth, MOUTH_SHARE)]
+    assert portal_guided(diffuse, BOX, (19.0, 19.0)).plans == [(19.0, 19.0, 1.0)]   # both deeper already
+    assert portal_guided(diffuse, BOX, mouth_m=0.0).plans == [(0.0, 0.0, 1.0)]
+
+
 def test_tunnel_portals_inset_by_the_suns_depth():
     from types import SimpleNamespace
 

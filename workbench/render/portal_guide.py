@@ -86,9 +86,9 @@ def _bsdf_class():
             self.nested = nested
             (self.x0, self.y0, self.z0), (self.x1, self.y1, self.z1) = box_m
             # (south inset, north inset, share) of each target: the sunlit depth (or the portal)
-            # and, where it lies deeper, the sky-lit mouth's depth with share β
+            # and, where it lies deeper at either portal, the sky-lit mouth's depth with share β
             (d0, d1), m = insets_m, mouth_m
-            deeper = m > max(d0, d1)
+            deeper = m > min(d0, d1)
             self.plans = [(d0, d1, 1.0 - MOUTH_SHARE if deeper else 1.0)]
             if deeper:
                 self.plans.append((max(d0, m), max(d1, m), MOUTH_SHARE))
