@@ -85,7 +85,7 @@ def _bsdf_class():
             mi.BSDF.__init__(self, props)
             self.nested = nested
             (self.x0, self.y0, self.z0), (self.x1, self.y1, self.z1) = box_m
-            # (south inset, north inset, share) of each target: the sunlit depth (or the portal)
+            # (south inset m, north inset m, share) of each target: the sunlit depth (or the portal)
             # and, where it lies deeper at either portal, the sky-lit mouth's depth with share β
             (d0, d1), m = insets_m, mouth_m
             deeper = m > min(d0, d1)
