@@ -1,5 +1,7 @@
 """The render-noise figures against closed forms: Gaussian render errors of a known size relative
-to the shot noise read back as that ratio at the median, the 90th percentile and on edges."""
+to the shot noise read back as that ratio at the median, the 90th percentile and on edges; the
+dim pixels' power ratio and the firefly count read fireflies on dark surfaces beside a bright
+region whose large errors dominate the whole frame's power."""
 import numpy as np
 import pytest
 
@@ -60,3 +62,29 @@ def test_the_clipped_power_ratio_reads_the_images_as_the_sensor_records_them():
     assert out["power_ratio_clipped"] == pytest.approx(want, rel=1e-6)
     with pytest.raises(Exception, match="full_well_e"):
         noise_ratios(rate, reference, t, full_well_e=0.0)
+
+
+def test_dim_power_and_fireflies_read_the_dark_surfaces_beside_a_bright_exit():
+    """A bright tenth of the frame (an exit, 100× the signal) with render errors at 3× its shot
+    noise, the rest at ⅓ with 5 fireflies of 40× the shot noise: the whole frame's power ratio is
+    the exit's; the dim one is √((⅓)² + 5·40²/M) over the M dim pixels, and the count is 5."""
+    rng = np.random.default_rng(7)
+    h, w, t = 200, 300, 1e-3
+    reference = np.full((h, w), 4e5)                                  # 400 e⁻ at t
+    reference[:20] = 4e7                                              # the exit: 40,000 e⁻
+    reference *= rng.uniform(0.999, 1.001, size=(h, w))               # distinct values for the percentile
+    n = reference * t
+    ratio = np.where(reference > 1e7, 3.0, 1 / 3)
+    e = ratio * np.sqrt(n) * rng.standard_normal((h, w))
+    e = np.clip(e, -4.5 * np.sqrt(n), 4.5 * np.sqrt(n)) * (ratio < 1) + e * (ratio > 1)
+    fireflies = [(50, 10), (80, 200), (120, 33), (150, 299), (199, 0)]
+    for y, x in fireflies:
+        e[y, x] = 40 * np.sqrt(n[y, x])
+    out = noise_ratios((n + e) / t, reference, t)
+    dim = np.ones((h, w), bool)
+    dim[:20] = False
+    want = np.sqrt(np.sum(e[dim] ** 2) / np.sum(n[dim]))
+    assert out["power_ratio_dim"] == pytest.approx(want, rel=1e-9)
+    assert out["power_ratio_dim"] == pytest.approx(np.sqrt((1 / 3) ** 2 + 5 * 40 ** 2 / dim.sum()), rel=0.05)
+    assert out["power_ratio"] > 2.5 * out["power_ratio_dim"]          # the exit's errors carry the whole frame
+    assert out["firefly_pixels"] == 5 + int(np.sum(np.abs(e[:20]) > 5 * np.sqrt(n[:20])))

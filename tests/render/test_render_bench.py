@@ -67,6 +67,7 @@ def test_scene_noise_rows_before_and_after(monkeypatch):
     assert "light_selection=shading" in rows[2]["setting"]
     for r in rows:
         assert all(np.isfinite(r[k]) and r[k] >= 0
-                   for k in ("median", "p90", "edge", "power", "power_clipped", "top_0.1pct"))
+                   for k in ("median", "p90", "edge", "power", "power_clipped", "power_dim", "top_0.1pct"))
+        assert isinstance(r["fireflies"], int) and r["fireflies"] >= 0
         assert r["spp_at_criterion"] >= 1 and r["core_s_per_kpx_at_criterion"] > 0 and r["cpu_s"] > 0
     assert rows[0]["x_day_cost"] == 1.0

@@ -13,8 +13,11 @@ are turned into the experiment sensor's electron rates; experiments.render_noise
 compares them at the lowest EV the project tests (the data-set check's exposure). Columns:
 median, p90, edge and power ratios (the reference's own noise taken out: × 1/√(1 + test/ref
 spp)), the power ratio of the images as the sensor records them (clipped at its full well: a
-lamp face that saturates either way carries no render noise into the data), top_0.1pct (the
-share of the error power in the worst 0.1 % of pixels: fireflies), spp at
+lamp face that saturates either way carries no render noise into the data), the power ratio of
+the pixels below the reference's 90th percentile (power_dim: the dim surfaces, where fireflies
+show; the whole frame's is carried by the edges of lamp faces and bright exits) and how many
+pixels err by more than 5× their shot noise (fireflies), top_0.1pct (the share of the error
+power in the worst 0.1 % of pixels), spp at
 the criterion (≤ ⅓ median, ≤ ⅔ p90 and edges; ratios fall as 1/√spp), the process CPU seconds
 (all threads: core-seconds) of that frame from t = a + b·spp fitted to the two renders, per
 1000 pixels, and that cost over the day frames'."""
@@ -121,6 +124,7 @@ def scene_noise_rows(quick: bool) -> list[dict]:
                              "spp": test_spp, "cpu_s": round(cpu, 2), "median": round(med, 3), "p90": round(p90, 3),
                              "edge": round(edge, 3), "power": round(r["power_ratio"] * k, 3),
                              "power_clipped": round(r["power_ratio_clipped"] * k, 3),
+                             "power_dim": round(r["power_ratio_dim"] * k, 3), "fireflies": r["firefly_pixels"],
                              "top_0.1pct": round(float(e2[:max(1, e2.size // 1000)].sum() / max(e2.sum(), 1e-300)), 3),
                              "spp_at_criterion": spp,
                              "core_s_per_kpx_at_criterion": round((a + b * spp) / (ref.size / 1000), 3)})
