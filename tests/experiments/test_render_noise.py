@@ -67,7 +67,8 @@ def test_the_clipped_power_ratio_reads_the_images_as_the_sensor_records_them():
 def test_dim_power_and_fireflies_read_the_dark_surfaces_beside_a_bright_exit():
     """A bright tenth of the frame (an exit, 100× the signal) with render errors at 3× its shot
     noise, the rest at ⅓ with 5 fireflies of 40× the shot noise: the whole frame's power ratio is
-    the exit's; the dim one is √((⅓)² + 5·40²/M) over the M dim pixels, and the count is 5."""
+    the exit's; the dim one is √((⅓)² + 5·40²/M) over the M dim pixels, and the count is 5 (the
+    exit's errors beyond 5× its shot noise, a pixel-area sampling error at a bright edge, are not)."""
     rng = np.random.default_rng(7)
     h, w, t = 200, 300, 1e-3
     reference = np.full((h, w), 4e5)                                  # 400 e⁻ at t
@@ -87,4 +88,5 @@ def test_dim_power_and_fireflies_read_the_dark_surfaces_beside_a_bright_exit():
     assert out["power_ratio_dim"] == pytest.approx(want, rel=1e-9)
     assert out["power_ratio_dim"] == pytest.approx(np.sqrt((1 / 3) ** 2 + 5 * 40 ** 2 / dim.sum()), rel=0.05)
     assert out["power_ratio"] > 2.5 * out["power_ratio_dim"]          # the exit's errors carry the whole frame
-    assert out["firefly_pixels"] == 5 + int(np.sum(np.abs(e[:20]) > 5 * np.sqrt(n[:20])))
+    assert out["firefly_pixels"] == 5                                   # the exit's large errors are not counted
+    assert np.sum(np.abs(e[:20]) > 5 * np.sqrt(n[:20])) > 100

@@ -16,7 +16,7 @@ spp)), the power ratio of the images as the sensor records them (clipped at its 
 lamp face that saturates either way carries no render noise into the data), the power ratio of
 the pixels below the reference's 90th percentile (power_dim: the dim surfaces, where fireflies
 show; the whole frame's is carried by the edges of lamp faces and bright exits) and how many
-pixels err by more than 5× their shot noise (fireflies), top_0.1pct (the share of the error
+of those pixels err by more than 5× their shot noise (fireflies), top_0.1pct (the share of the error
 power in the worst 0.1 % of pixels), spp at
 the criterion (≤ ⅓ median, ≤ ⅔ p90 and edges; ratios fall as 1/√spp), the process CPU seconds
 (all threads: core-seconds) of that frame from t = a + b·spp fitted to the two renders, per

@@ -18,8 +18,9 @@ at the lowest EV the experiment tests (t = auto-exposure · 2^EV_min). Reported 
                    percentile: the dim surfaces where fireflies show, without the lamp faces,
                    sunlit exits and sky whose edge pixels otherwise carry it (city_tunnel frame 0 at
                    64 spp: the top 1 % of pixels, the exit's bright border, held 95 % of the power);
-    firefly_pixels how many pixels have |e| > FIREFLY_SHOT_MULTIPLE √N (for Gaussian render noise
-                   at the criterion's ⅓ that is a 15σ event: none expected);
+    firefly_pixels how many of those dim pixels have |e| > FIREFLY_SHOT_MULTIPLE √N (for Gaussian
+                   render noise at the criterion's ⅓ a 15σ event: none expected; at a bright edge
+                   a pixel-area sampling error, not a firefly, so the bright tenth is left out);
     power_ratio_clipped  the same with both images clipped at the sensor's full well, as it records
                    them (given full_well_e): a lamp face or a sun glint that saturates either way
                    carries no render noise into the data, however large its error before clipping;
@@ -89,7 +90,7 @@ def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float
     dim_power = float(np.sqrt(np.sum(e[dim] ** 2) / np.sum(n[dim]))) if dim.any() else float("nan")
     return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645), **edge, **clipped,
             "power_ratio": float(np.sqrt(np.sum(e * e) / np.sum(n))), "power_ratio_dim": dim_power,
-            "firefly_pixels": int(np.sum(r > FIREFLY_SHOT_MULTIPLE)),
+            "firefly_pixels": int(np.sum(r[dim] > FIREFLY_SHOT_MULTIPLE)),
             "median_render_rel": float(np.median(np.abs(e) / n) / 0.6745),
             "median_shot_rel": float(np.median(1.0 / np.sqrt(n))), "mean_electrons": float(n.mean()),
             "pixels": int(lit.sum())}
