@@ -77,7 +77,7 @@ def test_dim_power_and_fireflies_read_the_dark_surfaces_beside_a_bright_exit():
     n = reference * t
     ratio = np.where(reference > 1e7, 3.0, 1 / 3)
     e = ratio * np.sqrt(n) * rng.standard_normal((h, w))
-    e = np.clip(e, -4.5 * np.sqrt(n), 4.5 * np.sqrt(n)) * (ratio < 1) + e * (ratio > 1)
+    e = np.where(ratio < 1, np.clip(e, -4.5 * np.sqrt(n), 4.5 * np.sqrt(n)), e)   # no chance fireflies in the dim part
     fireflies = [(50, 10), (80, 200), (120, 33), (150, 299), (199, 0)]
     for y, x in fireflies:
         e[y, x] = 40 * np.sqrt(n[y, x])
@@ -90,3 +90,5 @@ def test_dim_power_and_fireflies_read_the_dark_surfaces_beside_a_bright_exit():
     assert out["power_ratio"] > 2.5 * out["power_ratio_dim"]          # the exit's errors carry the whole frame
     assert out["firefly_pixels"] == 5                                   # the exit's large errors are not counted
     assert np.sum(np.abs(e[:20]) > 5 * np.sqrt(n[:20])) > 100
+    flat = noise_ratios(np.full((4, 4), 2e5), np.full((4, 4), 1e5), 1e-2)   # a flat frame is all dim
+    assert flat["power_ratio_dim"] == pytest.approx(flat["power_ratio"]) and flat["firefly_pixels"] == 16

@@ -14,7 +14,7 @@ at the lowest EV the experiment tests (t = auto-exposure · 2^EV_min). Reported 
                    ≤ TAIL_RATIO;
     power_ratio    √(Σe² / ΣN): render noise power over shot noise power, all pixels (fireflies
                    weigh in here; reported, not a criterion);
-    power_ratio_dim  the same over the pixels whose reference lies below its DIM_PERCENTILE-th
+    power_ratio_dim  the same over the pixels whose reference lies at or below its DIM_PERCENTILE-th
                    percentile: the dim surfaces where fireflies show, without the lamp faces,
                    sunlit exits and sky whose edge pixels otherwise carry it (city_tunnel frame 0 at
                    64 spp: the top 1 % of pixels, the exit's bright border, held 95 % of the power);
@@ -47,7 +47,7 @@ TARGET_RATIO = 1.0 / 3.0
 TAIL_RATIO = 2.0 / 3.0
 REFERENCE_SEED_TAG = 0x52454631       # 'REF1': the reference render's own noise stream
 RESULT_FILE = "render-noise.json"
-DIM_PERCENTILE = 90                   # power_ratio_dim reads the pixels below this percentile of N
+DIM_PERCENTILE = 90                   # power_ratio_dim reads the pixels at or below this percentile of N
 FIREFLY_SHOT_MULTIPLE = 5.0           # firefly_pixels: |e| beyond this many shot-noise σ
 
 
@@ -86,10 +86,9 @@ def noise_ratios(rate: np.ndarray, reference_rate: np.ndarray, exposure_s: float
         clipped = {"power_ratio_clipped": float(np.sqrt(np.sum(ec[lit] ** 2) / np.sum(n[lit])))}
     n, e = n[lit], e[lit]
     r = np.abs(e) / np.sqrt(n)
-    dim = n < np.percentile(n, DIM_PERCENTILE)
-    dim_power = float(np.sqrt(np.sum(e[dim] ** 2) / np.sum(n[dim]))) if dim.any() else float("nan")
+    dim = n <= np.percentile(n, DIM_PERCENTILE)       # never empty: a flat frame is all dim
     return {"median_ratio": float(np.median(r) / 0.6745), "p90_ratio": float(np.percentile(r, 90) / 1.645), **edge, **clipped,
-            "power_ratio": float(np.sqrt(np.sum(e * e) / np.sum(n))), "power_ratio_dim": dim_power,
+            "power_ratio": float(np.sqrt(np.sum(e * e) / np.sum(n))), "power_ratio_dim": float(np.sqrt(np.sum(e[dim] ** 2) / np.sum(n[dim]))),
             "firefly_pixels": int(np.sum(r[dim] > FIREFLY_SHOT_MULTIPLE)),
             "median_render_rel": float(np.median(np.abs(e) / n) / 0.6745),
             "median_shot_rel": float(np.median(1.0 / np.sqrt(n))), "mean_electrons": float(n.mean()),
