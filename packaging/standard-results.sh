@@ -11,25 +11,27 @@ data=${1:-data/city320}; ckpt=${2:-ckpt}; workers=${3:-2}
 W=.venv/bin/workbench; R=docs/results; P=city_detection_quick
 common=(--data "$data" --profile standard --checkpoints "$ckpt")
 nice -n 5 "$W" dataset "$P" --frames 612 --out "$data" --workers "$workers"
-budget_settled() {   # every net's budget B settled by the budget study (B → 2B gains < 0.01 on 2 seeds)
+settled_nets() {     # the nets whose budget B the budget study settled (B → 2B gains < 0.01 on 2 seeds)
   .venv/bin/python - "$R/budget-standard/results.json" <<'PY'
 import json, sys
+from workbench.experiments.budget import settled_nets
 verdicts = json.load(open(sys.argv[1]))["budget_enough"]
-open_ = [f"{net}: {v.get('text', 'no verdict')}" for net, v in verdicts.items()
-         if v.get("status") not in ("settled", "too large")]
-print("\n".join(open_) or "budget settled for every net")
-sys.exit(1 if open_ else 0)
+for net, v in verdicts.items():
+    print(f"{net}: {v.get('text', 'no verdict')}", file=sys.stderr)
+print(" ".join(settled_nets(verdicts)))
 PY
 }
 worker() {
   # resnet18 trains at batch 16 as the batch-16 ladder did (plan.STANDARD_BATCH): its runs there are lent
   nice -n 5 "$W" experiment budget "$P" "${common[@]}" --out "$R/budget-standard" \
     --reuse "$R/schedule-study/budget-batch16"
-  # The ISP and exposure runs wait for the budget: at a budget that must still grow they would be
-  # retrained. 'grow': set plan.STANDARD_EPOCHS to 2B, commit, and run this script again.
-  budget_settled || { echo "ISP and exposure runs wait until the budget is settled"; return 0; }
-  nice -n 5 "$W" experiment isp "$P" "${common[@]}" --out "$R/isp-standard" --reuse "$R/budget-standard"
-  nice -n 5 "$W" experiment exposure "$P" "${common[@]}" --out "$R/exposure-standard" \
+  # A net's ISP and exposure runs wait for its budget (at a budget that must still grow they would
+  # be retrained; 'grow': set plan.STANDARD_EPOCHS to 2B, commit, run this script again); a net
+  # whose budget is settled starts them while another net's study still trains.
+  nets=$(settled_nets)
+  [ -n "$nets" ] || { echo "ISP and exposure runs wait until a net's budget is settled"; return 0; }
+  nice -n 5 "$W" experiment isp "$P" "${common[@]}" --nets $nets --out "$R/isp-standard" --reuse "$R/budget-standard"
+  nice -n 5 "$W" experiment exposure "$P" "${common[@]}" --nets $nets --out "$R/exposure-standard" \
     --reuse "$R/budget-standard" "$R/isp-standard"
 }
 mkdir -p "$ckpt"
@@ -38,6 +40,6 @@ for k in $(seq "$workers"); do
   sleep 5                     # the first creates the result folders; the next find them
 done
 wait
-if budget_settled >/dev/null; then
+if [ "$(settled_nets 2>/dev/null | wc -w)" -eq "$(.venv/bin/python -c 'from workbench.experiments.plan import STANDARD_EPOCHS; print(len(STANDARD_EPOCHS))')" ]; then
   "$W" experiment claims --isp "$R/isp-standard" --exposure "$R/exposure-standard" --out "$R/claims-standard.md"
 fi

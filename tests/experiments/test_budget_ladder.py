@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from workbench.experiments.budget import budget_analysis
+from workbench.experiments.budget import budget_analysis, settled_nets
 from workbench.experiments.detection import (BUDGET_TOLERANCE, PROFILES, borrowed_runs, missing_runs, plot_results,
                                              sort_records, write_outputs)
 from workbench.experiments.plan import STANDARD_EPOCHS, budget_ladder_configs, kept_roles, plan_configs
@@ -193,6 +193,18 @@ def test_the_analysis_reads_every_step_and_says_whether_the_profiles_budget_is_s
     assert fig.axes[0].get_title() == f"mobile, B = {budget} epochs\n{verdict['text']}"
     assert [t.get_text() for t in fig.axes[0].texts if "seed" in t.get_text()] == [
         f"{s['gain']:+.3f}\n({seeds} seed{'s' * (seeds != 1)})" for s in verdict["ladder"]]
+
+
+def test_a_net_whose_budget_is_settled_goes_on_while_the_other_nets_study_trains():
+    """packaging/standard-results.sh starts a net's ISP and exposure runs once its own budget is
+    settled; a net still open, growing or too large waits."""
+    runs = [_run("mobile", s, e, e / 4, v[s]) for e, v in LADDER.items() for s in range(2)]
+    runs += [_run("resnet18", 0, e, e / 4, v[0]) for e, v in LADDER.items()]      # 4 → 8 on one seed: open
+    runs += [_run("tiny", s, e, e / 2, v[s]) for e, v in LADDER.items() if e <= 4 for s in range(2)]   # 2 → 4: grow
+    verdicts = budget_analysis(runs, {}, BUDGET_TOLERANCE, {"mobile": 4, "resnet18": 4, "tiny": 2})["budget_enough"]
+    assert {net: v["status"] for net, v in verdicts.items()} == {"mobile": "settled", "resnet18": "open", "tiny": "grow"}
+    assert settled_nets(verdicts) == ["mobile"]
+    assert settled_nets({}) == []
 
 
 def test_a_budget_folder_written_before_the_ladder_is_drawn_with_its_verdict(committed, tmp_path):

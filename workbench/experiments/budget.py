@@ -79,6 +79,12 @@ def budget_analysis(runs: list[dict], boots: dict, tolerance: float, epochs: dic
     return {"summary": summary, "contrasts": rows, "per_ev_is_upper_bound": None, "budget_enough": enough}
 
 
+def settled_nets(budget_enough: dict) -> list[str]:
+    """The nets of a budget study's `budget_enough` whose budget B is settled: their ISP and exposure
+    runs can start at B while another net's study still trains (packaging/standard-results.sh)."""
+    return [net for net, verdict in budget_enough.items() if verdict.get("status") == "settled"]
+
+
 def _verdict_text(verdict: dict) -> str:
     """The verdict's text; for a folder written before the ladder (no 'text'), its B → 2B gain."""
     if "text" in verdict:
