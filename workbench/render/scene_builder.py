@@ -22,7 +22,7 @@ from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_m
 from workbench.render.lamp_heads import lamp_faces
 from workbench.render.lamp_set_cache import cache_candidates
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
-from workbench.render.portal_guide import guide_toward_portals, tunnel_portals
+from workbench.render.portal_guide import guide_toward_portals, roulette_depth, tunnel_portals
 from workbench.render.tunnel_sun_share import row_sun_shares
 from workbench.render.params import DaylightParams, WorldParams
 from workbench.scene.city.surfaces import WATER_IOR, Surface, planar_uv_m, procedural_surfaces
@@ -250,7 +250,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     if sun_shares:
         lights.pop("sun")
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
-    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth)},
+    # there Russian roulette's boost of a dim path meets the sunlit street: none (portal_guide.roulette_depth)
+    rr_depth = roulette_depth(portals, max_depth)
+    scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth), "rr_depth": rr_depth},
              "sensor": cam, **lights}
     id_table: dict[str, ShapeLabel | None] = {}
     medium = None
@@ -259,7 +261,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
                             np.asarray(cam["to_world"].translation()), city.extent_m, world.fog.height_m)
     if world.fog is not None and world.fog.model == "volumetric":
         medium = fog_medium(world.fog)
-        scene["integrator"] = {"type": "volpath", "max_depth": int(max_depth)}
+        scene["integrator"] = {"type": "volpath", "max_depth": int(max_depth), "rr_depth": rr_depth}
         cam["medium"] = medium
         scene[FOG_BOX_ID] = fog_box(medium, city.extent_m, world.fog.height_m)
         id_table[FOG_BOX_ID] = None
