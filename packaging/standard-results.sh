@@ -40,6 +40,7 @@ for k in $(seq "$workers"); do
   sleep 5                     # the first creates the result folders; the next find them
 done
 wait
-if [ "$(settled_nets 2>/dev/null | wc -w)" -eq "$(.venv/bin/python -c 'from workbench.experiments.plan import STANDARD_EPOCHS; print(len(STANDARD_EPOCHS))')" ]; then
+if .venv/bin/python -c 'import json, sys; from workbench.experiments.budget import settled_nets
+v = json.load(open(sys.argv[1]))["budget_enough"]; sys.exit(len(settled_nets(v)) != len(v))' "$R/budget-standard/results.json"; then
   "$W" experiment claims --isp "$R/isp-standard" --exposure "$R/exposure-standard" --out "$R/claims-standard.md"
 fi

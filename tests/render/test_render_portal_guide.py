@@ -249,7 +249,7 @@ def test_without_russian_roulette_deep_bounces_to_the_sky_are_not_boosted(mi):
     multiplies a dim survivor by 1/q, and its next guided bounce reaches the sky, 10²× brighter
     than the interior (the tunnel's white dots, portal_guide.roulette_depth). With rr_depth =
     max_depth: same mean, lower variance, and the heaviest estimate of 16 samples about half as
-    far above the mean (measured 2026-11-28 on four seed sets: max/mean 10.0–10.8 → 4.5–5.5,
+    far above the mean (measured 2026-11-28 on five seed sets: max/mean 10.0–11.1 → 4.5–5.5,
     variance 1.17–1.38× lower)."""
     stats = {}
     for rr in (5, 6):

@@ -48,7 +48,7 @@ portal's own light than they gave (3 heights: β 0.25 / 0.35 raised the median t
 2 heights at β 0.5: 1.68).
 
 Russian roulette is off in a tunnel by day (`roulette_depth`). Mitsuba's path tracer ends a path
-at depth ≥ rr_depth (5) with probability 1 − q, q = min(max throughput, 0.95), and multiplies a
+at depth ≥ rr_depth (5) with probability 1 − q, q = min(max throughput · η², 0.95), and multiplies a
 survivor by 1/q: unbiased, and cheap where the light a path will still find is like the light it
 found so far. In a tunnel it is not: a path four bounces deep inside, at throughput ~0.05, lives on
 with q ~0.05, weighted ×20, and its next (portal-guided) bounce reaches the sunlit street, 10²–10³×
