@@ -95,3 +95,19 @@ def test_night_data_sets_made_before_the_lamp_fix_are_not_resumed():
     now = dataset.dataset_fingerprint(night, "float16", render_city_frame)
     with mock.patch.object(dataset, "NIGHT_LIGHTS_VERSION", 1):
         assert dataset.dataset_fingerprint(night, "float16", render_city_frame) != now
+
+
+def test_tunnel_day_sets_made_with_roulette_and_sharp_coats_are_not_resumed():
+    """A day project with a tunnel carries TUNNEL_DAY_VERSION (its frames changed with the roulette
+    and coat fixes); its night twin and tunnel-less day projects do not read it."""
+    from unittest import mock
+
+    from workbench.datasets import dataset
+    from workbench.render.city_frame import render_city_frame
+    projects = {name: load_project(name) for name in ("city_tunnel", "city_detection_quick", "city_detection_night")}
+    projects["city_tunnel night"] = projects["city_tunnel"].updated(render=projects["city_tunnel"].render.updated(
+        world=projects["city_tunnel"].render.world.updated(lighting="night")))
+    now = {k: dataset.dataset_fingerprint(p, "float16", render_city_frame) for k, p in projects.items()}
+    with mock.patch.object(dataset, "TUNNEL_DAY_VERSION", 0):
+        then = {k: dataset.dataset_fingerprint(p, "float16", render_city_frame) for k, p in projects.items()}
+    assert [k for k in now if now[k] != then[k]] == ["city_tunnel"]

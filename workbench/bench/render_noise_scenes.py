@@ -1,14 +1,14 @@
 """Render noise against shot noise for night, tunnel and day samples: core-seconds per frame at the
 data sets' criterion, before and after the night light selection per shading point and, in the
-tunnels, portal guiding and then the sun carried by the luminaire row (tunnel_sun_share.py)
-(part of `workbench bench render`, and alone as `workbench bench render-noise`).
+tunnels, portal guiding, then the sun carried by the luminaire row (tunnel_sun_share.py), then
+the clear coats regularized for rays not from the camera (coat_regularization.py) (part of `workbench bench render`, and alone as `workbench bench render-noise`).
 
 Each case is a sample project (city_night, city_tunnel, city_tunnel_entrance, and the day data
 set city_detection_quick) rendered small: the sensor's rows and columns and the focal length
 divided by SCALE (same field of view, same pixel pitch, f-number and exposure, so the same
 electrons per pixel), film in the sensor's channels, multijitter sampler (the data sets'
 settings). Per frame, a reference at REF_SPP with the 'after' settings (its own noise
-stream; every setting has the same expected image) and a test render at TEST_SPP per setting
+stream; every setting has the same expected image but for the regularized coats' stated bias) and a test render at TEST_SPP per setting
 are turned into the experiment sensor's electron rates; experiments.render_noise.noise_ratios
 compares them at the lowest EV the project tests (the data-set check's exposure). Columns:
 median, p90, edge and power ratios (the reference's own noise taken out: × 1/√(1 + test/ref
@@ -33,13 +33,16 @@ from workbench.bench import BenchResult, register_bench
 DAY = "day (city_detection_quick)"
 GUIDE = "portal_guide"     # a setting's key that is no NightParams field: False renders without portal guiding
 SUN_SHARE = "sun_share"    # another: False keeps the sun its own emitter (render/tunnel_sun_share.py)
+COATS = "coats_regularized"  # another: False keeps every ray's coat sharp (render/coat_regularization.py)
 CASES = (  # (label, sample project, scale, {setting: NightParams updates})
     (DAY, "city_detection_quick", 2, {"before": {}}),
     ("night", "city_night", 4, {"before": {"light_selection": "view"}, "after": {"light_selection": "shading"}}),
-    ("tunnel", "city_tunnel", 4, {"before": {GUIDE: False, SUN_SHARE: False}, "guided": {SUN_SHARE: False},
+    ("tunnel", "city_tunnel", 4, {"before": {GUIDE: False, SUN_SHARE: False, COATS: False},
+                                  "guided": {SUN_SHARE: False, COATS: False}, "sharp": {COATS: False},
                                   "after": {}}),
-    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {GUIDE: False, SUN_SHARE: False},
-                                                    "guided": {SUN_SHARE: False}, "after": {}}),
+    ("tunnel entrance", "city_tunnel_entrance", 4, {"before": {GUIDE: False, SUN_SHARE: False, COATS: False},
+                                                    "guided": {SUN_SHARE: False, COATS: False},
+                                                    "sharp": {COATS: False}, "after": {}}),
 )
 
 
@@ -51,7 +54,7 @@ def noise_plan(quick: bool) -> tuple[int, int, int, int]:
 
 def _project(name: str, scale: int, night: dict, spp: int):
     from workbench.project import load_project
-    night = {k: v for k, v in night.items() if k not in (GUIDE, SUN_SHARE)}
+    night = {k: v for k, v in night.items() if k not in (GUIDE, SUN_SHARE, COATS)}
     p = load_project(name)
     s, r = p.sensor, p.render
     world = r.world.updated(night=r.world.night.updated(**night)) if night else r.world
@@ -62,12 +65,15 @@ def _project(name: str, scale: int, night: dict, spp: int):
                                       shot_noise_ratio=None, world=world))
 
 
-def _render(project, index: int, reference: bool, guided: bool = True, sun_share: bool = True):
+def _render(project, index: int, reference: bool, guided: bool = True, sun_share: bool = True,
+            coats: bool = True):
     """(electron rate H×W, instance ids, auto exposure s, CPU seconds) of frame `index`; guided
     False: without portal guiding (render/portal_guide.py); sun_share False: the sun its own
-    emitter (render/tunnel_sun_share.py)."""
+    emitter (render/tunnel_sun_share.py); coats False: every ray's coat sharp
+    (render/coat_regularization.py)."""
     from contextlib import ExitStack
 
+    from workbench.render.coat_regularization import sharp_coats
     from workbench.render.portal_guide import unguided
     from workbench.render.tunnel_sun_share import separate_sun
     from workbench.detect.data import experiment_sensor
@@ -85,6 +91,8 @@ def _render(project, index: int, reference: bool, guided: bool = True, sun_share
             stack.enter_context(unguided())
         if not sun_share:
             stack.enter_context(separate_sun())
+        if not coats:
+            stack.enter_context(sharp_coats())
         ren = run_job(city_scene_job(city_scene_inputs(project), seeds))
     cpu = time.process_time() - t0
     sensor = experiment_sensor(project)
@@ -109,7 +117,7 @@ def scene_noise_rows(quick: bool) -> list[dict]:
             full_well_e = experiment_sensor(ref_project).full_well_e
             for setting, night in settings.items():
                 rate, _, _, cpu = _render(_project(name, scale * extra, night, test_spp), index, False,
-                                          night.get(GUIDE, True), night.get(SUN_SHARE, True))
+                                          night.get(GUIDE, True), night.get(SUN_SHARE, True), night.get(COATS, True))
                 r = noise_ratios(rate, ref, exposure_s, edge_pixels(ids), full_well_e)
                 k = 1 / np.sqrt(1 + test_spp / ref_spp)
                 med, p90, edge = (r[key] * k for key in ("median_ratio", "p90_ratio", "edge_ratio"))

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.errors import InvalidValueError
+from workbench.render.coat_regularization import REGULARIZED_ALPHA, camera_sharp_coat, point_coats_at, regularizing
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
@@ -69,6 +70,7 @@ def move_pinhole(mi_scene, pose: CameraPose, fov_deg: float, sensor=None) -> Non
     params = mi.traverse(mi_scene.sensors()[0] if sensor is None else sensor)
     params["to_world"] = mi.Transform4f(pinhole_sensor(pose, fov_deg)["to_world"].matrix)
     params.update()
+    point_coats_at(mi_scene, camera_to_world(pose)[0])       # the coats that stay sharp for it
 
 
 def coarse_pinhole(pose: CameraPose, fov_deg: float, film_srfs: FilmSRFs, width: int, height: int,
@@ -145,13 +147,14 @@ def _spectrum(material: Material, film_range_nm: tuple[float, float]) -> dict:
 
 
 def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffuse", pane: bool = False,
-          paint: str = "diffuse"):
+          paint: str = "diffuse", coat_alpha: float = PAINT_COAT_ALPHA):
     """Mitsuba BSDF of a city material. Window glass with glass='dielectric': a see-through thin
     pane (`thindielectric`) where `pane` (a car's closed glass cabin), else a Fresnel-reflecting
     glass surface over the dark interior (`plastic`: n = 1.52 coat over the material's
     reflectance) for window quads mounted on façades and bus/truck bodies. Paints ('paint_*')
-    with paint='clearcoat': `roughplastic` (GGX α = PAINT_COAT_ALPHA, n = PAINT_COAT_IOR) over
-    the paint's reflectance, with the linear internal-scattering model (nonlinear = false)."""
+    with paint='clearcoat': `roughplastic` (GGX α = coat_alpha, by default PAINT_COAT_ALPHA,
+    n = PAINT_COAT_IOR) over the paint's reflectance, with the linear internal-scattering model
+    (nonlinear = false)."""
     if paint not in ("diffuse", "clearcoat"):
         raise InvalidValueError(f"paint must be 'diffuse' or 'clearcoat', got {paint!r}")
     spectrum = _spectrum(material, film_range_nm)
@@ -161,7 +164,7 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffus
         return mi.load_dict({"type": "plastic", "int_ior": GLASS_IOR, "ext_ior": 1.0,
                              "diffuse_reflectance": spectrum})
     if paint == "clearcoat" and material.name.startswith(PAINT_PREFIX):
-        return mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": PAINT_COAT_ALPHA,
+        return mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": coat_alpha,
                              "int_ior": PAINT_COAT_IOR, "ext_ior": 1.0, "nonlinear": False,
                              "diffuse_reflectance": spectrum})
     return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
@@ -269,6 +272,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     lenses = tunnel_emitters(city, None if night else 1.0, medium, sun_shares)
     rng = film_srfs.range_nm
     bsdfs = {}
+    coats_regularized = bool(portals) and world.paint == "clearcoat" and regularizing()
+    camera_origin = camera_to_world(pose)[0] if sensor is None else np.asarray(cam["to_world"].translation())
     surfaces = procedural_surfaces(world.wet_road_fraction) if world.materials == "procedural" else {}
     for obj in city.objects:
         if obj.instance_id <= 0:
@@ -280,10 +285,16 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
             pane = obj.class_name == "car"              # closed glass cabin: see-through pane
             key = (m.material, pane and m.material in GLASS_MATERIALS)
             if key not in bsdfs:
-                bsdfs[key] = guide_toward_portals(
-                    surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
-                    if m.material in surfaces else
-                    _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint), portals)
+                if m.material in surfaces:
+                    bsdf = surface_bsdf(mi, surfaces[m.material], city.materials, rng, city.seed)
+                else:
+                    bsdf = _bsdf(mi, city.materials[m.material], rng, world.glass, key[1], world.paint)
+                if coats_regularized and m.material.startswith(PAINT_PREFIX) and m.material not in surfaces:
+                    # inside a tunnel the light a coat throws on the walls is found blurred (coat_regularization.py)
+                    bsdf = camera_sharp_coat(bsdf, _bsdf(mi, city.materials[m.material], rng, world.glass, key[1],
+                                                         world.paint, REGULARIZED_ALPHA),
+                                             [box for box, _ in portals], camera_origin)
+                bsdfs[key] = guide_toward_portals(bsdf, portals)
             sid = f"{obj.class_name}_{obj.instance_id}_{k}"
             if sid in scene:
                 raise InvalidValueError(f"duplicate shape id '{sid}': instance ids must be unique")
