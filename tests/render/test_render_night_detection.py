@@ -97,9 +97,9 @@ def test_night_data_sets_made_before_the_lamp_fix_are_not_resumed():
         assert dataset.dataset_fingerprint(night, "float16", render_city_frame) != now
 
 
-def test_tunnel_day_sets_made_with_roulette_and_sharp_coats_are_not_resumed():
-    """A day project with a tunnel carries TUNNEL_DAY_VERSION (its frames changed with the roulette
-    and coat fixes); its night twin and tunnel-less day projects do not read it."""
+def test_tunnel_sets_made_before_the_tunnel_fixes_are_not_resumed():
+    """A project with a tunnel, by day or night, carries TUNNEL_VERSION (its frames changed with the
+    underlay, roulette and coat fixes); tunnel-less projects do not read it."""
     from unittest import mock
 
     from workbench.datasets import dataset
@@ -108,6 +108,6 @@ def test_tunnel_day_sets_made_with_roulette_and_sharp_coats_are_not_resumed():
     projects["city_tunnel night"] = projects["city_tunnel"].updated(render=projects["city_tunnel"].render.updated(
         world=projects["city_tunnel"].render.world.updated(lighting="night")))
     now = {k: dataset.dataset_fingerprint(p, "float16", render_city_frame) for k, p in projects.items()}
-    with mock.patch.object(dataset, "TUNNEL_DAY_VERSION", 0):
+    with mock.patch.object(dataset, "TUNNEL_VERSION", 0):
         then = {k: dataset.dataset_fingerprint(p, "float16", render_city_frame) for k, p in projects.items()}
-    assert [k for k in now if now[k] != then[k]] == ["city_tunnel"]
+    assert [k for k in now if now[k] != then[k]] == ["city_tunnel", "city_tunnel night"]

@@ -55,10 +55,11 @@ FRAME_VERSION = 1
 # up, inside the pavement, before); 3 since head-lights are low beams (render/low_beam.py) instead of a
 # symmetric cone. A separate tag, so day sets keep their fingerprints and results.
 NIGHT_LIGHTS_VERSION = 3
-# Day frames of a city with a tunnel only: 1 since such a city renders without Russian roulette
-# (render/portal_guide.roulette_depth) and with its clear coats regularized for rays not from the
-# camera (render/coat_regularization.py); untagged before. Other day sets keep their fingerprints.
-TUNNEL_DAY_VERSION = 1
+# Frames of a city with a tunnel only: 1 since a black sheet under its floor stops rays falling
+# through the kerb lines (scene_builder.tunnel_underlays) and, by day, it renders without Russian
+# roulette (render/portal_guide.roulette_depth) and with its clear coats regularized for rays not
+# from the camera (render/coat_regularization.py); untagged before. Other sets keep their fingerprints.
+TUNNEL_VERSION = 1
 IRRADIANCE_DTYPES = ("float16", "float32")
 FLOAT16_REL_ERROR = 2.0 ** -11
 FRAMES_DIR = "frames"
@@ -209,8 +210,8 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
     """Digest of everything a frame reads (city_frame.city_frame_inputs: the render's inputs, the
     optics and the illuminance adjustment) except its index, so sets can grow."""
     from workbench.stages.keys import digest
-    night = project.render.world.lighting == "night"
-    tags = (NIGHT_LIGHTS_VERSION,) if night else (("tunnel day", TUNNEL_DAY_VERSION) if project.city.tunnel else ())
+    tags = (NIGHT_LIGHTS_VERSION,) if project.render.world.lighting == "night" else ()
+    tags += ("tunnel", TUNNEL_VERSION) if project.city.tunnel else ()
     return digest(city_frame_inputs(project), irradiance_dtype, f"{renderer.__module__}.{renderer.__qualname__}",
                   FRAME_VERSION, *tags)
 

@@ -16,9 +16,18 @@ boxes; other rays inside a box meet the rough one. The camera's view of cars, wi
 reflection of the exit, is unchanged; the light cars throw onto the tunnel is blurred over a wider
 lobe. This is biased (Kaplanyan & Dachsbacher 2013 regularize the same way, shrinking the
 roughening with the sample count; production renderers' "filter glossy" does it with a fixed
-one): the bias is the difference between the two coats' reflection of the light around them,
-measured and stated where it is used (README, render-noise notes). Both coats report their own
-pdf, so next-event estimation and BSDF sampling stay consistent at each vertex.
+one): the bias is the difference between the two coats' reflection of the light around them.
+Both coats report their own pdf, so next-event estimation and BSDF sampling stay consistent at
+each vertex.
+
+Measured on city_tunnel frame 1 (376×240, 128 one-sample renders, the same seeds each; pixels
+away from the luminaires and the bright exit): pixels whose samples' relative variance exceeds 20
+(one sample holding about half the pixel's light) 105 with the sharp coat → 72 / 49 / 17 with the
+rough twin at α 0.05 / 0.1 / 0.2; the frame's mean −0.08 / −0.19 / −0.36 %, the worst 40 × 94
+pixel tile −0.3 / −0.6 / −1.0 % (standard error ~0.3 %), for ~3 % more CPU time. α 0.2 is used:
+the bias stays far below the sensor's shot noise. In the test scene built to show it (a ceiling lit
+only by a small lamp's mirror image in a coat) the rough twin throws 15 % less light (Mitsuba's
+roughplastic loses energy as α grows) and cuts the per-estimate variance 24×.
 
 A scene whose camera moves after loading (city_frame.CitySceneSession) calls `point_coats_at`.
 """

@@ -170,6 +170,31 @@ def _bsdf(mi, material, film_range_nm: tuple[float, float], glass: str = "diffus
     return mi.load_dict({"type": "diffuse", "reflectance": spectrum})
 
 
+UNDERLAY_DEPTH_M = 0.01     # the black sheet under a tunnel's floor (tunnel_underlays)
+UNDERLAY_MARGIN_M = 1.0     # how far it reaches past the tunnel's walls and portals
+
+
+def tunnel_underlays(city: City) -> dict[str, dict]:
+    """A black sheet UNDERLAY_DEPTH_M under each tunnel's floor (Mitsuba shape dicts by id). The
+    road meets each kerb along a line where neither mesh is hit (one float32 step wide): a ray
+    from the ceiling that lands there falls through the city and meets the sky below the horizon
+    (the uniform sky is Mitsuba's `constant`, over the whole sphere), 10³× the tunnel's light, a
+    white dot (city_tunnel frame 1: 3 of 10⁷ random rays inside the tunnel left through its floor,
+    all at a kerb; rays aimed at a kerb line, 7 %). The sheet ends them as the road would: dark."""
+    import mitsuba as mi
+
+    t = mi.ScalarTransform4f()
+    out = {}
+    for obj in (o for o in city.objects if o.class_name == "tunnel"):
+        f = obj.meta["frame"]
+        half_x, half_y = f.half_width_m + UNDERLAY_MARGIN_M, (f.y_north_m - f.y_south_m) / 2 + UNDERLAY_MARGIN_M
+        out[f"tunnel_underlay_{obj.instance_id}"] = {
+            "type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 0.0}},
+            "to_world": t.translate([f.x_m, (f.y_south_m + f.y_north_m) / 2, f.road_z_m - UNDERLAY_DEPTH_M])
+            @ t.scale([half_x, half_y, 1.0])}
+    return out
+
+
 def texture_dict(mi, weight: np.ndarray, tile_m: float) -> dict:
     """A single-channel raw bitmap texture (values used as-is), repeated every tile_m metres of
     the mesh's texture coordinates, bilinearly filtered."""
@@ -310,6 +335,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     for sid, (instance_id, shape) in faces.items():
         scene[sid] = shape if medium is None else {**shape, "exterior": medium}
         id_table[sid] = ShapeLabel("lamp", int(instance_id))
+    for sid, shape in tunnel_underlays(city).items():
+        scene[sid] = shape if medium is None else {**shape, "exterior": medium}
+        id_table[sid] = None
     mi_scene = mi.load_dict(scene)
     if world.lighting == "night" and world.night.light_selection == "view":
         set_view_light_weights(mi_scene, lights)
