@@ -211,7 +211,7 @@ def dataset_fingerprint(project, irradiance_dtype: str, renderer: Callable) -> s
     optics and the illuminance adjustment) except its index, so sets can grow."""
     from workbench.stages.keys import digest
     tags = (NIGHT_LIGHTS_VERSION,) if project.render.world.lighting == "night" else ()
-    tags += ("tunnel", TUNNEL_VERSION) if project.city.tunnel else ()
+    tags += ("tunnel", TUNNEL_VERSION) if project.city is not None and project.city.tunnel else ()
     return digest(city_frame_inputs(project), irradiance_dtype, f"{renderer.__module__}.{renderer.__qualname__}",
                   FRAME_VERSION, *tags)
 
