@@ -70,7 +70,8 @@ def move_pinhole(mi_scene, pose: CameraPose, fov_deg: float, sensor=None) -> Non
     params = mi.traverse(mi_scene.sensors()[0] if sensor is None else sensor)
     params["to_world"] = mi.Transform4f(pinhole_sensor(pose, fov_deg)["to_world"].matrix)
     params.update()
-    point_coats_at(mi_scene, camera_to_world(pose)[0])       # the coats that stay sharp for it
+    if mi_scene is not None:          # a loaded scene's own camera moved: the coats that stay sharp for it
+        point_coats_at(mi_scene, camera_to_world(pose)[0])
 
 
 def coarse_pinhole(pose: CameraPose, fov_deg: float, film_srfs: FilmSRFs, width: int, height: int,
