@@ -1,14 +1,16 @@
 """Render noise against shot noise for night, tunnel and day samples: core-seconds per frame at the
 data sets' criterion, before and after the night light selection per shading point and, in the
 tunnels, portal guiding, then the sun carried by the luminaire row (tunnel_sun_share.py), then
-the clear coats regularized for rays not from the camera (coat_regularization.py) (part of `workbench bench render`, and alone as `workbench bench render-noise`).
+the clear coats regularized for rays not from the camera (coat_regularization.py) (part of
+`workbench bench render`, and alone as `workbench bench render-noise`).
 
 Each case is a sample project (city_night, city_tunnel, city_tunnel_entrance, and the day data
 set city_detection_quick) rendered small: the sensor's rows and columns and the focal length
 divided by SCALE (same field of view, same pixel pitch, f-number and exposure, so the same
 electrons per pixel), film in the sensor's channels, multijitter sampler (the data sets'
 settings). Per frame, a reference at REF_SPP with the 'after' settings (its own noise
-stream; every setting has the same expected image but for the regularized coats' stated bias) and a test render at TEST_SPP per setting
+stream; every setting has the same expected image but for the regularized coats' stated
+bias) and a test render at TEST_SPP per setting
 are turned into the experiment sensor's electron rates; experiments.render_noise.noise_ratios
 compares them at the lowest EV the project tests (the data-set check's exposure). Columns:
 median, p90, edge and power ratios (the reference's own noise taken out: × 1/√(1 + test/ref

@@ -84,6 +84,13 @@ def roulette_depth(portals: list, max_depth: int) -> int:
     return int(max_depth) if portals else MITSUBA_RR_DEPTH
 
 
+def inside_tunnel(p, box_m):
+    """Dr.Jit mask of the points p inside a tunnel's box ((x0, y0, z0), (x1, y1, z1), m), grown by
+    BOX_MARGIN_M across it so that its walls, road and soffit count as inside, not along it."""
+    (x0, y0, z0), (x1, y1, z1), e = *box_m, BOX_MARGIN_M
+    return (p.x > x0 - e) & (p.x < x1 + e) & (p.y > y0) & (p.y < y1) & (p.z > z0 - e) & (p.z < z1 + e)
+
+
 def unguided():
     """Scenes built inside the block are not guided (guide_toward_portals returns BSDFs as they
     are): the render-noise benchmark's 'before', with the same expected image."""
@@ -117,10 +124,8 @@ def _bsdf_class():
             self.m_components = [nested.flags(i) for i in range(nested.component_count())]
 
         def _alpha(self, si):
-            p, e = si.p, BOX_MARGIN_M      # the walls, road and soffit lie on the box's faces
-            inside = ((p.x > self.x0 - e) & (p.x < self.x1 + e) & (p.y > self.y0) & (p.y < self.y1) &
-                      (p.z > self.z0 - e) & (p.z < self.z1 + e))
-            return dr.select(inside, GUIDE_SHARE, 0.0)
+            box = ((self.x0, self.y0, self.z0), (self.x1, self.y1, self.z1))
+            return dr.select(inside_tunnel(si.p, box), GUIDE_SHARE, 0.0)
 
         def _planes(self, p):
             """[(y, share)] of the target rectangles seen from p: per plan and portal, its

@@ -181,7 +181,8 @@ def tunnel_underlays(city: City) -> dict[str, dict]:
     from the ceiling that lands there falls through the city and meets the sky below the horizon
     (the uniform sky is Mitsuba's `constant`, over the whole sphere), 10³× the tunnel's light, a
     white dot (city_tunnel frame 1: 3 of 10⁷ random rays inside the tunnel left through its floor,
-    all at a kerb; rays aimed at a kerb line, 7 %). The sheet ends them as the road would: dark."""
+    all at a kerb; rays aimed at a kerb line, 7 %). The sheet ends them in the dark: the road's
+    light they should have found is lost, a bias of the order of their share (3 × 10⁻⁷ of random rays inside)."""
     import mitsuba as mi
 
     t = mi.ScalarTransform4f()
