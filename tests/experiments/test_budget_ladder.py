@@ -15,7 +15,7 @@ import pytest
 from workbench.experiments.budget import budget_analysis, settled_nets
 from workbench.experiments.detection import (BUDGET_TOLERANCE, PROFILES, borrowed_runs, missing_runs, plot_results,
                                              sort_records, write_outputs)
-from workbench.experiments.plan import STANDARD_EPOCHS, budget_ladder_configs, kept_roles, plan_configs
+from workbench.experiments.plan import BUDGET_SEEDS, STANDARD_EPOCHS, budget_ladder_configs, kept_roles, plan_configs
 from workbench.experiments.results import read_bootstraps, read_results
 
 COMMITTED = Path(__file__).resolve().parents[2] / "docs" / "results" / "schedule-study" / "budget-batch16"
@@ -220,6 +220,10 @@ def test_a_budget_folder_written_before_the_ladder_is_drawn_with_its_verdict(com
     assert [ax.get_title() for ax in fig.axes] == [
         "mobile, B = 120 epochs\nB → 2B gains +0.031 on 1 seed(s): grow the budget",
         "resnet18, B = 80 epochs\nB → 2B gains +0.062 on 1 seed(s): grow the budget"]
+    doc = {**doc, "settings": {**doc["settings"], "seeds": 5}}   # the profile's; the study trains BUDGET_SEEDS
+    fig = Figure()
+    draw_results(fig, doc)
+    assert f"{BUDGET_SEEDS} seed(s)" in fig._suptitle.get_text()
 
 
 def test_the_standard_profile_trains_resnet18_as_the_batch_16_ladder_did_and_borrows_its_runs():

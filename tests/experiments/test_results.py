@@ -62,6 +62,25 @@ def test_read_and_draw_isp_bars(tmp_path):
     assert points == [(-0.075, 0.01), (0.075, -0.01), (0.925, 0.02), (1.075, -0.02)]
 
 
+def test_isp_chart_of_an_unfinished_experiment_says_its_seeds(tmp_path):
+    """A one-seed bar has no interval to draw: no error bar (not a zero-length one that reads as a
+    tight interval); every bar carries its seed count and the differences' legend the paired seeds."""
+    doc = make_doc("isp", nets=("mobile",), seeds=2)
+    for row in doc["summary"]:
+        if row["representation"] != "srgb":
+            row.update(n=1, sd=None, ci95_low=None, ci95_high=None)
+    for row in doc["contrasts"]:
+        row.update(n=1, sd=None, t_low=None, t_high=None)
+    doc = read_results(write(tmp_path / "isp", doc))
+    fig = Figure()
+    draw_results(fig, doc)
+    ax = fig.axes[0]
+    caps = [y for line in ax.lines for _, y in line.get_xydata()]
+    np.testing.assert_allclose(sorted(caps), [0.55, 0.65])    # the sRGB bar's interval alone: 0.6 ± 0.05
+    assert sorted(t.get_text() for t in ax.texts) == ["n=1", "n=1", "n=2"]
+    assert [t.get_text() for t in fig.axes[1].get_legend().get_texts()] == ["mobile, n=1"]
+
+
 def test_read_and_draw_exposure_curves(tmp_path):
     doc = read_results(write(tmp_path / "exp", make_doc("exposure", nets=("mobile", "resnet18"))))
     fig = Figure()

@@ -184,8 +184,15 @@ def _top(rows: list[dict]) -> float:
     return min(1.0, max(0.05, 1.15 * max(values, default=1.0)))
 
 
+def _seeds_text(rows: list[dict]) -> str:
+    """'n=K' or 'n=K–M': the seeds behind a set of rows (their 'n')."""
+    ns = sorted({int(r["n"]) for r in rows if r.get("n") is not None})
+    return "" if not ns else f"n={ns[0]}" if len(ns) == 1 else f"n={ns[0]}–{ns[-1]}"
+
+
 def draw_isp(ax, summary: list[dict]) -> None:
-    """Grouped bars: networks along x, one bar per representation; seed (cap) intervals."""
+    """Grouped bars: networks along x, one bar per representation, its seed count (n) at its
+    foot; a seed (cap) interval where there is one (two or more seeds), none where there is not."""
     nets = sorted({r["net"] for r in summary})
     reps = [r for r in REP_COLOURS if any(s["representation"] == r for s in summary)]
     width = 0.8 / max(len(reps), 1)
@@ -193,8 +200,13 @@ def draw_isp(ax, summary: list[dict]) -> None:
         rows = [next((s for s in summary if s["net"] == n and s["representation"] == rep), None) for n in nets]
         xs = [i + (k - (len(reps) - 1) / 2) * width for i, r in enumerate(rows) if r]
         rows = [r for r in rows if r]
-        ax.bar(xs, [r["mean_map"] for r in rows], width, yerr=_bars(rows, "ci95_low", "ci95_high"), capsize=4,
-               color=REP_COLOURS[rep], label=rep)
+        ax.bar(xs, [r["mean_map"] for r in rows], width, color=REP_COLOURS[rep], label=rep)
+        with_ci = [(x, r) for x, r in zip(xs, rows) if r.get("ci95_low") is not None]
+        if with_ci:
+            ax.errorbar([x for x, _ in with_ci], [r["mean_map"] for _, r in with_ci], fmt="none", ecolor="k",
+                        yerr=_bars([r for _, r in with_ci], "ci95_low", "ci95_high"), capsize=4)
+        for x, r in zip(xs, rows):
+            ax.text(x, 0.01, _seeds_text([r]), ha="center", va="bottom", fontsize=7, color="white")
     ax.set_xticks(range(len(nets)), nets)
     ax.set_ylabel("mAP@0.5 (mean over seeds, 95 % seed CI)")
     ax.set_ylim(0, _top(summary))
@@ -203,7 +215,8 @@ def draw_isp(ax, summary: list[dict]) -> None:
 
 def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None = None) -> None:
     """Paired differences as points with a thick seed interval and a thin two-level interval (seeds
-    and test frames, the one verdicts read), coloured by net; x_of(row) places each row; a line at 0."""
+    and test frames, the one verdicts read; neither with one seed), coloured by net, the legend
+    saying how many seeds are paired; x_of(row) places each row; a line at 0."""
     ax.axhline(0.0, color="k", lw=0.8)
     for net in sorted({r["net"] for r in rows}):
         mine = [r for r in rows if r["net"] == net]
@@ -212,7 +225,7 @@ def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None 
         ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "h_low", "h_high", "mean"), fmt="none",
                     ecolor=colour, elinewidth=0.8, capsize=2, alpha=0.7)
         ax.errorbar(xs, [r["mean"] for r in mine], yerr=_bars(mine, "t_low", "t_high", "mean"), fmt="o", ms=4,
-                    color=colour, elinewidth=2.5, capsize=0, label=net)
+                    color=colour, elinewidth=2.5, capsize=0, label=f"{net}, {_seeds_text(mine)}")
     ax.set_title(title, fontsize=9)
     if xlabel:
         ax.set_xlabel(xlabel)
@@ -256,6 +269,9 @@ def draw_results(fig, doc: dict) -> None:
     """The chart of a results document on `fig` (module docstring)."""
     summary, diffs = doc["summary"], doc.get("contrasts", [])
     seeds = doc.get("settings", {}).get("seeds", "?")
+    if doc["kind"] == "budget" and isinstance(seeds, int):
+        from workbench.experiments.plan import BUDGET_SEEDS
+        seeds = min(seeds, BUDGET_SEEDS)             # the study trains its first seeds only
     state = "" if doc.get("complete", True) else " (incomplete)"
     fig.suptitle(f"{doc.get('project', '?')} — {doc['kind']} experiment, profile {doc.get('profile', '?')}, "
                  f"{seeds} seed(s){state}", fontsize=9)
