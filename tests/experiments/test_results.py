@@ -92,7 +92,7 @@ def test_read_and_draw_exposure_curves(tmp_path):
                  if r["net"] == "mobile" and r["condition"] == "ev0_trained")
     np.testing.assert_allclose(np.asarray(curves[0].get_ydata(), float), [m for _, m in ev0])
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
-    assert labels == ["trained at EV 0", "trained on the EV mix", "trained at that EV"]   # not an upper bound
+    assert labels == ["trained at EV 0, n=3", "trained on the EV mix, n=3", "trained at that EV, n=3"]   # not an upper bound
     mix = [line for line in fig.axes[2].lines if line.get_marker() == "o"]
     mobile = next(line for line in mix if line.get_color() == "tab:blue")
     np.testing.assert_allclose(np.asarray(mobile.get_ydata(), float), [0.01, 0.02, 0.03, 0.04, 0.05])

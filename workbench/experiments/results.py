@@ -237,13 +237,15 @@ def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None 
 
 
 def draw_exposure(ax, summary: list[dict], net: str, styles: dict) -> None:
-    """mAP against test EV for one network: one curve per training condition, seed bands."""
+    """mAP against test EV for one network: one curve per training condition (its seeds, n, in the
+    legend), seed bands where every point has one."""
     for cond, (label, ls, colour) in styles.items():
         rows = sorted((s for s in summary if s["net"] == net and s["condition"] == cond), key=lambda s: s["test_ev"])
         if not rows:
             continue
         ev = np.array([r["test_ev"] for r in rows])
-        ax.plot(ev, [r["mean_map"] for r in rows], ls, color=colour, marker="o", ms=3, label=label)
+        ax.plot(ev, [r["mean_map"] for r in rows], ls, color=colour, marker="o", ms=3,
+                label=f"{label}, {_seeds_text(rows)}")
         if all(r["ci95_low"] is not None for r in rows):
             ax.fill_between(ev, [r["ci95_low"] for r in rows], [r["ci95_high"] for r in rows], color=colour,
                             alpha=0.15, lw=0)
