@@ -119,6 +119,36 @@ def test_a_stopped_run_resumes_to_the_same_weights(synthetic_dir, tmp_path):
         train_detector(ds, TrainConfig(**{**TINY, "seed": 5}), tmp_path / "cut.pt")
 
 
+def test_a_run_resumed_on_another_machine_records_both_parts(synthetic_dir, tmp_path, monkeypatch):
+    """CPUs differ 2–4× in training speed: a resumed run lists each process's machine, epochs and
+    seconds, which add up to the run's; a checkpoint from before segments gives its epochs as one
+    part of an unknown machine."""
+    from workbench.detect import engine
+    from workbench.experiments.detection import segments_text
+    from workbench.experiments.records import FIELD_RULES
+    ds = DetectionDataset(synthetic_dir)
+    config = TrainConfig(**{**TINY, "epochs": 3})
+    monkeypatch.setattr(engine, "compute_unit", lambda device: "CPU A")
+    with pytest.raises(JobCancelled):
+        train_detector(ds, config, tmp_path / "cut.pt", cancel=_CancelAfterFirstCheck())
+    monkeypatch.setattr(engine, "compute_unit", lambda device: "CPU B")
+    _, result = train_detector(ds, config, tmp_path / "cut.pt")
+    assert [(g["unit"], g["first_epoch"], g["last_epoch"]) for g in result.segments] == [("CPU A", 1, 1),
+                                                                                        ("CPU B", 2, 3)]
+    assert sum(g["seconds"] for g in result.segments) == pytest.approx(result.seconds)
+    assert FIELD_RULES["train"]["segments"](result.segments)
+    assert segments_text(result.segments).startswith("CPU A 1–1 (") and "; CPU B 2–3 (" in segments_text(result.segments)
+
+    with pytest.raises(JobCancelled):
+        train_detector(ds, config, tmp_path / "old.pt", cancel=_CancelAfterFirstCheck())
+    state = load_checkpoint(tmp_path / "old.pt")
+    del state["segments"], state["checksum"]                    # as written before segments were recorded
+    save_checkpoint(tmp_path / "old.pt", state)
+    _, result = train_detector(ds, config, tmp_path / "old.pt")
+    assert [(g["unit"], g["first_epoch"], g["last_epoch"]) for g in result.segments] == [
+        (engine.NOT_RECORDED, 1, 1), ("CPU B", 2, 3)]
+
+
 def test_a_run_is_a_picklable_job_returning_plain_data(synthetic_dir, tmp_path):
     import json
     job = DetectionJob("k", str(synthetic_dir), TrainConfig(**{**TINY, "epochs": 1}), (0.0, 2.0),

@@ -93,6 +93,14 @@ def prepare_input(x, device: str):
     return x.to(device, non_blocking=True).contiguous(memory_format=torch.channels_last)
 
 
+def compute_unit(device: str) -> str:
+    """What a run computes on, in words: the GPU's name on 'cuda', else the CPU's model."""
+    if device == "cuda":
+        import torch
+        return torch.cuda.get_device_name()
+    return cpu_model()
+
+
 def cpu_model(cpuinfo: str | None = None) -> str:
     """The CPU's model name as /proc/cpuinfo gives it ('unknown' where it cannot be read)."""
     if cpuinfo is None:

@@ -13,7 +13,9 @@ when the curve has no end and half-way points.
 
 Checkpoints at every epoch end, written atomically and read weights-only, so a killed run
 resumes at its last finished epoch with the same data order and sensor noise (cancel is checked
-after each epoch, once the checkpoint is written).
+after each epoch, once the checkpoint is written). A run resumed on another machine records each
+process's part (`segments`: the CPU or GPU, its epochs and training seconds): CPUs differ 2–4×
+in training speed, so a run's ms per image means something only with the machines beside it.
 """
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from workbench.detect.checkpoint import check_training_state, load_checkpoint, save_checkpoint
 from workbench.detect.devices import PRECISIONS, autocast, autocast_dtype, choose_threads, pick_device
-from workbench.detect.devices import prepare_input, prepare_model
+from workbench.detect.devices import compute_unit, prepare_input, prepare_model
 from workbench.errors import InputFileError, ParameterError, StageError
 
 log = logging.getLogger(__name__)
@@ -135,6 +137,25 @@ def convergence(curve: list[dict], epochs: int) -> dict:
             "convergence": why}
 
 
+NOT_RECORDED = "not recorded"      # the machine of epochs a checkpoint from before segments holds
+
+
+def training_segments(state: dict | None) -> list[dict]:
+    """The parts of a run its checkpoint says were trained, one per process: {"unit": CPU or GPU
+    in words, "first_epoch", "last_epoch", "seconds"}. A checkpoint written before segments were
+    recorded (or with a damaged list) gives its epochs as one part of an unknown machine."""
+    if not state or not state.get("epoch"):
+        return []
+    kept = state.get("segments")
+    ok = isinstance(kept, list) and all(
+        isinstance(g, dict) and isinstance(g.get("unit"), str) and isinstance(g.get("first_epoch"), int)
+        and isinstance(g.get("last_epoch"), int) and isinstance(g.get("seconds"), (int, float)) for g in kept)
+    if ok and kept and kept[-1]["last_epoch"] == state["epoch"]:
+        return [dict(g) for g in kept]
+    return [{"unit": NOT_RECORDED, "first_epoch": 1, "last_epoch": int(state["epoch"]),
+             "seconds": float(state.get("elapsed_s", 0.0))}]
+
+
 def _encode_batch(targets, num_classes: int, image_hw: tuple[int, int], device: str) -> dict:
     from workbench.detect.centernet import collate_targets, encode_targets
     encoded = [encode_targets(t["boxes_xyxy"].numpy(), t["classes"].numpy(), num_classes, image_hw, stride=4,
@@ -165,6 +186,7 @@ class TrainResult:
     converged: bool | None = None
     convergence: str = ""
     autocast: str = "fp32"                 # what the run computed in: 'bf16' (autocast) or 'fp32'
+    segments: list = field(default_factory=list)   # training_segments: who trained which epochs
 
 
 def train_view(dataset, config: TrainConfig):
@@ -233,6 +255,7 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
         step_s = float(state["step_s"])
         log.info("resumed %s at epoch %d from %s", config.net, epoch, checkpoint_path)
     done = bool(state and state.get("done"))
+    segments, mine, elapsed_before = training_segments(state), None, elapsed_s
     amp_dtype = autocast_dtype(device, config.precision)
     at_curve = set(curve_epochs(config.epochs, config.curve_points))
     keys = (b for e in itertools.count(epoch)
@@ -280,6 +303,10 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
             res = evaluate_detector(model, curve_view(dataset, config), dataset.class_names, device=device,
                                     batch_size=config.eval_batch_size, precision=config.precision)
             curve.append({"epoch": epoch, "images": images, "train_map": res["map"]})
+        if mine is None:
+            mine = {"unit": compute_unit(device), "first_epoch": epoch, "last_epoch": epoch, "seconds": 0.0}
+            segments.append(mine)
+        mine.update(last_epoch=epoch, seconds=elapsed_s - elapsed_before)
         done = epoch >= config.epochs
         log.info("%s %s EV%s seed %d: epoch %d loss %.3f%s", config.net, config.representation,
                  ",".join(f"{v:+g}" for v in config.train_evs), config.seed, epoch, history[-1]["loss"],
@@ -288,7 +315,8 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
         save_checkpoint(checkpoint_path, {"config": config.to_json(), "model": model.state_dict(),
                                           "optimizer": opt.state_dict(), "epoch": epoch, "step": step,
                                           "elapsed_s": elapsed_s, "history": history, "curve": curve,
-                                          "images": images, "step_s": step_s, "done": done})
+                                          "images": images, "step_s": step_s, "done": done,
+                                          "segments": segments})
         if done:
             break
         if cancel is not None:
@@ -301,4 +329,4 @@ def train_detector(dataset, config: TrainConfig, checkpoint_path: str | Path, ca
                               sensor_isp_ms_per_image=sensor_ms,
                               final_loss=history[-1]["loss"] if history else float("nan"), history=history,
                               curve=curve, **convergence(curve, config.epochs),
-                              autocast="bf16" if amp_dtype is not None else "fp32")
+                              autocast="bf16" if amp_dtype is not None else "fp32", segments=segments)

@@ -45,7 +45,8 @@ def run_detection_job(job: DetectionJob, cancel=None) -> dict:
     and train-mAP curves, train mAP on every training frame at the curve EV), one entry per test
     EV (mAP, AP per class, COCO AP@0.5, bootstrap mAPs, inference ms per image) and where it ran
     (machine: CPU model, bf16 in hardware, threads, wall and CPU seconds of the whole run, code
-    version; a run resumed from a checkpoint counts only its last process)."""
+    version; a run resumed from a checkpoint counts only its last process there, and lists every
+    process's machine, epochs and training seconds in train.segments)."""
     import torch
 
     from workbench.compute import apply_thread_budget

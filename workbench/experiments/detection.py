@@ -94,6 +94,13 @@ def missing_runs(planned_keys, records: list[dict]) -> list[str]:
     return [key for key in planned_keys if key not in done]
 
 
+def segments_text(segments: list[dict] | None) -> str | None:
+    """A run's parts in one CSV cell: 'AMD EPYC 1–276 (4,199 s); …' (None when not recorded)."""
+    if not segments:
+        return None
+    return "; ".join(f"{g['unit']} {g['first_epoch']}–{g['last_epoch']} ({g['seconds']:,.0f} s)" for g in segments)
+
+
 def result_rows(runs: list[dict]) -> list[dict]:
     """One flat row per run and test EV (the CSV's rows)."""
     rows = []
@@ -113,6 +120,7 @@ def result_rows(runs: list[dict]) -> list[dict]:
                          "train_sensor_isp_ms_per_image": train.get("sensor_isp_ms_per_image"),
                          "test_sensor_isp_ms_per_image": test.get("sensor_isp_ms_per_image"),
                          "infer_ms_per_image": test.get("infer_ms_per_image"), "cpu": machine.get("cpu"),
+                         "trained_on": segments_text(train.get("segments")),
                          "run_wall_s": machine.get("wall_s"), "run_cpu_s": machine.get("cpu_s"), "key": run["key"]})
     return rows
 

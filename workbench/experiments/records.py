@@ -92,11 +92,20 @@ def _time(value) -> bool:
     return value is None or _number(value) and value >= 0
 
 
+def _segments(value) -> bool:
+    """A run's parts (engine.training_segments): machine in words, epochs in order, seconds ≥ 0."""
+    return isinstance(value, list) and all(
+        isinstance(g, dict) and isinstance(g.get("unit"), str) and _count(g.get("first_epoch"), 1)
+        and _count(g.get("last_epoch"), g["first_epoch"]) and _number(g.get("seconds")) and g["seconds"] >= 0
+        for g in value)
+
+
 # the other fields of a record and what each must be where present (what the CSV and charts print)
 FIELD_RULES = {
     "train": {"steps": _count, "images": _count, "seconds": _time, "sensor_isp_ms_per_image": _time,
               "train_map_ev": _number, "converged": lambda v: v is None or isinstance(v, bool),
-              "convergence": lambda v: isinstance(v, str), "autocast": lambda v: isinstance(v, str)},
+              "convergence": lambda v: isinstance(v, str), "autocast": lambda v: isinstance(v, str),
+              "segments": _segments},
     "test": {"images": _count, "seconds": _time, "infer_ms_per_image": _time, "sensor_isp_ms_per_image": _time,
              "n_ground_truth": lambda v: isinstance(v, dict) and all(_count(n) for n in v.values())},
     "machine": {"cpu": lambda v: isinstance(v, str), "bf16_native": lambda v: isinstance(v, bool),
