@@ -35,9 +35,18 @@ def claims_of(isp_dir: str | Path, exposure_dir: str | Path) -> list[dict]:
 def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
     """One table row per part of each claim: what is tested, the paired mean difference with its
     two-level 95 % interval (the one the verdict reads) and the descriptive seed and test-set ones,
-    the part's p-value, its p-value against (Holm-adjusted over the claim's parts), and the verdict."""
-    lines = ["| claim (paper) | tested as | paired difference (95 % intervals) | p | p against (Holm) | verdict |",
-             "|---|---|---|---|---|---|"]
+    the part's p-value, its p-value against (Holm-adjusted over the claim's parts), and the verdict;
+    above it, a line for each folder that is not complete yet (its runs and seeds)."""
+    lines = []
+    for folder in (isp_dir, exposure_dir):
+        doc = read_results(folder)
+        if not doc.get("complete", True):
+            seeds = sorted({run["role"]["seed"] for run in doc["runs"] if isinstance(run.get("role"), dict)})
+            lines += [f"**Incomplete:** `{Path(folder).name}` holds {len(doc['runs'])} finished runs (seeds "
+                      f"{', '.join(map(str, seeds)) or 'none'} of {doc.get('settings', {}).get('seeds', '?')}); "
+                      "the verdicts below read only those.", ""]
+    lines += ["| claim (paper) | tested as | paired difference (95 % intervals) | p | p against (Holm) | verdict |",
+              "|---|---|---|---|---|---|"]
     for claim in claims_of(isp_dir, exposure_dir):
         for k, part in enumerate(claim["parts"]):
             head = f"{claim['claim']}. {claim['text']} — **{claim['verdict']}**" if k == 0 else ""
