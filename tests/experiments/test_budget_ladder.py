@@ -228,15 +228,17 @@ def test_a_budget_folder_written_before_the_ladder_is_drawn_with_its_verdict(com
 
 def test_the_standard_profile_trains_resnet18_as_the_batch_16_ladder_did_and_borrows_its_runs():
     """Batch per net (plan.STANDARD_BATCH): `mobile` at 8, `resnet18` at 16, so the standard budget
-    study lends resnet18's 320-epoch runs from the committed batch-16 ladder instead of training them."""
+    study lent resnet18's 320-epoch runs from the committed batch-16 ladder instead of training them
+    (while its B was 320; since B grew to 640 those runs are the budget folder's ladder)."""
     from workbench.errors import ParameterError
     from workbench.experiments.plan import STANDARD_BATCH
     doc = read_results(COMMITTED)
     args = _plan_args(doc)
-    planned = plan_configs("budget", PROFILES["standard"], *args)
+    at_320 = replace(PROFILES["standard"], epochs={**STANDARD_EPOCHS, "resnet18": 320})
+    planned = plan_configs("budget", at_320, *args)
     assert {(c.net, c.batch_size) for _, _, c, _ in planned} == set(STANDARD_BATCH.items())
     jobs = [(role, SimpleNamespace(key=key, test_evs=test_evs)) for role, key, _, test_evs in planned]
     lent, _ = borrowed_runs([COMMITTED], jobs, doc["dataset"]["fingerprint"])
-    assert _epochs(lent) == [("resnet18", 0, STANDARD_EPOCHS["resnet18"]), ("resnet18", 1, STANDARD_EPOCHS["resnet18"])]
+    assert _epochs(lent) == [("resnet18", 0, 320), ("resnet18", 1, 320)]
     with pytest.raises(ParameterError, match="batch_size"):
         plan_configs("budget", replace(PROFILES["standard"], batch_size={"mobile": 8}), *args)
