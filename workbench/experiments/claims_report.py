@@ -23,13 +23,13 @@ def _p(value) -> str:
     return "—" if value is None else f"{value:.4f}"
 
 
-def claims_of(isp_dir: str | Path, exposure_dir: str | Path) -> list[dict]:
-    """claims() of the two result folders (each checked to be of its kind)."""
+def _read_pair(isp_dir: str | Path, exposure_dir: str | Path) -> tuple[dict, dict]:
+    """The two result folders' documents, each checked to be of its kind."""
     isp, exposure = read_results(isp_dir), read_results(exposure_dir)
     for doc, kind, folder in ((isp, "isp", isp_dir), (exposure, "exposure", exposure_dir)):
         if doc["kind"] != kind:
             raise InputFileError(folder, f"holds the {doc['kind']} experiment, not the {kind} one")
-    return claims(isp["contrasts"], exposure["contrasts"])
+    return isp, exposure
 
 
 def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
@@ -37,9 +37,9 @@ def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
     two-level 95 % interval (the one the verdict reads) and the descriptive seed and test-set ones,
     the part's p-value, its p-value against (Holm-adjusted over the claim's parts), and the verdict;
     above it, a line for each folder that is not complete yet (its runs and seeds)."""
+    docs = dict(zip((isp_dir, exposure_dir), _read_pair(isp_dir, exposure_dir)))
     lines = []
-    for folder in (isp_dir, exposure_dir):
-        doc = read_results(folder)
+    for folder, doc in docs.items():
         if not doc.get("complete", True):
             seeds = sorted({run["role"]["seed"] for run in doc["runs"] if isinstance(run.get("role"), dict)})
             lines += [f"**Incomplete:** `{Path(folder).name}` holds {len(doc['runs'])} finished runs (seeds "
@@ -47,14 +47,14 @@ def claims_markdown(isp_dir: str | Path, exposure_dir: str | Path) -> str:
                       "the verdicts below read only those.", ""]
     lines += ["| claim (paper) | tested as | paired difference (95 % intervals) | p | p against (Holm) | verdict |",
               "|---|---|---|---|---|---|"]
-    for claim in claims_of(isp_dir, exposure_dir):
+    for claim in claims(docs[isp_dir]["contrasts"], docs[exposure_dir]["contrasts"]):
         for k, part in enumerate(claim["parts"]):
             head = f"{claim['claim']}. {claim['text']} — **{claim['verdict']}**" if k == 0 else ""
             against = None if part["p_against"] is None else part["p_against_holm"]
             lines.append(f"| {head} | {part['text']} | {_interval(part)} | {_p(part['p'])} | {_p(against)} "
                          f"| {part['verdict']} |")
     lines.append("")
-    stuck = [(folder, run) for folder in (isp_dir, exposure_dir) for run in read_results(folder)["runs"]
+    stuck = [(folder, run) for folder, doc in docs.items() for run in doc["runs"]
              if run["train"].get("converged") is not True]
     if stuck:
         lines.append("Runs that did not converge (engine.convergence), read in the contrasts above: " + "; ".join(
