@@ -291,3 +291,38 @@ def test_a_budget_that_grows_keeps_its_old_runs_as_the_ladder_and_trains_only_th
     isp.close()
     lent = json.loads((tmp_path / "isp" / "results.json").read_text())["runs"]
     assert [r["config"]["epochs"] for r in lent] == [2]
+
+
+def test_a_folder_rewritten_without_training_takes_the_grown_budgets_runs(synthetic_dir, tmp_path, capsys):
+    """After a budget grows, `--no-train` rewrites an ISP folder from what it holds and what the
+    budget folder lends: its sRGB run at the old budget moves to superseded_runs, the one at the
+    new budget takes its place, and nothing is trained."""
+    from workbench.cli import main
+    prof = TINY
+    _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path / "budget", seeds=1, profile_override=prof))
+    _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path / "isp", seeds=1, profile_override=prof,
+                          reuse_from=(tmp_path / "budget",)))
+    grown = replace(prof, epochs={"mobile": 2, "resnet18": 2})
+    _drive(run_experiment("budget", _project(), synthetic_dir, tmp_path / "budget", seeds=1, profile_override=grown))
+    result = _drive(run_experiment("isp", _project(), synthetic_dir, tmp_path / "isp", seeds=1,
+                                   profile_override=grown, nets=(), reuse_from=(tmp_path / "budget",)))
+    assert result.trained == [] and len(result.reused) == 1                  # the 2-epoch sRGB run, lent
+    doc = json.loads((tmp_path / "isp" / "results.json").read_text())
+    assert [(r["role"]["representation"], r["config"]["epochs"]) for r in doc["runs"]] == [("srgb", 2)]
+    assert sorted((r["role"]["representation"], r["config"]["epochs"]) for r in doc["superseded_runs"]) == \
+        [("linear", 1), ("raw", 1), ("srgb", 1)]
+    assert not doc["complete"]
+    assert main(["experiment", "isp", "city_detection_quick", "--data", str(synthetic_dir), "--out",
+                 str(tmp_path / "cli"), "--no-train", "--nets", "mobile"]) == 2
+    assert "--no-train" in capsys.readouterr().err and not (tmp_path / "cli").exists()
+
+
+def test_the_command_line_rewrites_a_folder_without_training(synthetic_dir, tmp_path, capsys):
+    from workbench.cli import main
+    from workbench.project import save_project
+    project = save_project(_project(), tmp_path / "synthetic.json")
+    assert main(["experiment", "isp", str(project), "--data", str(synthetic_dir), "--out",
+                 str(tmp_path / "cli"), "--profile", "quick", "--no-train"]) == 0
+    assert json.loads(capsys.readouterr().out)["trained"] == 0
+    doc = json.loads((tmp_path / "cli" / "results.json").read_text())
+    assert doc["runs"] == [] and not doc["complete"]

@@ -79,6 +79,10 @@ def test_isp_chart_of_an_unfinished_experiment_says_its_seeds(tmp_path):
     np.testing.assert_allclose(sorted(caps), [0.55, 0.65])    # the sRGB bar's interval alone: 0.6 ± 0.05
     assert sorted(t.get_text() for t in ax.texts) == ["n=1", "n=1", "n=2"]
     assert [t.get_text() for t in fig.axes[1].get_legend().get_texts()] == ["mobile, n=1"]
+    # one net: its points centred on their contrasts' ticks, half a slot from the frame
+    points = [tuple(xy) for line in fig.axes[1].lines for xy in line.get_xydata() if line.get_marker() == "o"]
+    assert sorted(round(x, 3) for x, _ in points) == [0.0, 1.0]
+    assert fig.axes[1].get_xlim() == (-0.5, 1.5)
 
 
 def test_read_and_draw_exposure_curves(tmp_path):

@@ -31,6 +31,10 @@ def register(sub) -> None:
     p.add_argument("--nets", nargs="+", default=None,
                    help="train only these of the profile's nets (another process may fill the same --out "
                         "with the others: the folder is merged under its lock after every run)")
+    p.add_argument("--no-train", action="store_true",
+                   help="train nothing: rewrite --out from the runs it holds and those --reuse lends (its "
+                        "analysis, CSVs and chart by this version; after a budget grows, the runs it "
+                        "supersedes move aside)")
     p.add_argument("--reuse", nargs="+", default=(), metavar="DIR",
                    help="result folders of the same data set whose finished runs of the same configuration are "
                         "taken instead of trained (the sRGB EV-0 runs are shared by isp, exposure and budget)")
@@ -89,6 +93,9 @@ def cmd_experiment(args) -> int:
     handler.setFormatter(logging.Formatter("  %(message)s"))
     logging.getLogger("workbench.detect").addHandler(handler)
     logging.getLogger("workbench.detect").setLevel(logging.INFO)
+    if args.no_train and args.nets:
+        print(f"workbench experiment {args.kind}: error: give --nets or --no-train, not both", file=sys.stderr)
+        return 2
     out = args.out or f"experiment-{args.kind}-{args.profile}"
     cancel = CancelToken()
     try:
@@ -96,7 +103,8 @@ def cmd_experiment(args) -> int:
         compute = compute_spec(args, gpus_per_task=1.0 if args.profile == "paper" else 0.0)
         job = run_experiment(args.kind, project, args.data, out, profile=args.profile, seeds=args.seeds,
                              cancel=cancel, compute=compute, checkpoints=args.checkpoints,
-                             nets=tuple(args.nets) if args.nets else None, reuse_from=tuple(args.reuse))
+                             nets=() if args.no_train else tuple(args.nets) if args.nets else None,
+                             reuse_from=tuple(args.reuse))
         result = _drive(job, args.kind, "run")
     except (KeyboardInterrupt, JobCancelled):
         cancel.cancel()

@@ -210,7 +210,8 @@ def draw_isp(ax, summary: list[dict]) -> None:
     ax.set_xticks(range(len(nets)), nets)
     ax.set_ylabel("mAP@0.5 (mean over seeds, 95 % seed CI)")
     ax.set_ylim(0, _top(summary))
-    ax.legend(title="trained and tested on", fontsize=7)
+    ax.legend(title="trained and tested on", fontsize=7, title_fontsize=8, ncol=max(len(reps), 1),
+              loc="lower center", bbox_to_anchor=(0.5, 1.0), frameon=False)   # above the bars, over none
 
 
 def draw_differences(ax, rows: list[dict], x_of, title: str, xlabel: str | None = None) -> None:
@@ -290,9 +291,10 @@ def draw_results(fig, doc: dict) -> None:
         rows = [r for r in diffs if r["contrast"] in ("raw − srgb", "linear − srgb")]
         names = ["raw − srgb", "linear − srgb"]
         nets = sorted({r["net"] for r in rows})
-        draw_differences(right, rows, lambda r: names.index(r["contrast"]) + 0.15 * (nets.index(r["net"]) - 0.5),
+        draw_differences(right, rows, lambda r: names.index(r["contrast"]) + 0.15 * (nets.index(r["net"]) - (len(nets) - 1) / 2),
                          "paired difference of mAP (same seed, same test captures)")
         right.set_xticks(range(2), names)
+        right.set_xlim(-0.5, len(names) - 0.5)          # half a slot each side: no point on the frame
         return
     nets = sorted({s["net"] for s in summary})
     panels = [("ev_mix − ev0_trained", "EV mix − trained at EV 0", "test EV"),
@@ -310,4 +312,5 @@ def draw_results(fig, doc: dict) -> None:
     for k, (name, title, xlabel) in enumerate(panels):
         rows = [r for r in diffs if r["contrast"] == name and r["test_ev"] != "all"]
         draw_differences(fig.add_subplot(grid[1, k * span:(k + 1) * span]), rows,
-                         lambda r: float(r["test_ev"]) + 0.12 * (nets_all.index(r["net"]) - 0.5), title, xlabel)
+                         lambda r: float(r["test_ev"]) + 0.12 * (nets_all.index(r["net"]) - (len(nets_all) - 1) / 2),
+                         title, xlabel)

@@ -2,7 +2,7 @@
 the default layout at 1280×800 on the paper camera and on the city sample (also with its 3-D view
 in front), the main window on the
 city sample, the lens editor, the exposure-sweep panel after a sweep, and the experiments panel
-on a result folder. Runs on a private Xvfb when there is no display."""
+on a result folder (alone: --experiments-only). Runs on a private Xvfb when there is no display."""
 from __future__ import annotations
 
 import argparse
@@ -31,7 +31,7 @@ def _save(widget, path: Path) -> Path:
 
 
 def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = False,
-         layout_only: bool = False) -> list[Path]:
+         layout_only: bool = False, experiments_only: bool = False) -> list[Path]:
     from PySide6.QtWidgets import QApplication
 
     import workbench.gui  # noqa: F401
@@ -41,6 +41,11 @@ def take(out: Path, results: Path | None, size=(240, 320), metrics_only: bool = 
         if metrics_only:
             out.mkdir(parents=True, exist_ok=True)
             return _metrics_shots(app, out)
+        if experiments_only:
+            if results is None:
+                raise ValueError("--experiments-only needs --results FOLDER")
+            out.mkdir(parents=True, exist_ok=True)
+            return _experiments_only(app, out, results)
         return _take(app, out, results, size, layout_only)
 
 
@@ -97,17 +102,10 @@ def _take(app, out: Path, results: Path | None, size, layout_only: bool = False)
         _settle(app, 1.0)
         written.append(_save(sweep, out / "sweep-panel.png"))
 
-    experiments = win.editors.get("Experiments")
-    if experiments is not None and results is not None:
-        experiments.setParent(None)
-        experiments.resize(1300, 800)
-        experiments.show()
-        experiments.set_project(city)
-        if not experiments.open_folder(results):
-            raise FileNotFoundError(f"no experiment results under {results}")
-        _wait(app, experiments.chart.is_current, 120)
-        _settle(app, 1.0)
-        written.append(_save(experiments, out / "experiments-panel.png"))
+    experiments = None
+    if results is not None:
+        experiments = win.editors.get("Experiments")
+        written.append(_experiments_shot(app, experiments, city, results, out))
     written += _metrics_shots(app, out)
     win.document.undo_stack.setClean()
     win.close()
@@ -116,6 +114,39 @@ def _take(app, out: Path, results: Path | None, size, layout_only: bool = False)
             w.close()
     app.processEvents()
     return written
+
+
+def _experiments_shot(app, experiments, project, results: Path, out: Path) -> Path:
+    """The Experiments panel, out of its dock at 1300×800, on the result folder `results`."""
+    experiments.setParent(None)
+    experiments.resize(1300, 800)
+    experiments.show()
+    experiments.set_project(project)
+    if not experiments.open_folder(results):
+        raise FileNotFoundError(f"no experiment results under {results}")
+    _wait(app, experiments.chart.is_current, 120)
+    _settle(app, 1.0)
+    return _save(experiments, out / "experiments-panel.png")
+
+
+def _experiments_only(app, out: Path, results: Path) -> list[Path]:
+    """Only the Experiments panel's screenshot, set to the city sample, in a window on the paper
+    camera's charts (no city render)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    from workbench.gui.document import Document
+    from workbench.gui.main_window import MainWindow
+    from workbench.project import load_project
+    city = load_project("city_paper_camera")
+    win = MainWindow(Document(load_project("paper_camera")), with_city_view=False)
+    win.ask_save_changes = lambda: QMessageBox.StandardButton.Discard
+    experiments = win.editors["Experiments"]
+    shot = _experiments_shot(app, experiments, city, results, out)
+    win.document.undo_stack.setClean()
+    win.close()
+    experiments.close()
+    app.processEvents()
+    return [shot]
 
 
 def _default_layout(app, project, path: Path, city_view_path: Path | None = None) -> list[Path]:
@@ -193,13 +224,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--metrics-only", action="store_true", help="only the Metrics dock's two screenshots")
     parser.add_argument("--layout-only", action="store_true",
                         help="only the default layouts at 1280×800 (paper camera; city sample, also with its 3-D view)")
+    parser.add_argument("--experiments-only", action="store_true",
+                        help="only the Experiments panel on --results (no render)")
     args = parser.parse_args(argv)
+    if args.experiments_only and args.results is None:
+        parser.error("--experiments-only needs --results FOLDER")
     import os
     import tempfile
     os.environ.setdefault("WORKBENCH_GUI_HOME", tempfile.mkdtemp(prefix="workbench-gui-home-"))  # fresh layout
     from workbench.gui.display import virtual_display
     with virtual_display("1700x1100x24"):
-        take(args.out, args.results, metrics_only=args.metrics_only, layout_only=args.layout_only)
+        take(args.out, args.results, metrics_only=args.metrics_only, layout_only=args.layout_only,
+             experiments_only=args.experiments_only)
         import shiboken6
         from PySide6.QtWidgets import QApplication
         shiboken6.delete(QApplication.instance())
