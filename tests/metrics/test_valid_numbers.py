@@ -64,7 +64,9 @@ def test_compare_with_the_noise_off_writes_null_with_reasons_and_no_infinite_dif
     # no read noise: the dynamic range is against the 8-bit ADC's quantisation noise, not 1e-9 e⁻ (260 dB)
     s = quiet.sensor
     quantisation_e = s.lsb_V / s.conversion_gain_V_per_e / math.sqrt(12)
-    assert doc["B"]["summary"]["dynamic_range_dB"] == pytest.approx(20 * math.log10(s.full_well_e / quantisation_e))
+    from workbench.sensor.snr import sensor_dynamic_range
+    saturation_e = sensor_dynamic_range(s)["saturation_e"]                  # the full well, less half a code
+    assert doc["B"]["summary"]["dynamic_range_dB"] == pytest.approx(20 * math.log10(saturation_e / quantisation_e))
     assert doc["B"]["summary"]["dynamic_range_dB"] < 70
     flat = [row for row in doc["B"]["noise"] if row["snr"] is None]       # a measurement that does not vary
     assert flat and all(row["snr_reason"] == ("unbounded (noise off)" if row["mean_e"] > 0 else

@@ -64,10 +64,10 @@ def cmd_metrics(args) -> int:
     project = load_project(args.project)
     with _out_lock(args.out, "workbench metrics"):
         metrics = camera_metrics(project)
-        print(f"{project.name}:\n{_summary_lines(metrics)}")
-        if args.out is not None:
-            paths = write_metrics(metrics, args.out)
-            print(json.dumps({k: str(v) for k, v in paths.items()}))
+        paths = write_metrics(metrics, args.out) if args.out is not None else None   # saved before anything is
+    print(f"{project.name}:\n{_summary_lines(metrics)}")                           # printed: a closed pipe loses none
+    if paths is not None:
+        print(json.dumps({k: str(v) for k, v in paths.items()}))
     return 0
 
 

@@ -11,9 +11,13 @@ optics, so lens fall-off cannot lift the curve: on each raw channel's own sites 
 with that plane's Nyquist and the closed form optics × pixel beside it, the demosaiced G plane, the
 sRGB luminance; MTF50 with its bootstrap standard deviation, MTF at 0.25 and at Nyquist; and the
 optics' MTF from its model and the pixel aperture's, metrics.mtf_model), the uniform
-field at a series of exposures (SNR against signal per channel, with the model's), and the Macbeth
+field at a series of exposures (SNR against signal per channel, with the model's; and, for the
+headline 'snr_at_10pct_full_well_dB', one capture per channel exposed to put its mean at 10 % of
+the electrons at saturation — the full well at analog gain 1, less at higher gain — so no design
+is read at another signal than another), and the Macbeth
 chart (ΔE2000 per patch of the fitted and of held-out patches, flat-fielded; and the noise of its
-six neutral patches per channel). Charts are at the project's scene distance, noise as configured.
+six neutral patches per channel). 'dynamic_range_dB' is the sensor's (sensor_dynamic_range: the
+electrons at saturation, which analog gain lowers, over the noise floor). Charts are at the project's scene distance, noise as configured.
 Each summary metric's uncertainty is measured: its standard deviation over NOISE_DRAWS more
 captures of the same charts with other sensor seeds (other temporal noise and, where the sensor has
 it, another unit's fixed-pattern noise; the optics computed once).
@@ -30,7 +34,7 @@ from workbench.metrics.colour import held_out_delta_e, macbeth_delta_e, patch_me
 from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50, mtf50_spread
 from workbench.metrics.mtf_model import optics_mtf, pixel_mtf
 from workbench.metrics.noise import snr_model, snr_vs_signal
-from workbench.sensor.snr import noise_floor_e
+from workbench.sensor.snr import sensor_dynamic_range
 
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
 LOW_SNR = 10.0
@@ -149,8 +153,8 @@ def _model_row(name: str, frequency: np.ndarray, mtf: np.ndarray, note: str) -> 
 
 
 def uniform_chart(project):
-    """The project in front of the uniform chart, its light through the optics as it is (πT/4N²),
-    not rescaled: noise_series' chart and the slanted edge's flat field."""
+    """The project in front of the uniform chart, its light through the optics as it is (the camera
+    equation, πT / (1 + 4N²(1 + |m|)²) on axis: optics.formation.geometry), not rescaled: noise_series' chart and the slanted edge's flat field."""
     chart = _chart(project, "uniform")
     return chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))
 
@@ -202,17 +206,57 @@ def check_edge_exposed(image, sensor) -> None:
                          "auto_exposure_level or the scene's illuminance")
 
 
+EDGE_CLIPPED_LIMIT = 1e-3   # share of the e-SFR region's pixels at the top code above which the edge is re-exposed
+
+
+def _edge_region_clipped(image) -> float:
+    """The share of the e-SFR region's pixels (_centre_roi) that read the largest code."""
+    dn = np.asarray(image.dn)
+    return float(np.mean(dn[_centre_roi(dn.shape)] >= image.max_dn))
+
+
+def edge_shot(project, shots: ChartShots):
+    """The slanted-edge chart's pipeline result and how it was exposed ({'exposure_s', 're_exposed',
+    'clipped_pct_at_project_exposure', 'note'}): at the project's exposure where that clips at most
+    EDGE_CLIPPED_LIMIT of the e-SFR region, else exposed as ISO 12233 asks (an unclipped edge: its
+    brightest pixels at COLOUR_CHART_LEVEL of the swing, as the Macbeth shot): a clipped edge's
+    sharp corner lifts the MTF above what the optics and pixels allow (EV +1 on the f/8 chart: raw G
+    MTF50 0.42 cy/px against a closed-form limit of 0.25). ParameterError naming the exposure where
+    the chart is too dark to hold an edge (check_edge_exposed)."""
+    chart = _chart(project, "slanted_edge")
+    result = shots.run(chart)
+    clipped = _edge_region_clipped(result.sensor_image)
+    note = "the project's exposure"
+    if clipped > EDGE_CLIPPED_LIMIT:
+        result = shots.run(chart.updated(sensor=chart.sensor.updated(
+            exposure_s=None, ev_bias=0.0, auto_exposure_method="brightest", auto_exposure_level=COLOUR_CHART_LEVEL)))
+        note = (f"re-exposed: at the project's exposure {100 * clipped:.1f} % of the edge region clips, and a clipped "
+                f"edge lifts the MTF; measured with the chart's brightest pixels at {COLOUR_CHART_LEVEL:.0%} of the "
+                "swing (ISO 12233: an unclipped edge)")
+    check_edge_exposed(result.sensor_image, project.sensor)
+    return result, {"exposure_s": float(np.mean(result.sensor_image.exposure_s)),
+                    "re_exposed": clipped > EDGE_CLIPPED_LIMIT, "clipped_pct_at_project_exposure": 100 * clipped,
+                    "note": note}
+
+
 def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[dict]:
-    """e-SFR rows of the slanted-edge chart seen by the project's camera, flat-fielded by a uniform
-    chart through the same optics: each raw channel on its own sites at their full-grid positions
+    """e-SFR rows of the slanted-edge chart seen by the project's camera (exposed by edge_shot:
+    re-exposed where the project's exposure clips it; each measured row's 'exposure' says how),
+    flat-fielded by a uniform chart through the same optics: each raw channel on its own sites at their full-grid positions
     (black level removed; its closed form optics × pixel beside it as model_mtf when the optics has
     one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
     diffraction_limited; other levels have no closed form and no such row) and the pixel aperture
     alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run;
     shots: the kept chart pipelines of a series of noise draws."""
-    result = (shots or ChartShots()).run(_chart(project, "slanted_edge"))
+    from workbench.metrics.esfr import MIN_ROWS
+    smallest = 2 * MIN_ROWS                                   # the e-SFR region is the central half (_centre_roi)
+    if min(project.sensor.rows, project.sensor.cols) < smallest:
+        field = "sensor.rows" if project.sensor.rows < smallest else "sensor.cols"
+        raise ParameterError(field, getattr(project.sensor, field.split(".")[1]),
+                             f"at least {smallest}: the slanted edge is measured on the central half of the frame, "
+                             f"which needs {MIN_ROWS} rows and columns")
+    result, exposure = edge_shot(project, shots or ChartShots())
     image, isp, sensor = result.sensor_image, result.isp, project.sensor
-    check_edge_exposed(image, sensor)
     tile = np.asarray(image.cfa_tile)
     names = list(image.channel_names)
     flat = flat_field(project, image.dn.shape, tile, uniform)
@@ -243,6 +287,8 @@ def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[d
     rows.append(_sfr_row(f"linear {green}", np.asarray(isp.linear[..., k], np.float64), flat, os))
     lin = np.where(isp.srgb <= 0.04045, isp.srgb / 12.92, ((isp.srgb + 0.055) / 1.055) ** 2.4)
     rows.append(_sfr_row("sRGB luminance", lin @ np.array([0.2126, 0.7152, 0.0722]), flat, os))
+    for row in rows:
+        row["exposure"] = exposure
     f = MODEL_FREQUENCIES_CY_PX
     optics = optics_mtf(result, k, f, pitch_m)
     if optics is not None:
@@ -262,7 +308,8 @@ def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
 
 def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tuple[list[dict], float]:
     """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
-    scene luminance to sensor-plane illuminance (lux per cd/m²: πT/4N² on axis, less off axis);
+    scene luminance to sensor-plane illuminance (lux per cd/m²: πT / (1 + 4N²(1 + |m|)²) on axis, the
+    camera equation of optics.formation.geometry, less off axis);
     each row also holds its sensor-plane exposure (exposure_lux_s). uniform: the pipeline result of
     uniform_chart(project), when already run; the captures' noise is drawn from the sensor's seed."""
     from workbench.sensor import resolve_exposure
@@ -281,6 +328,47 @@ def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tupl
     for row in rows:
         row["exposure_lux_s"] = lux * row["exposure_s"]
     return rows, lux / nits
+
+
+SNR_POINT_OF_SATURATION = 0.1     # the headline SNR's signal: this share of the electrons at saturation
+
+
+def snr_at_saturation_share(project, uniform, share: float = SNR_POINT_OF_SATURATION) -> tuple[list[dict], str | None]:
+    """SNR of the uniform chart captured, per channel, at the exposure that puts that channel's mean
+    at `share` of the electrons at saturation (sensor_dynamic_range: the full well at analog gain 1,
+    less at higher gain): one capture per channel, measured as noise_series measures (region_noise
+    over the central half), its rows with 'exposure_s' and 'target_e' (SNR None, unbounded, with the
+    sensor's noise off: a capture without temporal noise has none to measure). ([], why) where no channel
+    can be put there (no signal, or the analog offset fills the swing)."""
+    from workbench.metrics.noise import region_noise
+    from workbench.sensor import signal_rate_to_sensor_image
+    sensor = project.sensor
+    target = share * sensor_dynamic_range(sensor)["saturation_e"]
+    if not target > 0:
+        return [], "undefined (the analog offset fills the swing: no signal reaches the ADC)"
+    rate = np.asarray(uniform.signal_rate_e_per_s, np.float64)
+    h, w = rate.shape
+    region = np.zeros(rate.shape, bool)
+    region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
+    tile = np.asarray(uniform.sensor_image.cfa_tile)
+    rr, cc = np.indices(rate.shape)
+    channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
+    rows = []
+    for k, name in enumerate(uniform.sensor_image.channel_names):
+        sel = region & (channel == k)
+        mean_rate = float(rate[sel].mean()) if sel.any() else 0.0
+        if not mean_rate > 0:
+            continue
+        t = target / mean_rate
+        image = signal_rate_to_sensor_image(rate, sensor, t, np.random.default_rng([sensor.seed, 1000 + k]))
+        row = next((r for r in region_noise(image, sensor, region) if r["channel"] == name), None)
+        if row is None:
+            continue
+        if sensor.noise_flag < 1:        # no temporal noise: the spread left is the codes' fixed steps over the fall-off
+            row.update(snr=None, snr_reason=snr_unbounded_reason(sensor))
+        rows.append({**row, "exposure_s": t, "target_e": target,
+                     "snr_model": finite_or_none(snr_model(row["mean_e"], sensor, t))})
+    return rows, None if rows else "undefined (no signal)"
 
 
 def exposure_figures(noise: list[dict], sensor, lux_per_cd_m2: float) -> dict:
@@ -429,33 +517,32 @@ def _measure(project, shots: ChartShots) -> dict:
     colour = colour_error(project, shots)
     by_plane = {r["plane"]: r for r in mtf}
     srgb = by_plane["sRGB luminance"]
-    mid = [r for r in noise if abs(r["mean_e"] - 0.1 * project.sensor.full_well_e) ==
-           min(abs(q["mean_e"] - 0.1 * project.sensor.full_well_e) for q in noise)]
+    mid, mid_why = snr_at_saturation_share(project, uniform)
+    sensor_range = sensor_dynamic_range(project.sensor)
     pitch_mm = project.sensor.pixel_pitch_um * 1e-3
     expo = exposure_figures(noise, project.sensor, lux_per_cd_m2)
     fitted, held = colour["fitted"] or {}, colour["held_out"] or {}
     mid_snr = [r["snr"] for r in mid]
-    floor_e, floor_why = noise_floor_e(project.sensor)
     summary = {"mtf50_cy_px": srgb["mtf50_cy_px"], "mtf50_sd_cy_px": srgb["mtf50_sd_cy_px"],
                "mtf_nyquist": srgb["mtf_nyquist"],
                "mtf50_lp_mm": None if srgb["mtf50_cy_px"] is None else srgb["mtf50_cy_px"] / pitch_mm,
                "snr_at_10pct_full_well_dB": (float(20 * np.log10(np.mean(mid_snr)))
-                                             if None not in mid_snr and np.mean(mid_snr) > 0 else None),
+                                             if mid_snr and None not in mid_snr and np.mean(mid_snr) > 0 else None),
                LOW_LIGHT_SNR_KEY: expo["snr_low_light_dB"],
                "noise_equivalent_exposure_lux_s": expo["noise_equivalent_exposure_lux_s"],
                "delta_e_held_out_mean": held.get("mean"), "delta_e_held_out_max": held.get("max"),
                "delta_e_mean": fitted.get("mean"), "delta_e_max": fitted.get("max"),
                "read_noise_e": project.sensor.read_noise_e, "full_well_e": project.sensor.full_well_e,
-               "dynamic_range_dB": (float(20 * np.log10(project.sensor.full_well_e / floor_e)) if floor_e > 0
-                                    else None)}
+               "saturation_e": sensor_range["saturation_e"] if sensor_range["saturation_e"] > 0 else None,
+               "dynamic_range_dB": sensor_range["dynamic_range_dB"]}
     reasons = {LOW_LIGHT_SNR_KEY: expo.get("null_reasons", {}).get("snr_low_light_dB"),
                "noise_equivalent_exposure_lux_s": expo.get("null_reasons", {}).get("noise_equivalent_exposure_lux_s"),
-               "snr_at_10pct_full_well_dB": next((r.get("snr_reason") for r in mid if r["snr"] is None),
-                                                 "undefined (no signal)"),
-               "dynamic_range_dB": floor_why}
+               "snr_at_10pct_full_well_dB": next((r.get("snr_reason") for r in mid if r["snr"] is None), mid_why),
+               "saturation_e": sensor_range["dynamic_range_limit"],
+               "dynamic_range_dB": sensor_range["dynamic_range_limit"]}
     null_reasons = {k: why for k, why in reasons.items() if summary[k] is None and why}
     return {"project": project.name, "summary": summary, "null_reasons": null_reasons, "mtf": mtf, "noise": noise,
-            "exposure": expo, "colour": colour}
+            "snr_at_saturation_share": mid, "exposure": expo, "colour": colour}
 
 
 def camera_metrics(project, noise_draws: int = NOISE_DRAWS) -> dict:

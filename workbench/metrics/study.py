@@ -34,8 +34,10 @@ STUDY_FORMAT = "camera-workbench-study"
 # what the measurements mean: 2 = e-SFR flat-fielded, raw planes at full resolution, MTF50's spread;
 # 3 = ΔE fitted and held out on flat-fielded patch means, each metric's uncertainty over noise draws;
 # 4 = MTF50 from a quadratic fitted about the 0.5 crossing (the first crossing read noisy curves low);
+# 5 = an edge the exposure clips re-exposed unclipped, SNR measured at 10 % of the electrons at
+# saturation, the dynamic range from them (analog gain counted), saturation_e in the summary;
 # a resumed study re-measures the designs of another version instead of mixing them into one table
-METRICS_VERSION = 4
+METRICS_VERSION = 5
 DELTA_E_NOTE = ("ΔE2000: the Macbeth chart shot with its brightest pixels at 90 % of the swing, the ISP's XYZ of "
                 "flat-fielded patch means (divided by the noise-free frame of a uniform white field through the same "
                 "optics, so lens fall-off is not counted), exposure matched on neutral 5; delta_e_held_out: each "
@@ -50,7 +52,7 @@ HIGHER_IS_BETTER = {"mtf50_cy_px": True, "mtf_nyquist": True, "mtf50_lp_mm": Tru
                     LOW_LIGHT_SNR_KEY: True, "noise_equivalent_exposure_lux_s": False,
                     "delta_e_held_out_mean": False, "delta_e_held_out_max": False,
                     "delta_e_mean": False, "delta_e_max": False, "read_noise_e": False, "full_well_e": True,
-                    "dynamic_range_dB": True, "map": True}
+                    "saturation_e": True, "dynamic_range_dB": True, "map": True}
 
 
 def parse_vary(items: list[str]) -> dict[str, list]:
@@ -324,7 +326,8 @@ def run_study(project, vary: dict[str, list], out_dir, *, x: str = "mtf50_cy_px"
             else:
                 notes.append(f"the designs measured by metrics version {old.get('metrics_version', 1)} are "
                              f"measured again (version {METRICS_VERSION}: flat-fielded e-SFR, held-out ΔE, "
-                             "measured uncertainties and MTF50 fitted about its crossing)")
+                             "measured uncertainties, MTF50 fitted about its crossing, unclipped edges, SNR at "
+                             "10 % of saturation)")
         done = {d["design"] for d in doc["designs"]}
         jobs = [DesignJob(name, values, p.model_dump_json(), detector, data) for name, values, p in grid
                 if name not in done]
@@ -478,9 +481,12 @@ def compare_designs(a, b, out_dir) -> dict:
     md = (f"# {ma['project']} (A) against {mb['project']} (B)\n\n{what}\n\n" + _markdown(table, reasons) + spread +
           f"\nVerdict: {TOLERANCE_RULE}; noise draws per design: A {ma.get('noise_draws')}, B {mb.get('noise_draws')}.\n\n"
           "MTF: sRGB luminance by the ISO 12233 slanted edge (cy/px; lp/mm on the sensor). SNR: the uniform "
-          "field, measured, at 10 % of full well and for a 10 cd/m² surface exposed 10 ms through the optics "
-          "(green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
-          " Dynamic range: full well over the read noise (with none, over the ADC's quantisation noise).\n")
+          "field, measured, at 10 % of the electrons at saturation (each channel exposed to put its mean there; the "
+          "full well at analog gain 1, less at higher gain) and for a 10 cd/m² surface exposed 10 ms through the "
+          "optics (green channel). Noise-equivalent exposure: sensor-plane lux·s where SNR = 1. " + DELTA_E_NOTE +
+          " Dynamic range: the electrons at saturation over the read noise (with none, over the ADC's quantisation "
+          "noise). MTF: where the design's exposure clips the slanted edge, the edge is re-exposed unclipped "
+          "(ISO 12233), and the MTF rows say so.\n")
     label_a, label_b = difference_labels(a, b)
     fig = Figure(figsize=(11, 8), layout="constrained")
     draw_metrics(fig, [{**ma, "label": label_a}, {**mb, "label": label_b}])
