@@ -94,6 +94,9 @@ def parse_json(text: str, path: str | os.PathLike, what: str) -> object:
                                    f"(a {what} is JSON)") from None
     except RecursionError:
         raise InputFileError(path, f"JSON nested too deeply to be a {what}") from None
+    except ValueError as exc:            # json refuses an integer of more digits than int() converts (4,300)
+        raise InputFileError(path, f"not a usable {what}: {str(exc).split(';')[0]}; write the number with fewer "
+                                   "digits") from None
     except _DuplicateKey as exc:
         key = exc.key if len(exc.key) <= 40 else exc.key[:37] + "..."
         raise InputFileError(path, f"a JSON object gives the key {key!r} twice; keep one") from None

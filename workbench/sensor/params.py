@@ -16,6 +16,7 @@ from workbench.params import Params
 MAX_PIXELS = 2 ** 25
 """Largest sensor simulated in memory (33.5 Mpx, e.g. 8192×4096): each full-frame stage keeps a
 few float32 copies, and the optical image upstream is H×W×Nλ."""
+MIN_FULL_WELL_E = 1.0     # electrons a pixel holds at the least (below, every signal is under one electron)
 
 CFA_PATTERNS = ("RGGB", "GRBG", "GBRG", "BGGR", "RCCC", "RCCB", "RGBW", "MONO")
 
@@ -156,6 +157,10 @@ class SensorParams(Params):
         if abs(self.analog_offset_V) >= self.voltage_swing_V:
             raise InvalidValueError(f"analog_offset_V = {self.analog_offset_V} V must be smaller in magnitude than "
                              f"voltage_swing_V = {self.voltage_swing_V} V")
+        if not self.full_well_e >= MIN_FULL_WELL_E:
+            raise InvalidValueError(f"voltage_swing_V / conversion gain = {self.full_well_e:.3g} e⁻ of full well: a "
+                                    f"pixel must hold at least {MIN_FULL_WELL_E:g} electron; raise voltage_swing_V "
+                                    "or lower conversion_gain_uV_per_e")
         from workbench.sensor.cfa import cfa_layout
         tile, _ = cfa_layout(self.cfa_pattern)
         if isinstance(self.exposure_s, list):

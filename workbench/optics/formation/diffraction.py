@@ -25,11 +25,15 @@ def airy_cell_kernel(wavelength_m: float, working_f_number_: float, spacing_m: f
     """The Airy pattern integrated over each sample cell (odd-sized, sums to 1): the energy a
     point at a cell centre sends into every cell. Out to `radius_airy` × λN (≥ 1 cell); the
     ~0.5 % of light in the rings beyond is redistributed by the normalisation. Each cell is
-    integrated on a sub-grid of ≤ λN/4 (at most 64² points)."""
+    integrated on a sub-grid of ≤ λN/4 (at most 64² points). InvalidValueError (fourier.blur_too_wide)
+    where that grid would exceed fourier.MAX_BLUR_PLANE_SAMPLES."""
     from scipy.special import j1
     lam_n = wavelength_m * working_f_number_
     supersample = int(np.clip(math.ceil(4.0 * spacing_m / lam_n), 4, 64))
     half = int(math.ceil(max(radius_airy * lam_n / spacing_m, 1.0)))
+    fine_samples = ((2 * half + 1) * supersample) ** 2
+    if fine_samples > fourier.MAX_BLUR_PLANE_SAMPLES:
+        raise fourier.blur_too_wide(half, "its cell-integrated Airy kernel too large to build", fine_samples * 8 / 2 ** 30)
     sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     axis = ((np.arange(-half, half + 1)[:, None] + sub[None, :]).ravel()) * spacing_m
     yy, xx = np.meshgrid(axis, axis, indexing="ij")

@@ -24,9 +24,28 @@ def frequency_grid(shape: tuple[int, int], spacing_m: float) -> tuple[np.ndarray
     return fy, fx
 
 
+MAX_BLUR_PLANE_SAMPLES = 2 ** 24   # a padded plane (or kernel grid) above this, for a blur wider than the image: refused
+
+
+def blur_too_wide(psf_radius_samples: float, what: str, gib: float) -> InvalidValueError:
+    """The error for an optical blur too wide to simulate: it names the settings that set it."""
+    return InvalidValueError(
+        f"optics: the blur is {psf_radius_samples:.3g} samples in radius, {what} (it would take {gib:.3g} GiB a "
+        "band): the working f-number N·(1 + m) is very large, or the scene far out of focus. Put scene.distance_m "
+        "farther from the focal length (a scene near the focal length has a huge magnification m), focus the lens on "
+        "the scene (optics.focus_distance_m) or lower optics.f_number")
+
+
 def pad_width(shape: tuple[int, int], psf_radius_samples: float) -> int:
-    """Padding on each side: a PSF radius, at least 1/8 of the larger image side (ISETCam)."""
-    return int(max(math.ceil(max(shape) / 8), math.ceil(psf_radius_samples), 1))
+    """Padding on each side: a PSF radius, at least 1/8 of the larger image side (ISETCam).
+    InvalidValueError (blur_too_wide) for a PSF wider than the image whose padded plane would hold
+    more than MAX_BLUR_PLANE_SAMPLES samples: no detail of the scene would survive it, and it would
+    take gigabytes (a 24×32 image of a scene 0.1 mm beyond a 50 mm lens's focal length asked 12 GiB)."""
+    pad = int(max(math.ceil(max(shape) / 8), math.ceil(psf_radius_samples), 1))
+    padded = (shape[0] + 2 * pad) * (shape[1] + 2 * pad)
+    if psf_radius_samples > max(shape) and padded > MAX_BLUR_PLANE_SAMPLES:
+        raise blur_too_wide(psf_radius_samples, f"wider than the {shape[0]}×{shape[1]} image", padded * 8 / 2 ** 30)
+    return pad
 
 
 def kernel_otf(kernel: np.ndarray, padded_shape: tuple[int, int]) -> np.ndarray:

@@ -1,0 +1,51 @@
+"""Inputs past what can be simulated get a message naming the setting, before any large allocation:
+a scene just beyond the focal length (magnification ~500: a 24×32 image asked 12 GiB for its
+diffraction blur, and 32 GiB for a ray-traced lens's Airy kernel), a full well below one electron
+(it ran and reported −340 dB), and a JSON number of more digits than Python converts (it was an
+'internal error')."""
+import pytest
+
+from workbench.errors import InputFileError, WorkbenchError
+from workbench.project import load_project
+
+
+def _small(**optics):
+    p = load_project("uniform_d65_isetcam_pixel")
+    return p.updated(sensor=p.sensor.updated(rows=24, cols=32), optics=p.optics.updated(**optics))
+
+
+@pytest.mark.parametrize("optics, distance_m", [
+    ({"model": "diffraction_limited", "focal_length_mm": 50.0}, 0.0501),
+    ({"model": "raytrace", "lens_file": "dgauss.50mm", "raytrace_diffraction": True}, 0.0505)])
+def test_a_blur_wider_than_the_image_is_refused_naming_the_distance(optics, distance_m):
+    import resource
+
+    from workbench.pipeline import Pipeline
+    p = _small(**optics)
+    p = p.updated(scene=p.scene.updated(distance_m=distance_m))
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    resource.setrlimit(resource.RLIMIT_AS, (6 * 2 ** 30, hard))       # the request itself would fail far above this
+    try:
+        with pytest.raises(WorkbenchError, match=r"blur is .* samples in radius.*scene\.distance_m"):
+            Pipeline(p).run()
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def test_an_ordinary_blur_is_not_refused():
+    from workbench.optics.formation.fourier import pad_width
+    assert pad_width((480, 640), 30.0) == 80                  # 1/8 of the larger side
+    assert pad_width((24, 32), 200.0) == 200                   # wider than the image, but small: simulated
+
+
+def test_a_full_well_below_one_electron_is_refused():
+    p = load_project("paper_camera")
+    with pytest.raises(ValueError, match=r"at least 1 electron.*voltage_swing_V"):
+        p.sensor.updated(voltage_swing_V=1e-20)
+
+
+def test_a_number_of_too_many_digits_is_a_file_error(tmp_path):
+    f = tmp_path / "p.json"
+    f.write_text('{"name": "x", "sensor": {"rows": ' + "9" * 5000 + "}}")
+    with pytest.raises(InputFileError, match="fewer digits"):
+        load_project(f)
