@@ -49,3 +49,13 @@ def test_a_number_of_too_many_digits_is_a_file_error(tmp_path):
     f.write_text('{"name": "x", "sensor": {"rows": ' + "9" * 5000 + "}}")
     with pytest.raises(InputFileError, match="fewer digits"):
         load_project(f)
+
+
+def test_a_psf_grid_far_out_of_focus_names_the_focus():
+    """dgauss.50mm focused at 52 mm, the scene at 5 m: the spot misses the PSF grid (it was a NaN
+    image and 'please report')."""
+    from workbench.pipeline import Pipeline
+    p = _small(model="psf_grid", lens_file="dgauss.50mm", focus_distance_m=0.052)
+    p = p.updated(scene=p.scene.updated(distance_m=5.0))
+    with pytest.raises(WorkbenchError, match=r"outside its .*grid.*optics\.focus_distance_m"):
+        Pipeline(p).run()

@@ -92,6 +92,11 @@ def _oriented(psf: np.ndarray, azimuth_rad: float) -> np.ndarray:
     if azimuth_rad:
         k = ndimage.rotate(k, -math.degrees(azimuth_rad), reshape=False, order=1, mode="constant")
     k = np.clip(k, 0.0, None)
+    if not k.sum() > 0:                  # the spot missed the grid (sized by in-focus spots): far out of focus
+        raise InvalidValueError(
+            f"optics psf_grid: the lens's PSF falls outside its {k.shape[0]}×{k.shape[1]}-sample grid: the scene is "
+            "far out of focus for this model; set optics.focus_distance_m near scene.distance_m (or null: focused on "
+            "the scene), or use the 'raytrace' or 'thin_lens' model, which follow any defocus")
     return k / k.sum()
 
 
