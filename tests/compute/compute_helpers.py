@@ -76,3 +76,8 @@ def progress_renderer(project, seeds, on_progress=None):
 def die(_job):
     """A job whose worker always dies (SIGKILL)."""
     os.kill(os.getpid(), signal.SIGKILL)
+
+
+def sigint_ignored(_job) -> bool:
+    """Whether this (worker) process ignores SIGINT."""
+    return signal.getsignal(signal.SIGINT) == signal.SIG_IGN

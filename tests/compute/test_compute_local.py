@@ -125,3 +125,12 @@ def test_pool_threads_are_kept_off_the_calling_threads_core():
     thread.start()
     thread.join(5)
     assert seen and all(mask == cores - {core} for mask in seen)
+
+
+def test_pool_workers_leave_ctrl_c_to_the_driver():
+    """Ctrl-C reaches the terminal's whole process group: a worker interrupted inside a native loop
+    (Dr.Jit) reported it as a failed job ('job frame 4 failed', exit 1) instead of a cancel."""
+    from compute_helpers import sigint_ignored
+
+    from workbench.compute.local import run_jobs
+    assert [ignored for _, ignored in run_jobs(sigint_ignored, [0, 1], workers=1)] == [True, True]

@@ -87,7 +87,12 @@ _progress_queue = None          # in a pool worker: where report_progress sends 
 
 
 def _worker_init(parent_pid: int, threads: int | None, progress_queue=None) -> None:
+    """A pool worker's set-up. It ignores SIGINT: Ctrl-C in a terminal reaches the whole process
+    group, and a worker interrupted inside a native library (Dr.Jit's loop) reported the cancel as
+    a failed job ('job frame 4 failed: RuntimeError …', exit 1); the driver alone takes it, lets the
+    jobs in flight finish unrecorded and stops (a second Ctrl-C does not wait; its workers die with it)."""
     global _progress_queue
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent(parent_pid)
     apply_thread_budget(threads)
     _progress_queue = progress_queue
