@@ -59,3 +59,11 @@ def test_a_psf_grid_far_out_of_focus_names_the_focus():
     p = p.updated(scene=p.scene.updated(distance_m=5.0))
     with pytest.raises(WorkbenchError, match=r"outside its .*grid.*optics\.focus_distance_m"):
         Pipeline(p).run()
+
+
+@pytest.mark.parametrize("flag", [True, False, 2.0, "2"])
+def test_noise_flag_is_a_whole_number(flag):
+    p = load_project("paper_camera")
+    with pytest.raises(ValueError, match="noise_flag must be one of"):
+        p.sensor.updated(noise_flag=flag)
+    assert p.sensor.updated(noise_flag=1).noise_flag == 1

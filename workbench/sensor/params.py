@@ -110,6 +110,15 @@ class SensorParams(Params):
     seed: int = Field(0, ge=0, le=2 ** 63 - 1,
                       description="seed of the fixed patterns and of the temporal noise; sensor stage")
 
+    @field_validator("noise_flag", mode="before")
+    @classmethod
+    def _noise_flag_whole_number(cls, v):
+        """A Literal of ints takes true as 1 and 2.0 as 2 (they compare equal): refused, as every number
+        field refuses bools and strings."""
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise InvalidValueError(f"noise_flag must be one of -1, 0, 1, 2 (a whole number), got {v!r}")
+        return v
+
     @field_validator("exposure_s")
     @classmethod
     def _exposure_not_negative(cls, v):
