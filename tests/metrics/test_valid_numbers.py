@@ -97,11 +97,15 @@ def test_measured_snr_of_a_region_that_does_not_vary_is_null_not_1e15():
 
 
 def test_characterize_refuses_a_swing_it_cannot_measure(quiet_and_noisy, tmp_path, capsys):
-    """1 µV swing: 0.01 e⁻ of well; it reported QE −0.91 and dynamic range −39.5 dB with exit 0."""
+    """1 µV swing: 0.01 e⁻ of well; it reported QE −0.91 and dynamic range −39.5 dB with exit 0 (now
+    the sensor refuses a well under one electron); 0.5 mV, 4.9 e⁻, is a sensor, but not one
+    characterize can measure."""
     from workbench.sensor.emva import characterize
     p = load_project(quiet_and_noisy[0])
-    tiny = p.updated(sensor=p.sensor.updated(voltage_swing_V=1e-6))
-    with pytest.raises(ParameterError, match=r"sensor\.voltage_swing_V.*0\.0098 e⁻.*at least 100 e⁻"):
+    with pytest.raises(ValueError, match="at least 1 electron"):
+        p.sensor.updated(voltage_swing_V=1e-6)
+    tiny = p.updated(sensor=p.sensor.updated(voltage_swing_V=5e-4))
+    with pytest.raises(ParameterError, match=r"sensor\.voltage_swing_V.*4\.9 e⁻.*at least 100 e⁻"):
         characterize(tiny.sensor, size_px=32, n_levels=12, n_dark=3)
     with pytest.raises(ParameterError, match=r"sensor\.bit_depth: .*at least 6 bits"):       # was a LinAlgError, exit 3
         characterize(p.sensor.updated(bit_depth=1), size_px=32, n_levels=12, n_dark=3)
