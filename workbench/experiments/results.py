@@ -291,7 +291,8 @@ def draw_results(fig, doc: dict) -> None:
         rows = [r for r in diffs if r["contrast"] in ("raw − srgb", "linear − srgb")]
         names = ["raw − srgb", "linear − srgb"]
         nets = sorted({r["net"] for r in rows})
-        draw_differences(right, rows, lambda r: names.index(r["contrast"]) + 0.15 * (nets.index(r["net"]) - (len(nets) - 1) / 2),
+        draw_differences(right, rows,
+                         lambda r: names.index(r["contrast"]) + 0.15 * (nets.index(r["net"]) - (len(nets) - 1) / 2),
                          "paired difference of mAP (same seed, same test captures)")
         right.set_xticks(range(2), names)
         right.set_xlim(-0.5, len(names) - 0.5)          # half a slot each side: no point on the frame

@@ -17,7 +17,8 @@ the electrons at saturation — the full well at analog gain 1, less at higher g
 is read at another signal than another), and the Macbeth
 chart (ΔE2000 per patch of the fitted and of held-out patches, flat-fielded; and the noise of its
 six neutral patches per channel). 'dynamic_range_dB' is the sensor's (sensor_dynamic_range: the
-electrons at saturation, which analog gain lowers, over the noise floor). Charts are at the project's scene distance, noise as configured.
+electrons at saturation, which analog gain lowers, over the noise floor). Charts are at the
+project's scene distance, noise as configured.
 Each summary metric's uncertainty is measured: its standard deviation over NOISE_DRAWS more
 captures of the same charts with other sensor seeds (other temporal noise and, where the sensor has
 it, another unit's fixed-pattern noise; the optics computed once).
@@ -34,6 +35,7 @@ from workbench.metrics.colour import held_out_delta_e, macbeth_delta_e, patch_me
 from workbench.metrics.esfr import cfa_plane_nyquist_cy_px, edge_sfr, mtf50, mtf50_spread
 from workbench.metrics.mtf_model import optics_mtf, pixel_mtf
 from workbench.metrics.noise import snr_model, snr_vs_signal
+from workbench.sensor.cfa import channel_index_map
 from workbench.sensor.snr import sensor_dynamic_range
 
 ROAD_USERS = ("car", "pedestrian", "bus", "truck")
@@ -154,7 +156,8 @@ def _model_row(name: str, frequency: np.ndarray, mtf: np.ndarray, note: str) -> 
 
 def uniform_chart(project):
     """The project in front of the uniform chart, its light through the optics as it is (the camera
-    equation, πT / (1 + 4N²(1 + |m|)²) on axis: optics.formation.geometry), not rescaled: noise_series' chart and the slanted edge's flat field."""
+    equation, πT / (1 + 4N²(1 + |m|)²) on axis: optics.formation.geometry), not rescaled:
+    noise_series' chart and the slanted edge's flat field."""
     chart = _chart(project, "uniform")
     return chart.updated(scene=chart.scene.updated(adjust_illuminance_lux=None))
 
@@ -242,9 +245,9 @@ def edge_shot(project, shots: ChartShots):
 def system_mtf(project, uniform=None, shots: ChartShots | None = None) -> list[dict]:
     """e-SFR rows of the slanted-edge chart seen by the project's camera (exposed by edge_shot:
     re-exposed where the project's exposure clips it; each measured row's 'exposure' says how),
-    flat-fielded by a uniform chart through the same optics: each raw channel on its own sites at their full-grid positions
-    (black level removed; its closed form optics × pixel beside it as model_mtf when the optics has
-    one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
+    flat-fielded by a uniform chart through the same optics: each raw channel on its own sites at
+    their full-grid positions (black level removed; its closed form optics × pixel beside it as
+    model_mtf when the optics has one), the demosaiced G plane, the sRGB luminance; then the optics from its model (pinhole and
     diffraction_limited; other levels have no closed form and no such row) and the pixel aperture
     alone (metrics.mtf_model). uniform: the uniform chart's pipeline result, when already run;
     shots: the kept chart pipelines of a series of noise draws."""
@@ -306,6 +309,14 @@ def _central_mean(values: np.ndarray, frac: float = 0.5) -> np.ndarray:
     return values[h // 2 - dy:h // 2 + dy, w // 2 - dx:w // 2 + dx].reshape(-1, values.shape[-1]).mean(axis=0)
 
 
+def _central_half(shape: tuple[int, int]) -> np.ndarray:
+    """Boolean mask of the frame's central half in each direction: where the uniform chart is measured."""
+    h, w = shape
+    region = np.zeros(shape, bool)
+    region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
+    return region
+
+
 def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tuple[list[dict], float]:
     """SNR against signal on the uniform chart (module docstring), and the chart's transfer from
     scene luminance to sensor-plane illuminance (lux per cd/m²: πT / (1 + 4N²(1 + |m|)²) on axis, the
@@ -317,9 +328,7 @@ def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tupl
     result = uniform if uniform is not None else (shots or ChartShots()).run(uniform_chart(project))
     rate = result.signal_rate_e_per_s
     t = float(np.mean(resolve_exposure(rate, project.sensor)))
-    h, w = rate.shape
-    region = np.zeros(rate.shape, bool)
-    region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
+    region = _central_half(rate.shape)
     oi, scene = result.optical_image, result.scene
     lux = float(luminance_from_photons(_central_mean(np.asarray(oi.irradiance_photons, np.float64)), oi.wavelengths_nm))
     nits = float(luminance_from_photons(_central_mean(np.asarray(scene.radiance_photons, np.float64)), scene.wavelengths_nm))
@@ -333,26 +342,24 @@ def noise_series(project, uniform=None, shots: ChartShots | None = None) -> tupl
 SNR_POINT_OF_SATURATION = 0.1     # the headline SNR's signal: this share of the electrons at saturation
 
 
-def snr_at_saturation_share(project, uniform, share: float = SNR_POINT_OF_SATURATION) -> tuple[list[dict], str | None]:
+def snr_at_saturation_share(project, uniform,
+                            share: float = SNR_POINT_OF_SATURATION) -> tuple[list[dict], str | None]:
     """SNR of the uniform chart captured, per channel, at the exposure that puts that channel's mean
     at `share` of the electrons at saturation (sensor_dynamic_range: the full well at analog gain 1,
     less at higher gain): one capture per channel, measured as noise_series measures (region_noise
     over the central half), its rows with 'exposure_s' and 'target_e' (SNR None, unbounded, with the
-    sensor's noise off: a capture without temporal noise has none to measure). ([], why) where no channel
-    can be put there (no signal, or the analog offset fills the swing)."""
+    sensor's noise off: a capture without temporal noise has none to measure). ([], why) where no
+    channel can be put there (no signal, or the analog offset fills the swing)."""
     from workbench.metrics.noise import region_noise
     from workbench.sensor import signal_rate_to_sensor_image
     sensor = project.sensor
-    target = share * sensor_dynamic_range(sensor)["saturation_e"]
+    sensor_range = sensor_dynamic_range(sensor)
+    target = share * sensor_range["saturation_e"]
     if not target > 0:
-        return [], "undefined (the analog offset fills the swing: no signal reaches the ADC)"
+        return [], sensor_range["dynamic_range_limit"]
     rate = np.asarray(uniform.signal_rate_e_per_s, np.float64)
-    h, w = rate.shape
-    region = np.zeros(rate.shape, bool)
-    region[h // 4:3 * h // 4, w // 4:3 * w // 4] = True
-    tile = np.asarray(uniform.sensor_image.cfa_tile)
-    rr, cc = np.indices(rate.shape)
-    channel = tile[rr % tile.shape[0], cc % tile.shape[1]]
+    region = _central_half(rate.shape)
+    channel = channel_index_map(np.asarray(uniform.sensor_image.cfa_tile), *rate.shape)
     rows = []
     for k, name in enumerate(uniform.sensor_image.channel_names):
         sel = region & (channel == k)
@@ -364,7 +371,7 @@ def snr_at_saturation_share(project, uniform, share: float = SNR_POINT_OF_SATURA
         row = next((r for r in region_noise(image, sensor, region) if r["channel"] == name), None)
         if row is None:
             continue
-        if sensor.noise_flag < 1:        # no temporal noise: the spread left is the codes' fixed steps over the fall-off
+        if sensor.noise_flag < 1:        # no temporal noise: what spread is left is the codes' steps over the fall-off
             row.update(snr=None, snr_reason=snr_unbounded_reason(sensor))
         rows.append({**row, "exposure_s": t, "target_e": target,
                      "snr_model": finite_or_none(snr_model(row["mean_e"], sensor, t))})

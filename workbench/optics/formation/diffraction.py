@@ -33,7 +33,8 @@ def airy_cell_kernel(wavelength_m: float, working_f_number_: float, spacing_m: f
     half = int(math.ceil(max(radius_airy * lam_n / spacing_m, 1.0)))
     fine_samples = ((2 * half + 1) * supersample) ** 2
     if fine_samples > fourier.MAX_BLUR_PLANE_SAMPLES:
-        raise fourier.blur_too_wide(half, "its cell-integrated Airy kernel too large to build", fine_samples * 8 / 2 ** 30)
+        raise fourier.blur_too_wide(half, "its cell-integrated Airy kernel too large to build",
+                                    fine_samples * 8 / 2 ** 30)
     sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     axis = ((np.arange(-half, half + 1)[:, None] + sub[None, :]).ravel()) * spacing_m
     yy, xx = np.meshgrid(axis, axis, indexing="ij")

@@ -24,7 +24,7 @@ def frequency_grid(shape: tuple[int, int], spacing_m: float) -> tuple[np.ndarray
     return fy, fx
 
 
-MAX_BLUR_PLANE_SAMPLES = 2 ** 24   # a padded plane (or kernel grid) above this, for a blur wider than the image: refused
+MAX_BLUR_PLANE_SAMPLES = 2 ** 24   # refused above: a padded plane (or kernel grid) for a blur wider than the image
 
 
 def blur_too_wide(psf_radius_samples: float, what: str, gib: float) -> InvalidValueError:
