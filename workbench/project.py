@@ -96,8 +96,29 @@ class Project(Params):
                                                     "a real image")
         return self
 
+    @model_validator(mode="after")
+    def _rectilinear_field_of_view(self):
+        """The sensor behind the optics spans less than MAX_FIELD_OF_VIEW_DEG (a focal length of
+        10⁻³⁰⁰ mm made the scene 180° wide, refused by the scene without naming a setting)."""
+        from workbench.optics.formation.lens_setup import effective_params
+        from workbench.optics.params import fov_deg
+        if self.scene.fov_deg is not None:
+            return self
+        f_mm = effective_params(self.optics).focal_length_mm
+        width_mm = self.sensor.cols * self.sensor.pixel_pitch_um * 1e-3
+        hfov = fov_deg(f_mm, width_mm)
+        if not hfov < MAX_FIELD_OF_VIEW_DEG:
+            field, value = (("optics.lens_file", self.optics.lens_file) if self.optics.lens_file is not None
+                            and not self.optics.scale_lens_to_focal_length else ("optics.focal_length_mm", f_mm))
+            raise ParameterError(field, value, f"a {f_mm:.4g} mm focal length spans {hfov:.6g}° across the sensor's "
+                                               f"{width_mm:.4g} mm width; a rectilinear camera images less than "
+                                               f"{MAX_FIELD_OF_VIEW_DEG:g}°: use a longer focal length or a narrower "
+                                               "sensor (sensor.cols × sensor.pixel_pitch_um)")
+        return self
+
 
 MAX_SPECTRAL_GIB = 16.0
+MAX_FIELD_OF_VIEW_DEG = 179.0
 BYTES_PER_SPECTRAL_SAMPLE = 24
 
 

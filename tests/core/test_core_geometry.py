@@ -40,7 +40,8 @@ def test_a_lens_file_sets_the_field_of_view_from_its_focal_length():
     efl_m = paraxial(load_lens(LENS)).efl_mm * 1e-3
     camera = pipe.camera_geometry()
     assert camera.focal_length_m == pytest.approx(efl_m, rel=1e-9)
-    d = 1 / (1 / efl_m - 1 / 10.0)
+    p = paraxial(load_lens(LENS))             # the pinhole at the entrance pupil: |m|·s, m = −f/x (Newton)
+    d = efl_m * 10.0 / (10.0 - (p.entrance_pupil_mm + p.ffl_mm) * 1e-3)
     assert pipe.scene().fov_deg == pytest.approx(math.degrees(2 * math.atan(32 * 3e-6 / 2 / d)), rel=1e-9)
     assert oi.sample_spacing_m == pytest.approx(3e-6, rel=1e-9)
 

@@ -118,3 +118,40 @@ def test_project_with_missing_or_broken_lens_is_refused_when_it_loads(tmp_path, 
         project_from_dict(data)
     assert info.value.field == "optics.lens_file" and "not valid JSON" in str(info.value)
     assert str(Path(tmp_path) / "broken.json") in str(info.value)
+
+
+def _single(r1, thickness, r2) -> dict:
+    return {"name": "single", "surfaces": [
+        {"radius": r1, "thickness": thickness, "ior": 1.5, "semi_aperture": 4, "glass": "1.5/60"},
+        {"radius": r2, "thickness": 10, "ior": 1.0, "semi_aperture": 4, "glass": "air"}]}
+
+
+@pytest.mark.parametrize("lens, problem", [
+    (_single(-20.0, 3.0, 20.0), r"focal length is negative \(EFL=-19\.\d+ mm\): a diverging lens"),
+    (_single(1e9, 2.0, -1e9), r"almost no power \(EFL=1e\+09 mm"),
+    (_single(10.0, 40.0, 0.0), r"rear focal point lies inside the lens \(BFL=-6\.667 mm")])
+def test_a_lens_that_cannot_image_is_refused_when_a_project_loads(tmp_path, monkeypatch, lens, problem):
+    """A lens file that reads but forms no real image behind it (it failed at the optics stage with
+    'Surface.semi_aperture_mm=-2.69' or 'Lens.image_distance_mm=-57.4' and the project echoed)."""
+    from workbench.optics.lens import io
+    (tmp_path / "odd.json").write_text(json.dumps(lens))
+    monkeypatch.setattr(io, "LENS_DIR", tmp_path)
+    load_lens(tmp_path / "odd.json")                      # a valid prescription: the editor may open it
+    data = json.loads((PROJECTS_DIR / "paper_camera.json").read_text())
+    data["optics"].update(model="psf_grid", lens_file="odd.json")
+    with pytest.raises(ParameterError, match=problem) as info:
+        project_from_dict(data)
+    assert info.value.field == "optics.lens_file" and "cannot image" in str(info.value)
+
+
+def test_a_clear_aperture_beyond_the_sphere_is_refused(tmp_path):
+    """A radius of 1 µm under a 12.6 mm clear radius: no sphere reaches that far (the tracer clamped
+    the sag and the lens failed later, at focusing)."""
+    f = tmp_path / "tiny.json"
+    f.write_text(_dgauss(radius=0.001))
+    with pytest.raises(InputFileError, match=r"surface 0's clear radius 12\.6 mm .*radius 0\.001 mm.*at most \|radius\|"):
+        load_lens(f)
+    from workbench.optics.lens import Surface
+    assert Surface.from_radius(5.0, 1.0, "1.5", 5.0).reaches_its_aperture                # a hemisphere
+    assert Surface.from_radius(5.0, 1.0, "1.5", 8.0, conic=-2.0).reaches_its_aperture    # a hyperboloid reaches any radius
+    assert not Surface.from_radius(5.0, 1.0, "1.5", 5.1).reaches_its_aperture

@@ -6,7 +6,7 @@ diffraction blur, and 32 GiB for a ray-traced lens's Airy kernel), a full well b
 import pytest
 
 from workbench.errors import InputFileError, WorkbenchError
-from workbench.project import load_project
+from workbench.project import PROJECTS_DIR, load_project, project_from_dict
 
 
 def _small(**optics):
@@ -70,3 +70,48 @@ def test_noise_flag_is_a_whole_number(flag):
     with pytest.raises(ValueError, match="noise_flag must be one of"):
         p.sensor.updated(noise_flag=flag)
     assert p.sensor.updated(noise_flag=1).noise_flag == 1
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("lamp_flux_lm", 1e-35, "greater than or equal to 1"), ("headlight_cd", 1e-36, "greater than or equal to 1"),
+    ("taillight_cd", 1e-36, "greater than or equal to 0.1"), ("sky_luminance_cd_m2", 1e-40, "0 .no sky glow. or at least")])
+def test_a_vanishing_night_light_is_refused_naming_it(field, value, message):
+    """Below ~1e-34 the lights' spectra underflow float32 and Mitsuba stopped with 'no probability
+    mass found', reported as an internal error."""
+    from workbench.errors import ParameterError
+    data = _project_dict("city_night")
+    data["render"]["world"]["night"][field] = value
+    with pytest.raises(ParameterError, match=rf"render\.world\.night\.{field}: .*{message}"):
+        project_from_dict(data)
+    data["render"]["world"]["night"].update({field: 0.0 if field == "sky_luminance_cd_m2" else 20.0})
+    project_from_dict(data)                    # no glow, or an ordinary light: loads
+
+
+def test_a_focal_length_wider_than_a_rectilinear_camera_names_it():
+    """10⁻³⁰⁰ mm made the chart 180° wide, refused by the scene without naming a setting; 10⁻⁶ mm
+    ran with negative irradiance at the edges (the exact fall-off cancelled)."""
+    from workbench.errors import ParameterError
+    data = _project_dict("uniform_d65_isetcam_pixel")
+    for f_mm in (1e-300, 1e-6):
+        data["optics"]["focal_length_mm"] = f_mm
+        with pytest.raises(ParameterError, match=r"optics\.focal_length_mm: .*spans 1[78]\d.*less than 179°"):
+            project_from_dict(data)
+    data["optics"]["focal_length_mm"] = 0.01
+    project_from_dict(data)                     # 170° across 0.25 mm: allowed
+
+
+def test_chart_wavelengths_the_eye_cannot_see_are_refused():
+    """A chart at 1000–1100 nm is scaled to a luminance it cannot have (was 'the spectrum has no
+    power where the eye is sensitive' from the scene stage, naming no setting)."""
+    from workbench.errors import ParameterError
+    data = _project_dict("uniform_d65_isetcam_pixel")
+    data["scene"]["wavelengths"].update(start_nm=1000.0, stop_nm=1100.0)
+    with pytest.raises(ParameterError, match=r"scene\.wavelengths 1000–1100 nm: .*380–780 nm"):
+        project_from_dict(data)
+    data["scene"]["wavelengths"]["start_nm"] = 700.0
+    project_from_dict(data)                     # reaches 700 nm: allowed
+
+
+def _project_dict(name: str) -> dict:
+    import json
+    return json.loads((PROJECTS_DIR / f"{name}.json").read_text())

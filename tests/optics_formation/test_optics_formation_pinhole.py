@@ -108,6 +108,22 @@ def test_exact_falloff_tends_to_cos4_for_a_small_aperture():
     assert np.allclose(fall, (d / np.hypot(d, r)) ** 4, rtol=1e-4)
 
 
+def test_exact_falloff_stays_accurate_far_off_axis():
+    """Against the formula at 60 digits (mpmath): 1 − a/√(a² + 4 tan²θa) cancelled in float64 at
+    r/d ≳ 10⁴ and went negative (a 10⁻⁶ mm focal length gave negative irradiance)."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 60
+    d, f_number = 1e-3, 4.0
+    r = np.array([1e-6, 1e-3, 1e-1, 10.0, 1e4, 1e8])
+    fall = geometry.cos4th_falloff(r, d, f_number, 0.0, image_diagonal_m=d)
+    ta2 = 1 / (2 * mpmath.mpf(f_number)) ** 2
+    for r_m, got in zip(r, fall):
+        t2 = (mpmath.mpf(r_m) / d) ** 2
+        root = mpmath.sqrt(t2 ** 2 + 2 * t2 * (1 - ta2) + (1 + ta2) ** 2)
+        exact = 0.5 * (1 - (1 - ta2 + t2) / root) * (1 + ta2) / ta2
+        assert got == pytest.approx(float(exact), rel=1e-12)
+
+
 def test_barrel_distortion_moves_a_point_inward():
     size, fov = (41, 41), 40.0
     rad = np.zeros(size + (1,), np.float32)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from workbench.errors import InvalidValueError
 from workbench.params import Params
@@ -54,8 +54,12 @@ class DaylightParams(Params):
         return self
 
 
+MIN_SKY_CD_M2 = 1e-6      # below it the glow's spectrum underflows float32 in Mitsuba (1e-40 crashed)
+
+
 class NightParams(Params):
-    """Night lighting (render/lamps.py): the city's street lamps as isotropic point sources of
+    """Night lighting (render/lamps.py): the city's street lamps as full-cut-off point sources (uniform
+    over the lower hemisphere) of
     `lamp_kind` spectrum and luminous flux `lamp_flux_lm` (None = the kind's rated flux), vehicle
     head-lights (`headlight_kind`, `headlight_cd` peak) and tail-lights (red LED, `taillight_cd`)
     when `vehicle_lights`, and a uniform sky glow of luminance `sky_luminance_cd_m2` (a 3500 K
@@ -72,20 +76,31 @@ class NightParams(Params):
 
     lamp_kind: Literal["lps", "hps", "led", "metal_halide"] = Field("hps", description="street-lamp spectrum; "
                                                                                       "night render")
-    lamp_flux_lm: float | None = Field(None, gt=0.0, le=1e6, description="luminous flux per lamp (lm); None = the "
-                                                                         "kind's rated flux; night render")
+    lamp_flux_lm: float | None = Field(None, ge=1.0, le=1e6, description="luminous flux per lamp (lm, from 1: a candle "
+                                                                         "gives 12); None = the kind's rated flux; "
+                                                                         "night render")
     vehicle_lights: bool = Field(True, description="head- and tail-lights of moving vehicles on (parked cars "
                                                    "stay dark); night render")
     headlight_kind: Literal["halogen", "led"] = Field("led", description="head-light spectrum; night render")
-    headlight_cd: float = Field(20000.0, gt=0.0, le=1e6,
+    headlight_cd: float = Field(20000.0, ge=1.0, le=1e6,
                                 description="head-light low beam's hot-spot intensity (cd, 1.5° down, 2° right; "
                                             "SAE J1383 allows ≤ 20,000 at 0.5° down, 1.5° right); night render")
-    taillight_cd: float = Field(10.0, gt=0.0, le=1e4, description="tail-light intensity (cd); night render")
-    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²); "
+    taillight_cd: float = Field(10.0, ge=0.1, le=1e4, description="tail-light intensity (cd, from 0.1; regulations "
+                                                                  "ask ≥ 4); night render")
+    sky_luminance_cd_m2: float = Field(0.02, ge=0.0, le=10.0, description="night sky glow luminance (cd/m²; 0 = "
+                                                                          f"none, else from {MIN_SKY_CD_M2:g}: "
+                                                                          "the darkest natural sky is ~2e-4); "
                                                                           "night render")
     light_selection: Literal["view", "flux", "shading"] = Field(
         "view", description="lights sampled by their light on the view, by flux alone, or by their light at each "
                             "shading point (fewest fireflies); night render")
+
+    @field_validator("sky_luminance_cd_m2")
+    @classmethod
+    def _sky_off_or_visible(cls, v: float) -> float:
+        if 0 < v < MIN_SKY_CD_M2:
+            raise InvalidValueError(f"must be 0 (no sky glow) or at least {MIN_SKY_CD_M2:g} cd/m², got {v:g}")
+        return v
 
 
 class FogParams(Params):

@@ -30,6 +30,9 @@ class WavelengthParams(Params):
         return spectra.wavelength_grid(self.start_nm, self.stop_nm, self.step_nm)
 
 
+VISIBLE_NM = (380.0, 780.0)
+
+
 class SceneParams(Params):
     """The scene: an analytic chart (uniform, macbeth, slanted_edge, hdr_tunnel) or a city.
 
@@ -66,3 +69,14 @@ class SceneParams(Params):
     @classmethod
     def _known_illuminant(cls, value: str) -> str:
         return spectra.checked_illuminant_name(value)      # raises with the allowed names
+
+    @model_validator(mode="after")
+    def _visible_wavelengths(self):
+        """A chart is scaled to a luminance, which needs a wavelength the eye sees."""
+        grid = self.wavelengths.grid()
+        lo, hi = VISIBLE_NM
+        if self.kind != "city" and not ((grid >= lo) & (grid <= hi)).any():
+            raise InvalidValueError(f"scene.wavelengths {grid[0]:g}–{grid[-1]:g} nm: a chart is scaled to its "
+                                    f"luminance (cd/m²), so its wavelengths must include one in {lo:g}–{hi:g} nm, "
+                                    "where the eye is sensitive")
+        return self

@@ -20,6 +20,21 @@ def diffraction_mtf(frequency_cyc_per_m: np.ndarray, wavelength_m: float, workin
     return (2.0 / np.pi) * (np.arccos(s) - s * np.sqrt(1.0 - s * s))
 
 
+def check_airy_kernel(wavelength_m: float, working_f_number_: float, spacing_m: float,
+                      radius_airy: float = 40.0) -> tuple[int, int]:
+    """(half-width in samples, sub-samples per cell) of airy_cell_kernel's kernel; raises its
+    InvalidValueError without building anything, so a model can refuse before its slow part
+    (the longest wavelength's kernel is the largest)."""
+    lam_n = wavelength_m * working_f_number_
+    supersample = int(np.clip(math.ceil(4.0 * spacing_m / lam_n), 4, 64))
+    half = int(math.ceil(max(radius_airy * lam_n / spacing_m, 1.0)))
+    fine_samples = ((2 * half + 1) * supersample) ** 2
+    if fine_samples > fourier.MAX_BLUR_PLANE_SAMPLES:
+        raise fourier.blur_too_wide(half, "its cell-integrated Airy kernel too large to build",
+                                    fine_samples * 8 / 2 ** 30)
+    return half, supersample
+
+
 def airy_cell_kernel(wavelength_m: float, working_f_number_: float, spacing_m: float,
                      radius_airy: float = 40.0) -> np.ndarray:
     """The Airy pattern integrated over each sample cell (odd-sized, sums to 1): the energy a
@@ -29,12 +44,7 @@ def airy_cell_kernel(wavelength_m: float, working_f_number_: float, spacing_m: f
     where that grid would exceed fourier.MAX_BLUR_PLANE_SAMPLES."""
     from scipy.special import j1
     lam_n = wavelength_m * working_f_number_
-    supersample = int(np.clip(math.ceil(4.0 * spacing_m / lam_n), 4, 64))
-    half = int(math.ceil(max(radius_airy * lam_n / spacing_m, 1.0)))
-    fine_samples = ((2 * half + 1) * supersample) ** 2
-    if fine_samples > fourier.MAX_BLUR_PLANE_SAMPLES:
-        raise fourier.blur_too_wide(half, "its cell-integrated Airy kernel too large to build",
-                                    fine_samples * 8 / 2 ** 30)
+    half, supersample = check_airy_kernel(wavelength_m, working_f_number_, spacing_m, radius_airy)
     sub = (np.arange(supersample) + 0.5) / supersample - 0.5
     axis = ((np.arange(-half, half + 1)[:, None] + sub[None, :]).ravel()) * spacing_m
     yy, xx = np.meshgrid(axis, axis, indexing="ij")

@@ -69,6 +69,7 @@ def full_model_optical_image(irradiance_photons: np.ndarray, wavelengths_nm: np.
     dx = camera.sensor_width_mm * 1e-3 / irr.shape[1]
     clipped = 0.0
     if params.raytrace_diffraction:
+        diffraction.check_airy_kernel(float(np.max(wavelengths_nm)) * 1e-9, camera.working_f_number, dx)
         for b, wl in enumerate(np.asarray(wavelengths_nm, dtype=np.float64)):
             kernel = diffraction.airy_cell_kernel(wl * 1e-9, camera.working_f_number, dx)
             irr[..., b:b + 1], frac = fourier.apply_otf(irr[..., b:b + 1], dx, lambda c, fy, fx: 1.0,

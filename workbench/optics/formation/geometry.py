@@ -28,13 +28,6 @@ def image_distance_m(focal_length_m: float, object_distance_m: float) -> float:
     return 1.0 / (1.0 / focal_length_m - 1.0 / object_distance_m)
 
 
-def magnification(focal_length_m: float, object_distance_m: float) -> float:
-    """Thin-lens lateral magnification m = −d_image/d_object (0 at infinity)."""
-    if math.isinf(object_distance_m):
-        return 0.0
-    return -image_distance_m(focal_length_m, object_distance_m) / object_distance_m
-
-
 @dataclass(frozen=True)
 class CameraGeometry:
     """The camera's first-order geometry: the one source every optics level, scene stage, the
@@ -42,7 +35,9 @@ class CameraGeometry:
 
     focal_length_m: effective focal length: the lens file's paraxial EFL when optics.lens_file
         is set, else optics.focal_length_mm. focus_distance_m: object distance in focus (m).
-    image_distance_m: its thin-lens conjugate, the lens-to-sensor distance (m).
+    image_distance_m: the distance (m) at which a pinhole at the entrance pupil images the focus
+        plane as the optics do: its thin-lens conjugate, or |m|·s with a lens file's paraxial
+        magnification m (lens_setup.pinhole_image_distance_m).
     sensor_width_m: width the `shape` = (rows, cols) optical-image samples span on the sensor.
     """
 
@@ -68,7 +63,8 @@ class CameraGeometry:
 
     @property
     def magnification(self) -> float:
-        return magnification(self.focal_length_m, self.focus_distance_m)
+        """Lateral magnification of the focus plane, −image_distance_m / focus_distance_m (0 at infinity)."""
+        return 0.0 if math.isinf(self.focus_distance_m) else -self.image_distance_m / self.focus_distance_m
 
 
 def camera_geometry(params: OpticsParams, default_focus_m: float, shape: tuple[int, int], *,
@@ -76,7 +72,7 @@ def camera_geometry(params: OpticsParams, default_focus_m: float, shape: tuple[i
     """The geometry of `params` on `shape` = (rows, cols) samples: focused on
     params.focus_distance_m, else `default_focus_m` (the scene distance); the samples span
     `sensor_width_m`, or the horizontal `fov_deg` at the image distance (give exactly one)."""
-    from workbench.optics.formation.lens_setup import effective_focal_length_m
+    from workbench.optics.formation.lens_setup import effective_focal_length_m, pinhole_image_distance_m
     if (sensor_width_m is None) == (fov_deg is None):
         raise InvalidValueError("camera_geometry: give exactly one of sensor_width_m or fov_deg")
     rows, cols = (int(shape[0]), int(shape[1]))
@@ -84,7 +80,7 @@ def camera_geometry(params: OpticsParams, default_focus_m: float, shape: tuple[i
         raise InvalidValueError(f"camera_geometry: shape must be at least 1×1 samples, got {shape}")
     focus_m = params.focus_distance_m if params.focus_distance_m is not None else float(default_focus_m)
     f_m = effective_focal_length_m(params)
-    d_m = image_distance_m(f_m, focus_m)
+    d_m = image_distance_m(f_m, focus_m) if params.lens_file is None else pinhole_image_distance_m(params, focus_m)
     if fov_deg is not None:
         if not 0 < fov_deg < 180:
             raise InvalidValueError(f"fov_deg={fov_deg}: must be in (0, 180) degrees")
@@ -138,8 +134,11 @@ def cos4th_falloff(radius_m: np.ndarray, image_distance: float, f_number: float,
         return 1.0 / (1.0 + t2) ** 2
     ta2 = 1.0 / (2.0 * f_number * (1.0 + abs(magnification_))) ** 2
     sin2a = ta2 / (1.0 + ta2)
-    root = np.sqrt(t2 ** 2 + 2.0 * t2 * (1.0 - ta2) + (1.0 + ta2) ** 2)
-    return 0.5 * (1.0 - (1.0 - ta2 + t2) / root) / sin2a
+    a = 1.0 - ta2 + t2
+    root = np.sqrt(a * a + 4.0 * ta2)                 # = the root above: its radicand is a² + 4 tan²θa
+    # 1 − a/root without cancellation (it went negative far off axis): (root − a)/root = 4 tan²θa/(root (root + a))
+    rest = np.where(a > 0, 4.0 * ta2 / (root * (root + np.abs(a))), 1.0 - a / root)
+    return 0.5 * rest / sin2a
 
 
 def undistort_radius(r_distorted: np.ndarray, k: tuple[float, ...]) -> np.ndarray:

@@ -1,6 +1,7 @@
 """The real lens behind the psf_grid and raytrace levels, and the first-order values it implies."""
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -68,7 +69,25 @@ def focused_lens(params: OpticsParams, focus_distance_m: float):
     obj_m = focus_distance_m - pdata.entrance_pupil_mm * 1e-3
     if obj_m > FAR_FOCAL_LENGTHS * pdata.efl_mm * 1e-3:
         obj_m = float("inf")
+    nearest_m = (pdata.ffl_mm + pdata.entrance_pupil_mm) * 1e-3     # the front focal point
+    if not obj_m > 0 or not focus_distance_m > nearest_m:
+        raise InvalidValueError(f"lens {lens.name!r} cannot focus {focus_distance_m:.6g} m from its entrance pupil "
+                                f"(optics.focus_distance_m, else scene.distance_m): it forms a real image only "
+                                f"of objects beyond its front focal point, {nearest_m:.6g} m from the entrance pupil")
     return focus(lens, obj_m), obj_m
+
+
+def pinhole_image_distance_m(params: OpticsParams, focus_distance_m: float) -> float:
+    """Image distance (m) of the pinhole camera at the entrance pupil that images like
+    params.lens_file focused `focus_distance_m` from it: |m|·s, with m the prepared lens's
+    paraxial magnification. (The thin-lens 1/(1/f − 1/s) measures s from a principal plane, which
+    in a thick lens lies millimetres from the entrance pupil: negligible far away, off by orders
+    of magnitude within a few focal lengths.)"""
+    from workbench.optics.lens.paraxial import lateral_magnification
+    lens, obj_m = focused_lens(params, focus_distance_m)
+    if math.isinf(obj_m):
+        return effective_focal_length_m(params)
+    return abs(lateral_magnification(lens, obj_m)) * focus_distance_m
 
 
 RADIOMETRY_HEIGHTS = 24

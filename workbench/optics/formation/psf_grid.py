@@ -107,16 +107,20 @@ GEOMETRIC_DEFOCUS_WAVES = 32.0   # psf_diffraction's 512-sample pupil resolves t
 def lens_tables(lens, object_distance_m: float, image_distance: float, r_max_m: float,
                 nodes_nm: tuple[float, ...]) -> dict:
     """Traced geometry of a focused lens, cached: 'ru'/'rd' (per wavelength node): pinhole
-    height → real chief-ray height (m); 'heights', 'e': irradiance per radiance against height."""
-    from workbench.optics.lens import chief_ray_on_sensor
+    height → real chief-ray height (m); 'heights', 'e': irradiance per radiance against height.
+    The pinhole sits at the entrance pupil; a traced field angle is seen from the first vertex,
+    `object_distance_m` from the object (so a finite object's angle is widened to the same point)."""
+    from workbench.optics.lens import chief_ray_on_sensor, paraxial
     ru_table = np.linspace(0.0, max(r_max_m * 1.3, 0.02 * image_distance), 25)
+    vertex_tan = 1.0 if math.isinf(object_distance_m) else \
+        1.0 + paraxial(lens).entrance_pupil_mm * 1e-3 / object_distance_m
     ru, rd, e = [], [], []
     for wl_n in nodes_nm:
         hs = []
         for r_u in ru_table:
             try:
-                hs.append(chief_ray_on_sensor(lens, math.degrees(math.atan(r_u / image_distance)), wl_n,
-                                              object_distance_m)[1] * 1e-3)
+                hs.append(chief_ray_on_sensor(lens, math.degrees(math.atan(vertex_tan * r_u / image_distance)),
+                                              wl_n, object_distance_m)[1] * 1e-3)
             except ValueError:
                 break
         if len(hs) < 2 or np.any(np.diff(hs) <= 0):

@@ -87,6 +87,9 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     lens, _ = lens_setup.focused_lens(params, g.focus_distance_m)
     pdata = paraxial(lens)
     f_m, d_img, dx = g.focal_length_m, g.image_distance_m, g.sample_spacing_m
+    n_w = float(pdata.f_number) * d_img / f_m
+    if params.raytrace_diffraction:         # refuse an unbuildable Airy kernel before tracing
+        diffraction.check_airy_kernel(float(scene.wavelengths_nm.max()) * 1e-9, n_w, dx)
     rows, cols = scene.shape
     x, y = geometry.sample_positions_m((rows, cols), dx)
     px, py = -x.ravel() * 1e3, -y.ravel() * 1e3           # physical sensor points (inverted), mm
@@ -140,7 +143,6 @@ def radiance_to_irradiance(scene: Scene, params: OpticsParams,
     e_per_l = np.stack([np.interp(radius, *lens_setup.irradiance_table(lens, float(radius.max()) * 1.0001, wl))
                         for wl in (wl_all if dispersive else wl_all[:1])], axis=1)
     irr = (mean_radiance * e_per_l).reshape(rows, cols, -1) * params.transmittance
-    n_w = float(pdata.f_number) * d_img / f_m
     clipped = 0.0
     if params.raytrace_diffraction:
         for b, wl in enumerate(wl_all):

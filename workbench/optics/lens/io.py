@@ -87,8 +87,9 @@ def library_lens_path(name: str) -> Path:
 
 
 def check_library_lens(name: str) -> None:
-    """Raise InputFileError unless `name` is a library lens that reads without error (cached per
-    file version), so that a project naming a missing or broken lens is refused when it loads."""
+    """Raise InputFileError unless `name` is a library lens that reads without error and forms a
+    real image (cached per file version), so that a project naming a missing, broken or
+    non-imaging lens is refused when it loads."""
     p = library_lens_path(name)
     st = p.stat()
     _checked_lens(str(p), st.st_mtime_ns, st.st_size)
@@ -96,7 +97,10 @@ def check_library_lens(name: str) -> None:
 
 @lru_cache(maxsize=64)
 def _checked_lens(path: str, _mtime_ns: int, _size: int) -> None:
-    load_lens(path)
+    from workbench.optics.lens.paraxial import imaging_problem
+    problem = imaging_problem(load_lens(path))
+    if problem is not None:
+        raise InputFileError(path, f"cannot image: {problem} (`workbench lens info` shows its first-order values)")
 
 
 def load_lens(path) -> Lens:
@@ -109,11 +113,17 @@ def load_lens(path) -> Lens:
         raise InputFileError(p, f"unknown lens file extension {ext!r}; allowed: {', '.join(LENS_READERS)}")
     name = p.name[: -len(p.suffix)]
     try:
-        return LENS_READERS.get(ext)(text, p, name)
+        lens = LENS_READERS.get(ext)(text, p, name)
     except InputFileError:
         raise
     except (ValueError, TypeError, KeyError, IndexError, OverflowError, ZeroDivisionError) as exc:
         raise InputFileError(p, f"not a valid lens: {exc}") from None
+    for i, s in enumerate(lens.surfaces):
+        if not s.reaches_its_aperture:
+            raise InputFileError(p, f"not a valid lens: surface {i}'s clear radius {s.semi_aperture_mm:g} mm lies "
+                                    f"beyond where the surface (radius {s.radius_mm:g} mm, conic {s.conic:g}) is "
+                                    "defined; a sphere's clear radius is at most |radius|")
+    return lens
 
 
 @LENS_READERS.register(".json")

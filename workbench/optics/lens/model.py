@@ -73,6 +73,12 @@ class Surface:
         return math.inf if self.curvature_per_mm == 0 else 1.0 / self.curvature_per_mm
 
     @property
+    def reaches_its_aperture(self) -> bool:
+        """Whether the conic is defined out to the clear radius ((1+k) c² r² ≤ 1: a sphere's clear
+        radius is at most |R|). The tracer copes either way (rays beyond miss); a lens file may not."""
+        return (1.0 + self.conic) * (self.curvature_per_mm * self.semi_aperture_mm) ** 2 <= 1.0 + 1e-9
+
+    @property
     def is_aspheric(self) -> bool:
         return any(a != 0 for a in self.asphere_coeffs)
 

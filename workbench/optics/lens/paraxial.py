@@ -104,6 +104,28 @@ def paraxial(lens: Lens, wavelength_nm: float = LINE_D_NM) -> ParaxialData:
                         exit_pupil_diameter_mm=xpd, total_track_mm=lens.total_track_mm, stop_index=k)
 
 
+MAX_FOCAL_LENGTH_MM = 1e5      # 100 m: a "lens" of less power is a window (a flat plate), not a lens
+
+
+def imaging_problem(lens: Lens) -> str | None:
+    """Why `lens` cannot form a real image of a distant object behind its last vertex (None when it
+    can): no power, negative power (a diverging lens), or a rear focal point inside the lens."""
+    try:
+        p = paraxial(lens)
+    except InvalidValueError as exc:
+        return str(exc)
+    if p.efl_mm <= 0:
+        return (f"its focal length is negative (EFL={p.efl_mm:.4g} mm): a diverging lens forms no real image; "
+                "check the signs of the radii (positive: centre of curvature behind the surface)")
+    if p.efl_mm > MAX_FOCAL_LENGTH_MM:
+        return (f"it has almost no power (EFL={p.efl_mm:.4g} mm, more than {MAX_FOCAL_LENGTH_MM:g} mm): "
+                "a window or flat plate, not a lens")
+    if p.bfl_mm <= 0:
+        return (f"its rear focal point lies inside the lens (BFL={p.bfl_mm:.4g} mm from the last vertex): "
+                "there is no room for a sensor")
+    return None
+
+
 def image_distance_mm(lens: Lens, object_distance_m: float, wavelength_nm: float = LINE_D_NM) -> float:
     """Paraxial distance (mm) from the last vertex to the image of an axial object
     `object_distance_m` in front of the first vertex (inf = infinity)."""
@@ -122,6 +144,16 @@ def image_distance_mm(lens: Lens, object_distance_m: float, wavelength_nm: float
     return s_img
 
 
+def lateral_magnification(lens: Lens, object_distance_m: float, wavelength_nm: float = LINE_D_NM) -> float:
+    """Paraxial lateral magnification (image height / object height, negative for an inverted
+    image) of an object `object_distance_m` in front of the first vertex onto its image (0 at
+    infinity)."""
+    if math.isinf(object_distance_m):
+        return 0.0
+    (A, _), (C, _) = system_matrix(lens, wavelength_nm).tolist()
+    return A + image_distance_mm(lens, object_distance_m, wavelength_nm) * C
+
+
 def focus(lens: Lens, object_distance_m: float, wavelength_nm: float = LINE_D_NM) -> Lens:
     """The lens with its sensor moved (paraxially) to focus an object `object_distance_m` in front of
     the first vertex; inf focuses at infinity. ValueError when it cannot focus that close."""
@@ -137,7 +169,7 @@ def sensor_distance_mm(lens: Lens) -> float:
         return lens.image_distance_mm
     bfl = paraxial(lens).bfl_mm
     if bfl <= 0:
-        raise InvalidValueError(f"lens {lens.name!r}: rear focal point lies inside the lens (BFL={bfl:.4g} mm)")
+        raise InvalidValueError(f"lens {lens.name!r}: {imaging_problem(lens)}")
     return bfl
 
 
