@@ -129,9 +129,9 @@ def test_night_lights_found_on_detailed_vehicles():
         heads = _vehicle_light_points(obj, "lens_clear")
         tails = _vehicle_light_points(obj, "lens_red")
         assert len(heads) == len(tails) == 2
-        for p, d in heads:
+        for p, d, _ in heads:
             assert d[0] > 0.99 and abs(p[0] - a.length_m / 2) < 0.1
-        for p, d in tails:
+        for p, d, _ in tails:
             assert d[0] < -0.99 and abs(p[0] + a.length_m / 2) < 0.1
 
 

@@ -53,8 +53,9 @@ FRAME_FORMAT = "camera-workbench-frame"
 FRAME_VERSION = 1
 # Night frames only: 2 since the street lamps shine from under their heads (issue 33; they sat 0.13 m
 # up, inside the pavement, before); 3 since head-lights are low beams (render/low_beam.py) instead of a
-# symmetric cone. A separate tag, so day sets keep their fingerprints and results.
-NIGHT_LIGHTS_VERSION = 3
+# symmetric cone; 4 since vehicle lights are seen glowing (render/lamp_heads.vehicle_light_faces). A
+# separate tag, so day sets keep their fingerprints and results.
+NIGHT_LIGHTS_VERSION = 4
 # Frames of a city with a tunnel only: 1 since a black sheet under its floor stops rays falling
 # through the kerb lines (scene_builder.tunnel_underlays) and, by day, it renders without Russian
 # roulette (render/portal_guide.roulette_depth) and with its clear coats regularized for rays not

@@ -15,8 +15,11 @@ along the ray J̄(θ) by elevation (upward_airlight: forward-peaked droplet scat
 seen upward much brighter than seen level). What it leaves out, and the volumetric model keeps:
 J's change with azimuth within the view (sun glow), the fog's diffuse light on objects (the
 clear sky stands in for it), objects' own shadow on the fog before them, shadowed fog between
-buildings, lamp halos at night (the night source is the sky glow's alone), and pixels whose
-footprint spans several depths (the pixel-centre ray's d is used). On the render bench's city
+buildings, lamp halos at night (the night source is the sky glow's alone), the fog's dimming of
+a lamp's light on its way to a surface (only the sun is dimmed: at V = 50 m a floor 8.5 m from a
+street lamp keeps 0.93 of its clear-air light here, 0.88 in the volumetric model at albedo 0.98,
+0.64 at albedo 0.5; night fog studies want 'volumetric'), and pixels whose footprint spans
+several depths (the pixel-centre ray's d is used). On the render bench's city
 view (V = 150 m, a 60 m layer, sun 45°) it comes within a few % of the volumetric reference in
 the frame mean (objects and sky separately), at ~10⁻³ of its cost (`workbench bench render`).
 """

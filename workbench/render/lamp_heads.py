@@ -1,4 +1,4 @@
-"""The glowing faces of street-lamp heads at night: seen, never sampled.
+"""The glowing faces of street-lamp heads and vehicle lights at night: seen, never sampled.
 
 A street lamp lights the scene through its point emitter (lamps.street_lamp_emitter: intensity
 I(λ) = Φ/(2π) W/sr/nm over the lower hemisphere), which a camera cannot see: alone, a lamp at
@@ -17,6 +17,12 @@ p_bsdf² / (p_bsdf² + p_light²), is 0. What remains is a camera ray's first hi
 specular (delta) bounces, whose weight is 1: the face in a puddle's or a window's mirror image,
 light the point emitter cannot give (a delta BSDF never meets a point). Mitsuba's `path` and
 `volpath` integrators weigh emitter hits this way.
+
+Vehicle head- and tail-lights are `spot` emitters (lamps.vehicle_lights), as invisible as the
+lamps' points. Each gets a face the same way (vehicle_light_face_shape): upright over its lens,
+facing the beam, its radiance the spot's own intensity toward the viewer, I(λ, ω)/(A cos θ), read
+from the spot itself (beam, cut-off and low-beam pattern); without it the tail-light of a car
+ahead read 0.02 cd/m² for the ~170 cd/m² of a lens that sheds 10 cd.
 """
 from __future__ import annotations
 
@@ -28,10 +34,11 @@ from workbench.errors import InvalidValueError
 
 PLUGIN = "lamp_face"
 FACE_BELOW_LENS_M = 0.002          # under the lens mesh, above the point emitter (2 cm below the head)
+FACE_AHEAD_OF_LENS_M = 0.002      # a vehicle light's face: just ahead of its lens box, behind its spot (2 cm)
 FACE_SAMPLING_WEIGHT = 1e-30       # never picked for next-event estimation; > 0 so that its selection
                                    # probability times the infinite density is ∞ (MIS weight 0), not NaN
 _REGISTERED: set[str] = set()
-_INTENSITIES: dict[str, object] = {}   # spectrum key → loaded Mitsuba spectrum (one per lamp kind and flux)
+_INTENSITIES: dict[str, object] = {}   # key → a loaded spectrum (per lamp kind and flux) or spot (vehicle lights)
 MAX_INTENSITIES = 64
 
 
@@ -49,20 +56,35 @@ def _register() -> None:
         def __init__(self, props):
             mi.Emitter.__init__(self, props)
             self.m_flags = mi.EmitterFlags.Surface
-            self.intensity = _INTENSITIES[props["intensity"]]      # a spectrum texture, W/sr/nm
             self.area_m2 = float(props["area_m2"])
             self.min_cos = float(props["min_cos"])
             self.lamp = int(props["lamp"])         # which lamp (also keeps equal faces' dicts distinct)
+            if "pattern" in props:                 # a spot's I(λ, ω), in the light's own frame
+                self.intensity, self.pattern = None, _INTENSITIES[props["pattern"]]
+                self.light_frame = [mi.ScalarVector3f(*props[f"light_{a}"]) for a in ("x", "y", "z")]
+                self.light_origin = mi.ScalarPoint3f(*props["light_origin"])
+            else:                                  # I(λ) alike in every direction inside the cut-off
+                self.intensity, self.pattern = _INTENSITIES[props["intensity"]], None      # W/sr/nm
 
-        def _radiance(self, wavelengths, cos_e, active):
-            si = dr.zeros(mi.SurfaceInteraction3f)
-            si.wavelengths = wavelengths
-            ok = active & (cos_e >= self.min_cos)
-            value = self.intensity.eval(si, ok) / (self.area_m2 * dr.maximum(cos_e, self.min_cos))
-            return dr.select(ok, value, 0.0)
+        def _intensity(self, si, active):
+            if self.pattern is None:
+                return self.intensity.eval(si, active)
+            # toward the viewer (the ray's origin) as seen from the spot, not from this point of
+            # the face: a pixel then holds I(ω) whatever the lens's size against its distance
+            viewer = si.p + si.to_world(si.wi) * si.t
+            local = dr.normalize(mi.Vector3f(*(dr.dot(viewer - self.light_origin, axis) for axis in self.light_frame)))
+            it = dr.zeros(mi.Interaction3f)
+            it.p, it.wavelengths = mi.Point3f(local), si.wavelengths
+            ds = dr.zeros(mi.DirectionSample3f)
+            ds.d, ds.dist = -local, 1.0                          # the spot sits at its frame's origin
+            return self.pattern.eval_direction(it, ds, active)
 
         def eval(self, si, active=True):
-            return self._radiance(si.wavelengths, mi.Frame3f.cos_theta(si.wi), active)
+            cos_e = mi.Frame3f.cos_theta(si.wi)
+            ok = active & (cos_e >= self.min_cos)
+            value = self._intensity(si, ok) / (
+                self.area_m2 * dr.maximum(cos_e, self.min_cos))
+            return dr.select(ok, value, 0.0)
 
         def sample_direction(self, it, sample, active=True):
             ds = dr.zeros(mi.DirectionSample3f)
@@ -115,10 +137,7 @@ def lamp_face_shape(lens_vertices_m: np.ndarray, intensity_spectrum: dict, cutof
         raise InvalidValueError(f"cutoff_deg must be in (0, 90), got {cutoff_deg}")
     centre, axis, (a, b) = lens_rectangle(lens_vertices_m)
     key = hashlib.sha1(repr(intensity_spectrum).encode()).hexdigest()
-    if key not in _INTENSITIES:
-        _INTENSITIES[key] = mi.load_dict(intensity_spectrum)
-        while len(_INTENSITIES) > MAX_INTENSITIES:               # the oldest first
-            _INTENSITIES.pop(next(iter(_INTENSITIES)))
+    _loaded(key, intensity_spectrum)
     _register()
     angle = float(np.degrees(np.arctan2(axis[1], axis[0])))
     to_world = (mi.ScalarTransform4f().translate((centre - [0.0, 0.0, FACE_BELOW_LENS_M]).tolist())
@@ -128,6 +147,57 @@ def lamp_face_shape(lens_vertices_m: np.ndarray, intensity_spectrum: dict, cutof
                "lamp": int(lamp)}
     black = {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 0.0}}
     return {"type": "rectangle", "to_world": to_world, "emitter": emitter, "bsdf": black}
+
+
+def _loaded(key: str, spectrum_or_emitter: dict) -> None:
+    import mitsuba as mi
+    if key not in _INTENSITIES:
+        _INTENSITIES[key] = mi.load_dict(spectrum_or_emitter)
+        while len(_INTENSITIES) > MAX_INTENSITIES:               # the oldest first
+            _INTENSITIES.pop(next(iter(_INTENSITIES)))
+
+
+def vehicle_light_face_shape(lens_vertices_m: np.ndarray, spot: dict, light: int = 0) -> dict:
+    """Mitsuba shape dict of the face of a vehicle light whose lens is the box `lens_vertices_m`
+    and whose light is the spot dict `spot` (lamps.spot_emitter or headlight_emitter): an upright
+    rectangle over the lens's front, FACE_AHEAD_OF_LENS_M ahead of it and facing the spot's axis,
+    with a `lamp_face` emitter of radiance I(λ, ω)/(A cos θ), I the spot's own intensity toward the
+    viewer ω (its beam, cut-off and head-light pattern), so that the lamp seen from anywhere holds
+    the intensity it sheds there. `light` numbers the face (see lamp_face_shape)."""
+    import mitsuba as mi
+
+    from workbench.render.spot_pattern import frame
+    origin, left, up, axis = frame(spot)
+    if abs(axis[2]) > 1e-6:
+        raise InvalidValueError(f"a vehicle light's axis must be horizontal, got {axis.tolist()}")
+    v = np.asarray(lens_vertices_m, dtype=np.float64)
+    side = np.array([-axis[1], axis[0], 0.0])
+    s, z, f = v @ side, v[:, 2], v @ axis
+    a, b = np.ptp(s) / 2, np.ptp(z) / 2
+    if not (a > 0 and b > 0):
+        raise InvalidValueError("a vehicle light's lens has no area facing its axis")
+    centre = side * (s.min() + a) + np.array([0.0, 0.0, z.min() + b]) + axis * (f.max() + FACE_AHEAD_OF_LENS_M)
+    unit = {k: v for k, v in spot.items() if k not in ("to_world", "sampling_weight")}
+    key = "spot:" + hashlib.sha1(repr(sorted((k, repr(v)) for k, v in unit.items())).encode()).hexdigest()
+    _loaded(key, unit)                 # the same spot at the origin, along +z: one per kind and intensity
+    _register()
+    to_world = (mi.ScalarTransform4f().look_at(origin=centre.tolist(), target=(centre + axis).tolist(),
+                                               up=[0.0, 0.0, 1.0]).scale([a, b, 1.0]))
+    cutoff = float(spot["cutoff_angle"])
+    emitter = {"type": PLUGIN, "pattern": key, "area_m2": 4 * a * b, "lamp": int(light),
+               "light_x": left.tolist(), "light_y": up.tolist(), "light_z": axis.tolist(),
+               "light_origin": origin.tolist(),
+               "min_cos": float(np.cos(np.radians(min(cutoff, 89.9)))), "sampling_weight": FACE_SAMPLING_WEIGHT}
+    black = {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 0.0}}
+    return {"type": "rectangle", "to_world": to_world, "emitter": emitter, "bsdf": black}
+
+
+def vehicle_light_faces(city, night) -> dict[str, tuple[object, dict]]:
+    """The faces of the moving vehicles' head- and tail-lights (vehicle_light_face_shape on each
+    light of lamps.vehicle_lights): {shape id: (vehicle object, shape dict)}."""
+    from workbench.render.lamps import vehicle_lights
+    return {f"face_{k}": (obj, vehicle_light_face_shape(lens, spot, i))
+            for i, (k, (obj, lens, spot)) in enumerate(vehicle_lights(city, night).items())}
 
 
 def lamp_faces(city, night) -> dict[str, tuple[int, dict]]:

@@ -180,9 +180,9 @@ def _lamp_head_points(city) -> list[np.ndarray]:
     return points
 
 
-def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(position, outward horizontal direction) of the left and right lamps of a vehicle made of
-    the `material` mesh (two lamp boxes, split across the vehicle's width)."""
+def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(position, outward horizontal direction, lens vertices) of the left and right lamps of a
+    vehicle made of the `material` mesh (two lamp boxes, split across the vehicle's width)."""
     lenses = [m.vertices for m in obj.meshes if m.material == material]
     if not lenses:
         return []
@@ -202,8 +202,27 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
             front = ((p - centre) @ out).max()
             pos = (lo + hi) / 2
             pos = pos + out * (front - (pos - centre) @ out + 0.02)      # 2 cm in front of the lens
-            result.append((pos, out))
+            result.append((pos, out, p))
     return result
+
+
+def vehicle_lights(city, night) -> dict[str, tuple[object, np.ndarray, dict]]:
+    """The head- and tail-lights of the city's moving vehicles under NightParams `night` (none
+    when night.vehicle_lights is off): {emitter id: (vehicle object, lens vertices, spot dict)}."""
+    out = {}
+    if not night.vehicle_lights:
+        return out
+    for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES and not o.meta.get("parked")):
+        for j, (p, d, lens) in enumerate(_vehicle_light_points(obj, "lens_clear")):
+            out[f"headlight_{obj.instance_id}_{j}"] = (obj, lens, headlight_emitter(p, d, night.headlight_kind,
+                                                                                    night.headlight_cd))
+        for j, (p, d, lens) in enumerate(_vehicle_light_points(obj, "lens_red")):
+            out[f"taillight_{obj.instance_id}_{j}"] = (obj, lens, spot_emitter(
+                p, d, "led_red", night.taillight_cd, cutoff_deg=TAILLIGHT_CUTOFF_DEG, beam_deg=TAILLIGHT_BEAM_DEG))
+    return out
+
+
+TAILLIGHT_CUTOFF_DEG, TAILLIGHT_BEAM_DEG = 60.0, 20.0
 
 
 def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None,
@@ -245,14 +264,7 @@ def night_emitters(city, night) -> dict:
     out = {}
     for i, p in enumerate(_lamp_head_points(city)):
         out[f"street_lamp_{i}"] = street_lamp_emitter(p, night.lamp_kind, night.lamp_flux_lm)
-    if night.vehicle_lights:
-        for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES and not o.meta.get("parked")):
-            for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_clear")):
-                out[f"headlight_{obj.instance_id}_{j}"] = headlight_emitter(p, d, night.headlight_kind,
-                                                                            night.headlight_cd)
-            for j, (p, d) in enumerate(_vehicle_light_points(obj, "lens_red")):
-                out[f"taillight_{obj.instance_id}_{j}"] = spot_emitter(
-                    p, d, "led_red", night.taillight_cd, cutoff_deg=60.0, beam_deg=20.0)
+    out.update({k: spot for k, (_, _, spot) in vehicle_lights(city, night).items()})
     if night.light_selection == "shading" and out:
         from workbench.render.lamp_set import lamp_set_emitter
         out = {LAMP_SET_ID: lamp_set_emitter(out)}

@@ -20,7 +20,7 @@ from workbench.render.coat_regularization import REGULARIZED_ALPHA, camera_sharp
 from workbench.render.sky import daylight_emitters
 from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
-from workbench.render.lamp_heads import lamp_faces
+from workbench.render.lamp_heads import lamp_faces, vehicle_light_faces
 from workbench.render.lamp_set_cache import cache_candidates
 from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
 from workbench.render.portal_guide import guide_toward_portals, roulette_depth, tunnel_portals
@@ -247,7 +247,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
         film and sampler are supplied here. Otherwise a pinhole with horizontal `fov_deg`.
     world: lighting (day: `daylight`; night: lamps.night_emitters, with light_selection 'view'
         the lights' sampling weights set for this camera: lamps.set_view_light_weights, and the
-        street lamps' glowing faces, seen but never sampled: lamp_heads.lamp_faces; a
+        street lamps' and vehicle lights' glowing faces, seen but never sampled: lamp_heads.lamp_faces
+        and vehicle_light_faces, labelled as their lamp or vehicle; a
         tunnel's glowing luminaire lenses either way: lamps.tunnel_emitters; by day the surfaces
         inside a tunnel send part of their samples toward its portals: portal_guide.py), fog (fog.py: with model
         'volumetric' a medium box whose id maps to None in the id table = background; with
@@ -280,6 +281,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     if sun_shares:
         lights.pop("sun")
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
+    light_faces = vehicle_light_faces(city, world.night) if night else {}      # and vehicle lights
     # there Russian roulette's boost of a dim path meets the sunlit street: none (portal_guide.roulette_depth)
     rr_depth = roulette_depth(portals, max_depth)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth), "rr_depth": rr_depth},
@@ -337,6 +339,9 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     for sid, (instance_id, shape) in faces.items():
         scene[sid] = shape if medium is None else {**shape, "exterior": medium}
         id_table[sid] = ShapeLabel("lamp", int(instance_id))
+    for sid, (obj, shape) in light_faces.items():
+        scene[sid] = shape if medium is None else {**shape, "exterior": medium}
+        id_table[sid] = ShapeLabel(obj.class_name, int(obj.instance_id))
     for sid, shape in tunnel_underlays(city).items():
         scene[sid] = shape if medium is None else {**shape, "exterior": medium}
         id_table[sid] = None
