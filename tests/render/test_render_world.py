@@ -64,6 +64,35 @@ def test_lamp_illuminance_follows_flux_and_inverse_square(mi, kind):
         assert e_v.mean() == pytest.approx(want, rel=0.02), kind
 
 
+def _floor_luminance(mi, emitters: dict, height_m: float, spp: int) -> tuple[float, float]:
+    """Mean V-weighted luminance (cd/m²) of a white Lambertian floor seen from straight above, and its SEM."""
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 1.0, "film": _v_film(mi, 32, 24),
+                   "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, height_m], target=[0, 0, 0],
+                                                              up=[0, 1, 0]),
+                   "sampler": {"type": "independent"}},
+        "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(1000.0),
+                   "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": FLAT}}},
+        **emitters})
+    lv = 683.0 * np.array(mi.render(scene, spp=spp, seed=5), dtype=np.float64)[..., 0]
+    return lv.mean(), lv.std() / np.sqrt(lv.size)
+
+
+def test_tail_light_and_sky_glow_follow_their_closed_forms(mi):
+    """A tail-light's E = I / r² on a floor facing it (10 cd from 10 m: 0.1 lx) and the night sky
+    glow's luminance on a white floor under it (L = E/π = L_sky)."""
+    from workbench.render.lamps import spot_emitter
+    spot = spot_emitter([0.0, 0.0, 10.0], [0.0, 0.0, -1.0], "led_red", 10.0, cutoff_deg=60.0, beam_deg=20.0)
+    lv, sem = _floor_luminance(mi, {"tail": spot}, 10.0, 1024)     # a 18-nm line: V-sampled λ rarely meet it
+    assert 4 * sem < 0.01 * lv
+    assert np.pi * lv == pytest.approx(10.0 / 10.0 ** 2, rel=0.02)
+    sky = night_emitters(type("NoCity", (), {"objects": []})(), NightParams(sky_luminance_cd_m2=0.02))
+    lv, sem = _floor_luminance(mi, {"sky": sky["sky"]}, 1.0, 64)
+    assert 4 * sem < 0.01 * lv
+    assert lv == pytest.approx(0.02, rel=0.02)
+
+
 def test_fog_transmittance(mi):
     fog = FogParams(visibility_m=60.0, albedo=0.0)
     sigma = extinction_per_m(fog.visibility_m)
