@@ -46,26 +46,16 @@ def test_lamp_spectra_are_positive_and_calibrated():
 @pytest.mark.parametrize("kind", LAMP_KINDS)
 def test_lamp_illuminance_follows_flux_and_inverse_square(mi, kind):
     for d in (1.0, 10.0):
-        scene = mi.load_dict({
-            "type": "scene", "integrator": {"type": "path", "max_depth": 2},
-            "sensor": {"type": "perspective", "fov": 1.0, "film": _v_film(mi, 32, 24),
-                       "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, d], target=[0, 0, 0],
-                                                                  up=[0, 1, 0]),
-                       "sampler": {"type": "independent"}},
-            "lamp": street_lamp_emitter([0.0, 0.0, d], kind),
-            "ground": {"type": "rectangle", "to_world": mi.ScalarTransform4f().scale(100.0),
-                       "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": FLAT}}}})
         spp = 4096 if kind == "lps" else 1024          # a 1-nm line is rarely hit by V(λ)-sampled λ
-        img = np.array(mi.render(scene, spp=spp, seed=7), dtype=np.float64)[..., 0]
-        e_v = np.pi * 683.0 * img                               # white Lambertian: E = π L
-        sem = e_v.std() / np.sqrt(e_v.size)
+        lv, sem = _floor_luminance(mi, {"lamp": street_lamp_emitter([0.0, 0.0, d], kind)}, d, spp)
         want = RATED_FLUX_LM[kind] / (2 * np.pi * d ** 2)        # full cut-off: Φ over 2π sr
-        assert 4 * sem < 0.01 * want, f"{kind} {d} m: the test is too noisy ({sem / want:.2%})"
-        assert e_v.mean() == pytest.approx(want, rel=0.02), kind
+        assert 4 * np.pi * sem < 0.01 * want, f"{kind} {d} m: the test is too noisy ({np.pi * sem / want:.2%})"
+        assert np.pi * lv == pytest.approx(want, rel=0.02), kind          # white Lambertian: E = π L
 
 
 def _floor_luminance(mi, emitters: dict, height_m: float, spp: int) -> tuple[float, float]:
-    """Mean V-weighted luminance (cd/m²) of a white Lambertian floor seen from straight above, and its SEM."""
+    """Mean V-weighted luminance (cd/m²) of a white Lambertian floor seen from height_m straight
+    above (direct light only), and its standard error."""
     scene = mi.load_dict({
         "type": "scene", "integrator": {"type": "path", "max_depth": 2},
         "sensor": {"type": "perspective", "fov": 1.0, "film": _v_film(mi, 32, 24),
