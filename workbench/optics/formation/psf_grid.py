@@ -108,8 +108,9 @@ def lens_tables(lens, object_distance_m: float, image_distance: float, r_max_m: 
                 nodes_nm: tuple[float, ...]) -> dict:
     """Traced geometry of a focused lens, cached: 'ru'/'rd' (per wavelength node): pinhole
     height → real chief-ray height (m); 'heights', 'e': irradiance per radiance against height.
-    The pinhole sits at the entrance pupil; a traced field angle is seen from the first vertex,
-    `object_distance_m` from the object (so a finite object's angle is widened to the same point)."""
+    The pinhole sits at the entrance pupil, but a traced field angle is measured at the first
+    vertex, `object_distance_m` from the object: each angle is widened so that both aim at the
+    same object point."""
     from workbench.optics.lens import chief_ray_on_sensor, paraxial
     ru_table = np.linspace(0.0, max(r_max_m * 1.3, 0.02 * image_distance), 25)
     vertex_tan = 1.0 if math.isinf(object_distance_m) else \
