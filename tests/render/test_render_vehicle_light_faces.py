@@ -40,7 +40,7 @@ def _scene(mi, spot: dict, face: bool, origin, target, fov_deg: float, n: int, u
                         "bsdf": {"type": "diffuse", "reflectance": {"type": "spectrum", "value": 1.0}}},
              "spot": spot}
     if face:
-        scene["face"] = vehicle_light_face_shape(LENS, spot, 0)
+        scene["face"] = vehicle_light_face_shape(LENS, spot, "test:" + ("head" if "texture" in spot else "tail"), 0)
     return scene
 
 

@@ -157,13 +157,15 @@ def _loaded(key: str, spectrum_or_emitter: dict) -> None:
             _INTENSITIES.pop(next(iter(_INTENSITIES)))
 
 
-def vehicle_light_face_shape(lens_vertices_m: np.ndarray, spot: dict, light: int = 0) -> dict:
+def vehicle_light_face_shape(lens_vertices_m: np.ndarray, spot: dict, pattern_key: str, light: int = 0) -> dict:
     """Mitsuba shape dict of the face of a vehicle light whose lens is the box `lens_vertices_m`
     and whose light is the spot dict `spot` (lamps.spot_emitter or headlight_emitter): an upright
     rectangle over the lens's front, FACE_AHEAD_OF_LENS_M ahead of it and facing the spot's axis,
     with a `lamp_face` emitter of radiance I(λ, ω)/(A cos θ), I the spot's own intensity toward the
     viewer ω (its beam, cut-off and head-light pattern), so that the lamp seen from anywhere holds
-    the intensity it sheds there. `light` numbers the face (see lamp_face_shape)."""
+    the intensity it sheds there. `pattern_key` names the spot's intensity and pattern (equal for
+    spots that differ only in pose: one is loaded for all); `light` numbers the face (see
+    lamp_face_shape)."""
     import mitsuba as mi
 
     from workbench.render.spot_pattern import frame
@@ -177,9 +179,8 @@ def vehicle_light_face_shape(lens_vertices_m: np.ndarray, spot: dict, light: int
     if not (a > 0 and b > 0):
         raise InvalidValueError("a vehicle light's lens has no area facing its axis")
     centre = side * (s.min() + a) + np.array([0.0, 0.0, z.min() + b]) + axis * (f.max() + FACE_AHEAD_OF_LENS_M)
-    unit = {k: v for k, v in spot.items() if k not in ("to_world", "sampling_weight")}
-    key = "spot:" + hashlib.sha1(repr(sorted((k, repr(v)) for k, v in unit.items())).encode()).hexdigest()
-    _loaded(key, unit)                 # the same spot at the origin, along +z: one per kind and intensity
+    key = "spot:" + pattern_key        # the same spot at the origin, along +z: one per kind and intensity
+    _loaded(key, {k: v for k, v in spot.items() if k not in ("to_world", "sampling_weight")})
     _register()
     to_world = (mi.ScalarTransform4f().look_at(origin=centre.tolist(), target=(centre + axis).tolist(),
                                                up=[0.0, 0.0, 1.0]).scale([a, b, 1.0]))
@@ -192,12 +193,11 @@ def vehicle_light_face_shape(lens_vertices_m: np.ndarray, spot: dict, light: int
     return {"type": "rectangle", "to_world": to_world, "emitter": emitter, "bsdf": black}
 
 
-def vehicle_light_faces(city, night) -> dict[str, tuple[object, dict]]:
+def vehicle_light_faces(vehicles: dict) -> dict[str, tuple[object, dict]]:
     """The faces of the moving vehicles' head- and tail-lights (vehicle_light_face_shape on each
-    light of lamps.vehicle_lights): {shape id: (vehicle object, shape dict)}."""
-    from workbench.render.lamps import vehicle_lights
-    return {f"face_{k}": (obj, vehicle_light_face_shape(lens, spot, i))
-            for i, (k, (obj, lens, spot)) in enumerate(vehicle_lights(city, night).items())}
+    light of lamps.vehicle_lights' `vehicles`): {shape id: (vehicle object, shape dict)}."""
+    return {f"face_{k}": (obj, vehicle_light_face_shape(lens, spot, key, i))
+            for i, (k, (obj, lens, spot, key)) in enumerate(vehicles.items())}
 
 
 def lamp_faces(city, night) -> dict[str, tuple[int, dict]]:

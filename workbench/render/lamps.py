@@ -206,19 +206,23 @@ def _vehicle_light_points(obj, material: str) -> list[tuple[np.ndarray, np.ndarr
     return result
 
 
-def vehicle_lights(city, night) -> dict[str, tuple[object, np.ndarray, dict]]:
+def vehicle_lights(city, night) -> dict[str, tuple[object, np.ndarray, dict, str]]:
     """The head- and tail-lights of the city's moving vehicles under NightParams `night` (none
-    when night.vehicle_lights is off): {emitter id: (vehicle object, lens vertices, spot dict)}."""
+    when night.vehicle_lights is off): {emitter id: (vehicle object, lens vertices, spot dict,
+    pattern key)}; lights of one pattern key differ only in where they sit and point."""
     out = {}
     if not night.vehicle_lights:
         return out
+    head_key = f"headlight:{night.headlight_kind}:{night.headlight_cd!r}"
+    tail_key = f"taillight:led_red:{night.taillight_cd!r}:{TAILLIGHT_CUTOFF_DEG}:{TAILLIGHT_BEAM_DEG}"
     for obj in (o for o in city.objects if o.class_name in VEHICLE_CLASSES and not o.meta.get("parked")):
         for j, (p, d, lens) in enumerate(_vehicle_light_points(obj, "lens_clear")):
-            out[f"headlight_{obj.instance_id}_{j}"] = (obj, lens, headlight_emitter(p, d, night.headlight_kind,
-                                                                                    night.headlight_cd))
+            out[f"headlight_{obj.instance_id}_{j}"] = (obj, lens, headlight_emitter(
+                p, d, night.headlight_kind, night.headlight_cd), head_key)
         for j, (p, d, lens) in enumerate(_vehicle_light_points(obj, "lens_red")):
             out[f"taillight_{obj.instance_id}_{j}"] = (obj, lens, spot_emitter(
-                p, d, "led_red", night.taillight_cd, cutoff_deg=TAILLIGHT_CUTOFF_DEG, beam_deg=TAILLIGHT_BEAM_DEG))
+                p, d, "led_red", night.taillight_cd, cutoff_deg=TAILLIGHT_CUTOFF_DEG, beam_deg=TAILLIGHT_BEAM_DEG),
+                tail_key)
     return out
 
 
@@ -255,16 +259,18 @@ def tunnel_emitters(city, sampling_weight: float | None = None, exterior=None,
     return out
 
 
-def night_emitters(city, night) -> dict:
+def night_emitters(city, night, vehicles: dict | None = None) -> dict:
     """Mitsuba emitters of a night scene (NightParams): street lamps, vehicle lights (not of parked
-    cars), sky glow. With night.light_selection 'shading' the lamps and vehicle lights are one
-    emitter, LAMP_SET_ID (render/lamp_set.py), weighing their summed weights."""
+    cars; `vehicles`: vehicle_lights(city, night) when the caller has it already), sky glow. With
+    night.light_selection 'shading' the lamps and vehicle lights are one emitter, LAMP_SET_ID
+    (render/lamp_set.py), weighing their summed weights."""
     from workbench.render.daylight import DAYLIGHT_WAVELENGTHS_NM
 
     out = {}
     for i, p in enumerate(_lamp_head_points(city)):
         out[f"street_lamp_{i}"] = street_lamp_emitter(p, night.lamp_kind, night.lamp_flux_lm)
-    out.update({k: spot for k, (_, _, spot) in vehicle_lights(city, night).items()})
+    vehicles = vehicle_lights(city, night) if vehicles is None else vehicles
+    out.update({k: spot for k, (_, _, spot, _) in vehicles.items()})
     if night.light_selection == "shading" and out:
         from workbench.render.lamp_set import lamp_set_emitter
         out = {LAMP_SET_ID: lamp_set_emitter(out)}

@@ -22,7 +22,7 @@ from workbench.render.film import FilmSRFs
 from workbench.render.fog import FOG_BOX_ID, check_camera_inside, fog_box, fog_medium, sun_through_layer
 from workbench.render.lamp_heads import lamp_faces, vehicle_light_faces
 from workbench.render.lamp_set_cache import cache_candidates
-from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters
+from workbench.render.lamps import night_emitters, set_view_light_weights, tunnel_emitters, vehicle_lights
 from workbench.render.portal_guide import guide_toward_portals, roulette_depth, tunnel_portals
 from workbench.render.tunnel_sun_share import row_sun_shares
 from workbench.render.params import DaylightParams, WorldParams
@@ -273,7 +273,8 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     if world.fog is not None and world.fog.model == "koschmieder":
         daylight = sun_through_layer(daylight, world.fog)
     night = world.lighting == "night"
-    lights = night_emitters(city, world.night) if night else daylight_emitters(daylight)
+    vehicles = vehicle_lights(city, world.night) if night else {}
+    lights = night_emitters(city, world.night, vehicles) if night else daylight_emitters(daylight)
     # by day a tunnel's light comes in through its portals: its surfaces aim part of their samples there
     portals = [] if night else tunnel_portals(city, daylight)
     # and its luminaire row carries the sun, each picked where it can shine (tunnel_sun_share.py)
@@ -281,7 +282,7 @@ def build_scene(city: City, pose: CameraPose, fov_deg: float, width: int, height
     if sun_shares:
         lights.pop("sun")
     faces = lamp_faces(city, world.night) if night else {}      # lamp heads seen glowing (lamp_heads.py)
-    light_faces = vehicle_light_faces(city, world.night) if night else {}      # and vehicle lights
+    light_faces = vehicle_light_faces(vehicles)                  # and vehicle lights
     # there Russian roulette's boost of a dim path meets the sunlit street: none (portal_guide.roulette_depth)
     rr_depth = roulette_depth(portals, max_depth)
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": int(max_depth), "rr_depth": rr_depth},
